@@ -1,0 +1,17 @@
+"""anisosample: optimized and aligned anisotropic sampling patterns (Werner et al.) and product
+sampling by fitting and composing warps (Hart et al.), as pure JAX functions.
+
+The public API is this list of modules; see ``docs/`` for a guide.
+"""
+
+from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
+from importlib.metadata import version as _version
+
+from . import io as io
+from . import samplers as samplers
+from . import spectrum as spectrum
+
+try:
+    __version__ = _version("anisosample")
+except _PackageNotFoundError:  # a source tree that was not installed
+    __version__ = "0+unknown"

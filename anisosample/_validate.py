@@ -1,0 +1,125 @@
+"""Validation at the Python boundary, before tracing (the first tier of DESIGN's errors).
+
+Every public function checks its arguments with these helpers so that messages read the same
+everywhere: they name the parameter, what is allowed and what came.
+"""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Sequence
+
+import jax
+import numpy as np
+
+ONE_MINUS_EPSILON = np.float32(1.0 - 2.0**-24)
+"""Largest float32 below 1 (pbrt-v4's ``OneMinusEpsilon``): points are clamped to it."""
+
+
+def check_int(name: str, value, *, minimum: int | None = None, maximum: int | None = None) -> int:
+    """Return ``value`` as a Python int, or raise naming ``name`` and the allowed range."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral | np.integer):
+        if isinstance(value, float | np.floating) and float(value).is_integer():
+            raise TypeError(f"{name} must be an integer, got the float {value!r}")
+        raise TypeError(f"{name} must be an integer, got {type(value).__name__} {value!r}")
+    value = int(value)
+    if minimum is not None and value < minimum:
+        raise ValueError(f"{name} must be >= {minimum}, got {value}")
+    if maximum is not None and value > maximum:
+        raise ValueError(f"{name} must be <= {maximum}, got {value}")
+    return value
+
+
+def check_positive_float(name: str, value, *, allow_zero: bool = False) -> float:
+    """Return ``value`` as a finite float > 0 (or >= 0), or raise naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real | np.floating | np.integer):
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__} {value!r}")
+    value = float(value)
+    if not np.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{name} must be finite and {bound}, got {value}")
+    return value
+
+
+def check_key(name: str, key) -> jax.Array:
+    """A JAX PRNG key: a typed key (``jax.random.key``) or a raw uint32 ``(2,)`` key."""
+    if isinstance(key, jax.Array):
+        if jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key) and key.shape == ():
+            return key
+        if key.dtype == np.uint32 and key.shape == (2,):
+            return key
+    raise TypeError(
+        f"{name} must be a single JAX PRNG key (jax.random.key(seed) or jax.random.PRNGKey(seed)),"
+        f" got {type(key).__name__}"
+        + (f" of shape {key.shape} and dtype {key.dtype}" if hasattr(key, "shape") else "")
+    )
+
+
+def check_points(name: str, points, *, check_range: bool = True) -> np.ndarray | jax.Array:
+    """A point set of shape ``(n, 2)``, finite, in ``[0, 1)^2``.
+
+    Arrays that are being traced are only shape-checked; concrete arrays are also range-checked.
+    """
+    shape = getattr(points, "shape", None)
+    if shape is None:
+        points = np.asarray(points)
+        shape = points.shape
+    if len(shape) != 2 or shape[1] != 2 or shape[0] < 1:
+        raise ValueError(f"{name} must have shape (n, 2) with n >= 1, got shape {tuple(shape)}")
+    if not np.issubdtype(np.dtype(points.dtype), np.floating):
+        raise TypeError(f"{name} must be a floating-point array, got dtype {points.dtype}")
+    if check_range and not isinstance(points, jax.core.Tracer):
+        p = np.asarray(points)
+        if not np.all(np.isfinite(p)):
+            raise ValueError(f"{name} contains NaN or Inf")
+        if p.min() < 0.0 or p.max() >= 1.0:
+            raise ValueError(
+                f"{name} must lie in [0, 1)^2, got values in [{p.min()}, {p.max()}]"
+            )
+    return points
+
+
+def check_frequencies(name: str, freqs) -> np.ndarray | jax.Array:
+    """Integer frequency vectors of shape ``(m, 2)``; float arrays must hold integers."""
+    shape = getattr(freqs, "shape", None)
+    if shape is None:
+        freqs = np.asarray(freqs)
+        shape = freqs.shape
+    if len(shape) != 2 or shape[1] != 2:
+        raise ValueError(f"{name} must have shape (m, 2), got shape {tuple(shape)}")
+    if shape[0] == 0:
+        raise ValueError(f"{name} must hold at least one frequency, got an empty array")
+    dtype = np.dtype(freqs.dtype)
+    if np.issubdtype(dtype, np.integer):
+        return freqs
+    if np.issubdtype(dtype, np.floating) and not isinstance(freqs, jax.core.Tracer):
+        f = np.asarray(freqs)
+        if np.all(np.isfinite(f)) and np.all(f == np.round(f)):
+            return f.astype(np.int32)
+    raise ValueError(f"{name} must hold integer frequency vectors, got dtype {dtype}")
+
+
+def check_directions_deg(
+    name: str, directions_deg, *, integer: bool = False, allow_empty: bool = False
+) -> tuple[float, ...]:
+    """Spectral directions in degrees, each in ``[0, 180)``, no duplicates (axial data)."""
+    if isinstance(directions_deg, numbers.Real):
+        directions_deg = (directions_deg,)
+    if not isinstance(directions_deg, Sequence | np.ndarray | jax.Array):
+        raise TypeError(f"{name} must be a sequence of angles in degrees, got {directions_deg!r}")
+    d = np.asarray(directions_deg, dtype=np.float64).reshape(-1)
+    if d.size == 0 and not allow_empty:
+        raise ValueError(f"{name} must hold at least one direction")
+    if not np.all(np.isfinite(d)) or np.any(d < 0) or np.any(d >= 180):
+        raise ValueError(f"{name} must lie in [0, 180) degrees, got {d.tolist()}")
+    if integer and np.any(d != np.round(d)):
+        raise ValueError(f"{name} must be integer degrees here, got {d.tolist()}")
+    if len(np.unique(d)) != d.size:
+        raise ValueError(f"{name} must not repeat a direction, got {d.tolist()}")
+    return tuple(float(x) for x in d)
+
+
+def check_choice(name: str, value, choices: Sequence[str]) -> str:
+    if value not in choices:
+        raise ValueError(f"{name} must be one of {sorted(choices)}, got {value!r}")
+    return value
