@@ -369,7 +369,7 @@ def _wrap(x):
 @jax.jit
 def _shift(key, points):
     t = jax.random.uniform(key, (2,), dtype=points.dtype)
-    return _wrap(points + t)
+    return _wrap(points + t[None, :])
 
 
 def toroidal_shift(key, points) -> jax.Array:

@@ -1,0 +1,35 @@
+"""Shared test utilities: independent checks that do not use the library's own code paths."""
+
+import numpy as np
+
+
+def is_net(points, m: int) -> bool:
+    """Whether ``2^m`` points form a (0, m, 2)-net in base 2 (every elementary interval of area
+    2^-m holds exactly one point). Integer arithmetic on the float32 bits: exact."""
+    p = np.asarray(points)
+    assert p.shape == (1 << m, 2)
+    X = (p.astype(np.float64) * 2**24).astype(np.int64)  # exact for float32 in [0, 1)
+    for a in range(m + 1):
+        ix = X[:, 0] >> (24 - a)
+        iy = X[:, 1] >> (24 - (m - a))
+        counts = np.bincount(ix * (1 << (m - a)) + iy, minlength=1 << m)
+        if not np.all(counts == 1):
+            return False
+    return True
+
+
+def brute_force_spectrum(points, freqs) -> np.ndarray:
+    """``P_S(v) = |(1/N) sum exp(-2 pi i v.x)|^2`` in float64 NumPy (W Eq. 6)."""
+    p = np.asarray(points, dtype=np.float64)
+    f = np.asarray(freqs, dtype=np.float64)
+    ph = 2 * np.pi * (f @ p.T)
+    n = p.shape[0]
+    return (np.cos(ph).sum(1) ** 2 + np.sin(ph).sum(1) ** 2) / n**2
+
+
+def toroidal_nn_distance(points) -> np.ndarray:
+    from scipy.spatial import cKDTree
+
+    p = np.asarray(points, dtype=np.float64)
+    d, _ = cKDTree(p, boxsize=1.0).query(p, k=2)
+    return d[:, 1]

@@ -1,0 +1,127 @@
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from helpers import brute_force_spectrum
+
+from anisosample import samplers, spectrum
+
+
+@pytest.fixture(scope="module")
+def pts4096():
+    return samplers.get("pmj02bn")(jax.random.key(21), 4096)
+
+
+def _freqs():
+    rng = np.random.default_rng(1)
+    return np.concatenate([spectrum.frequency_grid(30), rng.integers(-600, 600, (3000, 2))]).astype(
+        np.int32
+    )
+
+
+def test_direct_matches_float64_brute_force(pts4096):
+    f = _freqs()
+    ref = brute_force_spectrum(pts4096, f)
+    got = np.asarray(spectrum.power_spectrum(pts4096, f, method="direct"))
+    # absolute error in units of white noise; relative where P_S is not tiny
+    assert np.abs(got - ref).max() * 4096 < 1e-4
+    big = ref > 1e-2 / 4096
+    assert (np.abs(got - ref) / ref)[big].max() < 1e-3
+
+
+@pytest.mark.parametrize("method", ["nufft", "nufft3"])
+def test_nufft_paths_equal_direct_sum_float64(pts4096, method):
+    f = _freqs()
+    with jax.enable_x64(True):
+        p = jnp.asarray(np.asarray(pts4096, dtype=np.float64))
+        ref = np.asarray(spectrum.power_spectrum(p, f, method="direct"))
+        got = np.asarray(spectrum.power_spectrum(p, f, method=method))
+    keep = ref > 1e-6 / 4096
+    assert (np.abs(got - ref) / ref)[keep].max() < 1e-4
+    assert np.abs(got - ref).max() < 1e-10
+
+
+def test_float32_nufft_close_to_white_noise_scale(pts4096):
+    f = _freqs()
+    ref = brute_force_spectrum(pts4096, f)
+    got = np.asarray(spectrum.power_spectrum(pts4096, f, method="nufft"))
+    assert np.abs(got - ref).max() * 4096 < 1e-2
+
+
+def test_gradients_agree_between_paths_and_with_finite_differences():
+    pts = samplers.get("random")(jax.random.key(3), 256)
+    f = spectrum.frequency_grid(6)
+    # jax-finufft's own JVP rules mix dtypes and ranks: relax the strict test settings here only.
+    with (jax.enable_x64(True), jax.numpy_dtype_promotion("standard"),
+          jax.numpy_rank_promotion("allow")):
+        p = jnp.asarray(np.asarray(pts, np.float64))
+        grads = {
+            m: np.asarray(jax.grad(lambda q, m=m: jnp.sum(spectrum.power_spectrum(q, f, method=m)))(p))
+            for m in ["direct", "nufft", "nufft3"]
+        }
+        loss = lambda q: float(jnp.sum(spectrum.power_spectrum(q, f, method="direct")))
+        h = 1e-6
+        e = np.zeros_like(np.asarray(p))
+        e[7, 1] = h
+        fd = (loss(p + e) - loss(p - e)) / (2 * h)
+    np.testing.assert_allclose(grads["direct"][7, 1], fd, rtol=1e-5)
+    np.testing.assert_allclose(grads["nufft"], grads["direct"], atol=1e-8)
+    np.testing.assert_allclose(grads["nufft3"], grads["direct"], atol=1e-8)
+
+
+def test_basic_facts(pts4096):
+    f = np.array([[0, 0], [3, 4], [-3, -4]])
+    p = np.asarray(spectrum.power_spectrum(pts4096, f))
+    assert abs(p[0] - 1.0) < 1e-5
+    assert abs(p[1] - p[2]) < 1e-9
+
+
+def test_grid_orientation():
+    """Points sharing one y coordinate: P_S depends on v_x only, so grid rows are equal."""
+    x = np.asarray(samplers.get("random")(jax.random.key(0), 64))[:, 0]
+    pts = np.stack([x, np.full_like(x, 0.3)], axis=1)
+    g = np.asarray(spectrum.power_spectrum_grid(pts, 5, method="direct"))
+    np.testing.assert_allclose(g, np.broadcast_to(g[5], g.shape), atol=1e-6)
+    g2 = np.asarray(spectrum.power_spectrum_grid(pts, 5, method="nufft"))
+    np.testing.assert_allclose(g2, g, atol=1e-4)
+    # column j is v_x = j - r
+    np.testing.assert_allclose(g[5, 7], brute_force_spectrum(pts, [[2, 0]])[0], atol=1e-6)
+
+
+def test_profiles():
+    r = 10
+    f = spectrum.frequency_grid(r).reshape(2 * r + 1, 2 * r + 1, 2)
+    grid = np.hypot(f[..., 0], f[..., 1])  # P = |v|
+    radii, prof = spectrum.radial_profile(grid)
+    np.testing.assert_allclose(prof, radii, atol=0.5)
+    # energy only along the 30-degree ray -> angular profile peaks there
+    ang = np.degrees(np.arctan2(f[..., 1], f[..., 0])) % 180
+    grid2 = (np.abs(ang - 30) < 2).astype(float)
+    c, a = spectrum.angular_profile(grid2, bins=36)
+    assert abs(c[np.argmax(a)] - 30) <= 5
+
+
+def test_spectrum_images(tmp_path, pts4096):
+    g = spectrum.power_spectrum_grid(pts4096, 32)
+    png = spectrum.save_spectrum_image(tmp_path / "s.png", g, n=4096)
+    exr = spectrum.save_spectrum_image(tmp_path / "s.exr", g, n=4096)
+    assert png.stat().st_size > 0
+    from anisosample import io
+
+    back = io.read_exr(exr)
+    np.testing.assert_allclose(back[::-1], np.asarray(g), rtol=1e-6)
+    with pytest.raises(FileExistsError):
+        spectrum.save_spectrum_image(tmp_path / "s.png", g, n=4096)
+
+
+def test_bad_frequencies(pts4096):
+    with pytest.raises(ValueError, match="freqs must hold integer"):
+        spectrum.power_spectrum(pts4096, np.array([[0.5, 1.0]]))
+    with pytest.raises(ValueError, match="freqs must have shape"):
+        spectrum.power_spectrum(pts4096, np.array([1, 2, 3]))
+    with pytest.raises(ValueError, match="at least one"):
+        spectrum.power_spectrum(pts4096, np.zeros((0, 2), np.int32))
+    with pytest.raises(ValueError, match="method"):
+        spectrum.power_spectrum(pts4096, np.array([[1, 2]]), method="fft")
+    with pytest.raises(ValueError, match="points must lie"):
+        spectrum.power_spectrum(np.full((3, 2), 1.5, np.float32), np.array([[1, 2]]))
