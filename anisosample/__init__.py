@@ -7,6 +7,7 @@ The public API is this list of modules; see ``docs/`` for a guide.
 from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
 from importlib.metadata import version as _version
 
+from . import integrands as integrands
 from . import io as io
 from . import samplers as samplers
 from . import spectrum as spectrum
