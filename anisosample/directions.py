@@ -48,10 +48,9 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 import numpy as np
-
-from . import vmf
 from jaxtyping import Bool
 
+from . import vmf
 from ._types import Array, Float
 from ._validate import check_choice, check_int, check_positive_float
 

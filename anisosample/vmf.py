@@ -177,15 +177,15 @@ def _gauss_legendre(nodes: int):
 def bin_masses(mu, kappa, nbins: int, *, nodes: int = DEFAULT_NODES):
     """``Q_i = integral of q(. | mu, kappa) over bin i`` (Gauss-Legendre, ``nodes`` per bin).
 
-    ``sum_i Q_i = 1`` up to the quadrature error (< 1e-6 for ``kappa`` up to ~1e3 with 180 bins
-    and 4 nodes).
+    ``sum_i Q_i = 1`` up to the quadrature error (< 1e-5 for ``kappa`` up to ~1e3 with 180 bins
+    and 4 nodes; raise ``nodes`` for narrower q).
     """
     mu = jnp.asarray(mu)
     dtype = jnp.result_type(mu, jnp.float32) if not jnp.issubdtype(mu.dtype, jnp.floating) \
         else mu.dtype
     t, w = _gauss_legendre(nodes)
     delta = _TWO_PI / nbins
-    x = bin_centers(nbins, dtype)[:, None] + jnp.asarray(t, dtype) * delta
+    x = bin_centers(nbins, dtype)[:, None] + jnp.asarray(t, dtype)[None, :] * delta
     q = pdf(x, mu, jnp.asarray(kappa, dtype))
     return delta * (q @ jnp.asarray(w, dtype))
 
