@@ -1,0 +1,93 @@
+"""Frequency sets: membership against a brute-force filter of the whole lattice, half-set and
+grouping invariants, the documented designs."""
+
+import math
+
+import numpy as np
+import pytest
+
+from anisosample import frequencies as fr
+
+
+def _brute_wedge(theta, length, width, angle):
+    r = int(length + width) + 2
+    g = np.arange(-r, r + 1)
+    v = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+    th = math.radians(theta)
+    t = v @ np.array([math.cos(th), math.sin(th)])
+    s = v @ np.array([-math.sin(th), math.cos(th)])
+    keep = (t > 1e-9) & (t <= length + 1e-9) & (
+        np.abs(s) <= np.maximum(width, t * math.tan(math.radians(angle))) + 1e-9)
+    return {tuple(x) for x in v[keep]}
+
+
+@pytest.mark.parametrize("theta", [0.0, 17.0, 30.0, 45.0, 67.0, 90.0, 123.5, 179.0])
+@pytest.mark.parametrize("shape", [(40.0, 1.0, 0.0), (60.0, 1.5, 2.0), (25.0, 0.0, 10.0)])
+def test_wedge_equals_brute_force(theta, shape):
+    got = fr.wedge(theta, *shape)
+    assert got.dtype == np.int32
+    assert {tuple(x) for x in got} == _brute_wedge(theta, *shape)
+    assert len({tuple(x) for x in got}) == len(got)
+
+
+def test_disk_half_set():
+    v = fr.disk(10.0)
+    s = {tuple(x) for x in v}
+    assert (0, 0) not in s
+    assert all((-a, -b) not in s for a, b in s)
+    full = sum(1 for a in range(-10, 11) for b in range(-10, 11) if 0 < a * a + b * b <= 100)
+    assert 2 * len(v) == full
+
+
+@pytest.mark.parametrize("kind", ["rate", "paper"])
+@pytest.mark.parametrize("dirs", [(0.0, 90.0, 30.0), (0.0, 90.0, 67.0, 140.0)])
+def test_design_invariants(kind, dirs):
+    n = 1024
+    fs = fr.design(n, dirs, kind)
+    v = fs.freqs.astype(np.int64)
+    canon = fr.canonical_half(v)
+    assert len(canon) == len(v)  # one of each +-v, no zero
+    assert np.all(fs.weights > 0)
+    assert sum(fs.group_sizes) == len(fs)
+    for theta, fg, _ in fs.groups():
+        th = math.radians(theta)
+        assert np.all(fg @ np.array([math.cos(th), math.sin(th)]) >= -1e-9)
+    # every wedge frequency of every direction is in the set (up to sign)
+    p = fs.params
+    have = {tuple(x) for x in canon}
+    for theta in dirs:
+        w = fr.canonical_half(fr.wedge(theta, p["length"], p["width"], p["angle_deg"]))
+        assert {tuple(x) for x in w} <= have
+
+
+def test_design_parameters_are_functions_of_n():
+    a = fr.design(256, [0.0, 90.0, 30.0]).params
+    b = fr.design(4096, [0.0, 90.0, 30.0]).params
+    assert a["length"] == pytest.approx(256**0.8) and b["length"] == pytest.approx(4096**0.8)
+    assert b["disk_radius"] == pytest.approx(64.0)
+    assert fr.design(4096, [0.0, 90.0, 30.0], "paper").params["length"] == pytest.approx(192.0)
+    # the paper's frequency count for 2^12 is 4,303 (3 directions); ours is within 10 %
+    assert abs(len(fr.design(4096, [0.0, 90.0, 30.0], "paper")) - 4303) < 430
+
+
+def test_edge_weights_closed_form():
+    v = np.array([[3, 0], [3, 1], [0, 2]])
+    w = fr.edge_weights(v, [0.0])
+    np.testing.assert_allclose(w, [1 / 9, 1 / (10 * 2), 1 / (4 * 5)])
+
+
+def test_bad_input():
+    with pytest.raises(ValueError, match="n must be >= 2"):
+        fr.design(1, [0.0])
+    with pytest.raises(ValueError, match="directions_deg"):
+        fr.design(64, [0.0, 180.0])
+    with pytest.raises(ValueError, match="directions_deg"):
+        fr.design(64, [10.0, 10.0])
+    with pytest.raises(ValueError, match="kind"):
+        fr.design(64, [0.0], "fancy")
+    with pytest.raises(ValueError, match="empty"):
+        fr.design(64, [0.0], "paper", length=0.5, width=0.0)
+    with pytest.raises(ValueError, match="at least one"):
+        fr.custom_set(np.zeros((1, 2), int), [0.0])
+    with pytest.raises(ValueError, match="angle_deg"):
+        fr.wedge(0.0, 10.0, 1.0, 50.0)
