@@ -11,6 +11,10 @@ from . import integrands as integrands
 from . import io as io
 from . import samplers as samplers
 from . import spectrum as spectrum
+from . import frequencies as frequencies
+from . import losses as losses
+from . import synthesis as synthesis
+from .synthesis import synthesize as synthesize
 
 try:
     __version__ = _version("anisosample")

@@ -1,0 +1,116 @@
+"""synthesize(): contract, the losses going down, the spectrum getting dark where asked,
+checkpoint/resume giving the same result, bad input, the .npz record."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import anisosample as asp
+from anisosample import frequencies as fr
+from anisosample import losses as L
+from anisosample import synthesis
+
+SMALL = dict(steps=30, method="direct", show_progress=False)
+
+
+def test_contract_and_suppression(getkey):
+    key = getkey()
+    n = 64
+    pts, info = asp.synthesize(key, n, [0.0, 90.0, 30.0], return_info=True, **SMALL)
+    assert pts.shape == (n, 2) and pts.dtype == jnp.float32
+    assert float(pts.min()) >= 0.0 and float(pts.max()) < 1.0
+    h = np.asarray(info["history"])
+    assert h[-1] < 0.5 * h[0]
+    # the weighted spectrum on the design's frequencies is far below the initial jittered set
+    fset = fr.design(n, [0.0, 90.0, 30.0])
+    before = float(L.linear_spectrum_loss(asp.samplers.get("jittered")(key, n), fset))
+    after = float(L.linear_spectrum_loss(pts, fset))
+    assert after < 0.5 * before
+    again = asp.synthesize(key, n, [0.0, 90.0, 30.0], **SMALL)
+    np.testing.assert_array_equal(np.asarray(pts), np.asarray(again))
+
+
+def test_paper_recipe_stratifies(getkey):
+    n = 64
+    key = getkey()
+    pts = asp.synthesize(key, n, [0.0, 90.0, 45.0], recipe="paper", c=1.0, **SMALL)
+    init = asp.samplers.get("jittered")(key, n)
+    sw0 = float(L.sliced_wasserstein_loss(init, [0.0, 90.0, 45.0]))
+    sw1 = float(L.sliced_wasserstein_loss(pts, [0.0, 90.0, 45.0]))
+    assert sw1 < sw0
+
+
+def test_checkpoint_resume_same_result(getkey, tmp_path):
+    key = getkey()
+    n = 32
+    opts = dict(steps=20, method="direct", show_progress=False, checkpoint_every=5)
+    full = asp.synthesize(key, n, [0.0, 90.0, 60.0], **opts)
+    ck = tmp_path / "ck.npz"
+
+    class Killed(Exception):
+        pass
+
+    def kill(step, loss):
+        if step == 10:
+            raise Killed
+
+    with pytest.raises(Killed):
+        asp.synthesize(key, n, [0.0, 90.0, 60.0], checkpoint=ck, callback=kill, **opts)
+    assert ck.exists()
+    seen = []
+    resumed = asp.synthesize(key, n, [0.0, 90.0, 60.0], checkpoint=ck,
+                             callback=lambda s, l: seen.append(s), **opts)
+    assert seen[0] == 15  # it did not start again from 0
+    np.testing.assert_array_equal(np.asarray(full), np.asarray(resumed))
+    assert not ck.exists()
+    # a checkpoint made with other settings is refused, not silently reused
+    with pytest.raises(Killed):
+        asp.synthesize(key, n, [0.0, 90.0, 60.0], checkpoint=ck, callback=kill, **opts)
+    with pytest.raises(ValueError, match="other settings"):
+        asp.synthesize(key, n, [0.0, 90.0, 61.0], checkpoint=ck, **opts)
+
+
+def test_save_and_load_result(getkey, tmp_path):
+    pts, info = asp.synthesize(getkey(), 16, [0.0, 90.0], return_info=True, steps=3,
+                               method="direct", show_progress=False)
+    path = synthesis.save_result(tmp_path / "set.npz", pts, info)
+    back, meta = synthesis.load_result(path)
+    np.testing.assert_array_equal(np.asarray(back), np.asarray(pts))
+    assert meta["n"] == 16 and meta["directions_deg"] == [0.0, 90.0]
+    assert meta["frequency_design"]["design"] == "rate"
+    assert "anisosample_version" in meta and len(meta["history"]) == 4
+    with pytest.raises(FileExistsError):
+        synthesis.save_result(path, pts, info)
+
+
+def test_nufft_and_direct_paths_agree(getkey):
+    key = getkey()
+    a = asp.synthesize(key, 128, [0.0, 90.0, 30.0], steps=5, method="direct",
+                       show_progress=False)
+    b = asp.synthesize(key, 128, [0.0, 90.0, 30.0], steps=5, method="nufft3",
+                       show_progress=False, nufft_eps=1e-12)
+    np.testing.assert_allclose(np.asarray(a), np.asarray(b), atol=1e-6)
+
+
+def test_bad_input(getkey):
+    key = getkey()
+    with pytest.raises(ValueError, match="n must be >= 2"):
+        asp.synthesize(key, 1, [0.0])
+    with pytest.raises(ValueError, match="directions_deg"):
+        asp.synthesize(key, 16, [0.0, 190.0])
+    with pytest.raises(ValueError, match="directions_deg"):
+        asp.synthesize(key, 16, [0.0, -5.0])
+    with pytest.raises(ValueError, match="directions_deg"):
+        asp.synthesize(key, 16, [30.0, 30.0])
+    with pytest.raises(ValueError, match="c must"):
+        asp.synthesize(key, 16, [0.0], c=-1.0)
+    with pytest.raises(ValueError, match="recipe"):
+        asp.synthesize(key, 16, [0.0], recipe="magic")
+    with pytest.raises(ValueError, match="empty"):
+        asp.synthesize(key, 16, [0.0], frequency_options={"length": 0.5, "width": 0.0,
+                                                          "disk_radius": 0.0})
+    with pytest.raises(TypeError, match="key"):
+        asp.synthesize(0, 16, [0.0])
+    with pytest.raises(TypeError, match="unexpected"):
+        asp.synthesize(key, 16, [0.0], lr=0.1)
