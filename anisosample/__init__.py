@@ -14,6 +14,7 @@ from . import spectrum as spectrum
 from . import frequencies as frequencies
 from . import losses as losses
 from . import synthesis as synthesis
+from . import warps as warps
 from .synthesis import synthesize as synthesize
 
 try:

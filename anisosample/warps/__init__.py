@@ -1,0 +1,20 @@
+"""Primary-sample-space warps: fit, compose, sample, invert (Hart et al. 2020).
+
+Every warp is an ``equinox.Module`` with the triplet ``sample(u) -> x``, ``pdf(x)`` and
+``inverse(x) -> u``, each for **one point** (batch with ``jax.vmap`` or :func:`sample_batch`).
+See ``_base`` for the contract and ``docs``/``references/warps.md`` for the math.
+"""
+
+from ._base import AbstractWarp as AbstractWarp
+from ._base import Compose as Compose
+from ._base import compose as compose
+from ._base import inverse_batch as inverse_batch
+from ._base import pdf_batch as pdf_batch
+from ._base import sample_batch as sample_batch
+from .planar import Bilinear as Bilinear
+from .planar import Biquadratic as Biquadratic
+from .planar import invert_linear_sample as invert_linear_sample
+from .planar import linear_pdf as linear_pdf
+from .planar import sample_linear as sample_linear
+from .spherical import SphericalRectangle as SphericalRectangle
+from .spherical import SphericalTriangle as SphericalTriangle
