@@ -1,0 +1,181 @@
+"""Where does a pattern's variance come from?  W Eq. 5, one frequency at a time.
+
+For a fixed point set ``S`` under a random toroidal shift, ``Var(I_N) = sum_{v != 0} P_S(v) P_f(v)``
+exactly (W Eq. 5; ``fourier_variance.md`` Sec. 2).  :func:`variance_decomposition` evaluates the
+terms of that sum for an integrand with a closed-form spectrum (``anisosample.integrands``) and
+groups them
+
+* by **region**: near each spectral direction's line (``|v . d_perp| <= band``, the rays of the
+  integrand's edges, the axes 0 and 90 degrees included since the square's border is an edge on
+  the torus) versus **elsewhere**;
+* by **radius** ``|v|`` in octaves (``[1, 2), [2, 4), ...``).
+
+Each group carries the variance it contributes and what white noise (``P_S = 1/n``) would
+contribute there, so "which part of the spectrum is not dark enough" is a table and a picture
+(:func:`plot_decomposition`).
+
+The sum is evaluated on a full disk ``|v| <= disk_radius`` (all directions; off the edge rays an
+edge's spectrum falls like ``|v|^-4``, so little is missed outside) plus a band of half-width
+``band`` along each line out to ``line_length``; the missing tail along each line is estimated
+with the pattern taken as white there (the sum of ``P_f`` over ``|v| > L`` on a ``|v|^-2`` ray is
+about its sum over ``[L/2, L]``) and reported separately.  Evaluation uses
+``anisosample.spectrum.power_spectrum`` in float64 (type-3 NUFFT in rotated coordinates for the
+long bands).
+"""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import frequencies as _freq
+from ._validate import check_directions_deg, check_points, check_positive_float
+
+
+def _line_bands(theta, r_in, length, band):
+    v = _freq.wedge(theta, length, band, 0.0).astype(np.int64)
+    return v[np.hypot(v[:, 0], v[:, 1]) > r_in]
+
+
+def _power(points64, freqs, dirs):
+    """P_S in float64: each frequency evaluated with the line it is nearest to (rotated type-3
+    NUFFT, cost ~ the band's length), so no long band is put in a huge bounding box."""
+    from . import losses
+
+    fset = _freq.custom_set(freqs, dirs)
+    with jax.enable_x64(True):
+        x = jnp.asarray(points64, jnp.float64)
+        p = np.asarray(losses.grouped_power_spectrum(x, fset, method="nufft3", eps=1e-10))
+    canon = _freq.canonical_half_rows(fset.freqs)
+    order = np.lexsort((canon[:, 1], canon[:, 0]))
+    # fset.freqs is a signed permutation of the (sorted, canonical) input: map back
+    out = np.empty_like(p)
+    want = np.lexsort((freqs[:, 1], freqs[:, 0]))
+    out[want] = p[order]
+    return out
+
+
+def variance_decomposition(points, integrand, *, directions_deg=None, disk_radius=None,
+                           line_length=None, band=2.0):
+    """Terms of W Eq. 5 for ``points`` (fixed set + random shift) and ``integrand``.
+
+    Args:
+        points: ``(n, 2)`` in ``[0, 1)^2``.
+        integrand: has ``power_spectrum(v)`` (closed form) and ``directions_deg``.
+        directions_deg: lines to examine; default ``{0, 90} U integrand.directions_deg``.
+        disk_radius: full disk radius (default ``max(32, 4 sqrt(n))``, at most 512).
+        line_length: band length along each line (default ``16 n``, at most ``2^17``).
+        band: half-width (lattice units) of a line's band.
+
+    Returns:
+        dict with ``total`` (sum over the frequencies evaluated, both ``+-v``), ``tail`` (estimate
+        beyond ``line_length``), ``predicted = total + tail``, ``white`` (the same sums with
+        ``P_S = 1/n``), ``regions`` (name -> variance, white), ``radius_edges`` and
+        ``by_radius`` (region -> per-octave variance), and the raw ``freqs``, ``P_S``, ``P_f``,
+        ``region`` arrays (one of each ``+-v``).
+    """
+    check_points("points", points)
+    x = np.asarray(points, np.float64)
+    n = x.shape[0]
+    if directions_deg is None:
+        dirs = sorted({0.0, 90.0, *[float(d) % 180.0 for d in integrand.directions_deg]})
+    else:
+        dirs = list(check_directions_deg("directions_deg", directions_deg))
+    band = check_positive_float("band", band)
+    r0 = disk_radius if disk_radius is not None else min(512.0, max(32.0, 4 * math.sqrt(n)))
+    r0 = check_positive_float("disk_radius", r0)
+    length = line_length if line_length is not None else float(min(16 * n, 2**17))
+    length = check_positive_float("line_length", length)
+    if length <= r0:
+        raise ValueError(f"line_length must exceed disk_radius ({r0}), got {length}")
+
+    parts = [_freq.disk(r0).astype(np.int64)]
+    parts += [_line_bands(t, r0, length, band) for t in dirs]
+    v = _freq.canonical_half(np.concatenate(parts)).astype(np.int64)
+    ps = _power(x, v, dirs)
+    pf = np.asarray(integrand.power_spectrum(v), np.float64)
+
+    # region label: index of the nearest line within `band`, else len(dirs) ("elsewhere")
+    label = np.full(v.shape[0], len(dirs))
+    best = np.full(v.shape[0], np.inf)
+    for i, t in enumerate(dirs):
+        th = math.radians(t)
+        s = np.abs(v @ np.array([-math.sin(th), math.cos(th)]))
+        take = (s <= band + 1e-9) & (s < best)
+        label[take] = i
+        best = np.where(take, s, best)
+    names = [f"line {t:g} deg" for t in dirs] + ["elsewhere"]
+
+    contrib = 2.0 * ps * pf  # +-v
+    white = 2.0 * pf / n
+    rad = np.hypot(v[:, 0], v[:, 1])
+    kmax = int(math.ceil(math.log2(max(rad.max(), 2.0)))) + 1
+    edges = 2.0 ** np.arange(kmax + 1)
+    which = np.clip(np.searchsorted(edges, rad, side="right") - 1, 0, kmax - 1)
+    by_radius, white_by_radius, regions = {}, {}, {}
+    for i, name in enumerate(names):
+        sel = label == i
+        by_radius[name] = np.bincount(which[sel], contrib[sel], minlength=kmax)
+        white_by_radius[name] = np.bincount(which[sel], white[sel], minlength=kmax)
+        regions[name] = {"variance": float(contrib[sel].sum()), "white": float(white[sel].sum())}
+
+    # tail beyond the band ends, pattern taken as white there
+    tail = 0.0
+    t_along = np.zeros(v.shape[0])
+    for i, t in enumerate(dirs):
+        th = math.radians(t)
+        t_along = np.abs(v @ np.array([math.cos(th), math.sin(th)]))
+        sel = (label == i) & (t_along > length / 2)
+        tail += 2.0 * pf[sel].sum() / n
+    total = float(contrib.sum())
+    return {
+        "n": n,
+        "directions_deg": dirs,
+        "disk_radius": r0,
+        "line_length": length,
+        "band": band,
+        "total": total,
+        "tail": float(tail),
+        "predicted": total + float(tail),
+        "white": float(white.sum()),
+        "regions": regions,
+        "radius_edges": edges,
+        "by_radius": by_radius,
+        "white_by_radius": white_by_radius,
+        "freqs": v,
+        "P_S": ps,
+        "P_f": pf,
+        "region": np.asarray(names, dtype=object)[label],
+    }
+
+
+def summary(decomp) -> dict:
+    """The JSON-able numbers of a decomposition (no per-frequency arrays)."""
+    keep = ("n", "directions_deg", "disk_radius", "line_length", "band", "total", "tail",
+            "predicted", "white", "regions")
+    out = {k: decomp[k] for k in keep}
+    out["radius_edges"] = decomp["radius_edges"].tolist()
+    out["by_radius"] = {k: v.tolist() for k, v in decomp["by_radius"].items()}
+    out["white_by_radius"] = {k: v.tolist() for k, v in decomp["white_by_radius"].items()}
+    return out
+
+
+def plot_decomposition(ax, decomp, *, title=None):
+    """Per-octave variance of each region (solid) against white noise there (dotted)."""
+    edges = decomp["radius_edges"]
+    mid = np.sqrt(edges[:-1] * edges[1:])
+    for i, (name, vals) in enumerate(decomp["by_radius"].items()):
+        color = f"C{i}"
+        ok = vals > 0
+        ax.loglog(mid[ok], vals[ok], "-o", ms=3, color=color, label=name)
+        w = decomp["white_by_radius"][name]
+        ok = w > 0
+        ax.loglog(mid[ok], w[ok], ":", color=color)
+    ax.set_xlabel("|v| (octave bins)")
+    ax.set_ylabel("variance contributed")
+    ax.set_title(title or f"W Eq. 5 terms, n={decomp['n']} (dotted: white noise)")
+    ax.legend(fontsize=7)
+    return ax
