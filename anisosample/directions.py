@@ -35,6 +35,11 @@ Choices the paper leaves open, fixed here and documented:
   ``>= threshold`` (default 0.12, chosen on random one- and two-edge steps, disks and bumps; see
   ``experiments/w_directions_accuracy.py``). A grid whose histogram is empty after zeroing
   (constant, smooth, or only axis-aligned edges) has no extra direction.
+
+Known limitation: edges within ~7 deg of an axis lose part of their histogram mode to the zeroed
+window and the floor repels ``q`` from it, so their estimate is pushed away from the axis (an edge
+at 4 deg is reported near 8 deg). Treating the windows as unobserved (``vmf.reverse_kl(...,
+mask=...)``) biases the other way, so the paper's zeroing is kept.
 """
 
 from __future__ import annotations

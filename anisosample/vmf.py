@@ -215,7 +215,8 @@ def _check_hist(hist):
     return hist
 
 
-def reverse_kl(hist, mu, kappa, *, floor: float = DEFAULT_FLOOR, nodes: int = DEFAULT_NODES):
+def reverse_kl(hist, mu, kappa, *, floor: float = DEFAULT_FLOOR, nodes: int = DEFAULT_NODES,
+               mask=None):
     """Reverse KL ``D_KL(q(. | mu, kappa) || p)`` of W Eqs. 17-18 against a histogram ``p``.
 
     ``p`` is the piecewise-constant density of the normalised, floored histogram (module
@@ -223,18 +224,28 @@ def reverse_kl(hist, mu, kappa, *, floor: float = DEFAULT_FLOOR, nodes: int = DE
     ``q`` (:func:`bin_masses`), and ``E_q[log q]`` is the closed form :func:`negentropy`.
     The result is exactly W Eq. 17 for that ``p`` (up to quadrature error), hence >= 0 and zero
     only for ``q = p``. Differentiable in ``mu`` and ``kappa`` (``kappa > 0``).
+
+    ``mask`` (optional boolean ``(K,)``): bins marked False are *unobserved* (e.g. the windows
+    around 0 and 90 degrees that W Sec. 5.1 zeroes), not empty: the cross term becomes the
+    average of ``log p`` over the observed bins under ``q``,
+    ``sum_{i in mask} Q_i log(p_i/Delta) / sum_{i in mask} Q_i``, so ``q`` is not pushed away
+    from the masked windows (their floor would otherwise bias directions near the axes).
     """
     hist = _check_hist(hist)
     floor = check_positive_float("floor", floor)
     nodes = check_int("nodes", nodes, minimum=1)
     _check_kappa(kappa)
-    return _reverse_kl(hist, mu, kappa, floor, nodes)
+    return _reverse_kl(hist, mu, kappa, floor, nodes, mask)
 
 
-def _reverse_kl(hist, mu, kappa, floor, nodes):
+def _reverse_kl(hist, mu, kappa, floor, nodes, mask=None):
     logp = _log_density(hist, floor)
     q = bin_masses(mu, kappa, hist.shape[-1], nodes=nodes)
-    return negentropy(kappa) - jnp.sum(q * logp, axis=-1)
+    if mask is None:
+        return negentropy(kappa) - jnp.sum(q * logp, axis=-1)
+    m = jnp.asarray(mask, q.dtype)
+    cross = jnp.sum(q * m * logp, axis=-1) / jnp.maximum(jnp.sum(q * m, axis=-1), 1e-30)
+    return negentropy(kappa) - cross
 
 
 def _check_kappa(kappa):
@@ -252,24 +263,28 @@ def _circulant_kernel(nbins: int, kappa, nodes: int, dtype):
 
 
 def reverse_kl_all_mu(
-    hist, kappa, *, floor: float = DEFAULT_FLOOR, nodes: int = DEFAULT_NODES
+    hist, kappa, *, floor: float = DEFAULT_FLOOR, nodes: int = DEFAULT_NODES, mask=None
 ):
     """W Eq. 18 at fixed ``kappa`` for ``mu`` at every bin centre: shape ``(..., K)``.
 
     W Sec. 5.2's practical variant (fixed kappa, mu on the bin grid) as one circulant matrix
-    product per histogram; entry ``m`` equals ``reverse_kl(hist, x_m, kappa)``.
+    product per histogram; entry ``m`` equals ``reverse_kl(hist, x_m, kappa, mask=mask)``.
     """
     hist = _check_hist(hist)
     floor = check_positive_float("floor", floor)
     nodes = check_int("nodes", nodes, minimum=1)
     _check_kappa(kappa)
-    return _reverse_kl_all_mu(hist, kappa, floor, nodes)
+    return _reverse_kl_all_mu(hist, kappa, floor, nodes, mask)
 
 
-def _reverse_kl_all_mu(hist, kappa, floor, nodes):
+def _reverse_kl_all_mu(hist, kappa, floor, nodes, mask=None):
     logp = _log_density(hist, floor)
     c = _circulant_kernel(hist.shape[-1], kappa, nodes, logp.dtype)
-    return negentropy(jnp.asarray(kappa, logp.dtype)) - logp @ c.T
+    ne = negentropy(jnp.asarray(kappa, logp.dtype))
+    if mask is None:
+        return ne - logp @ c.T
+    m = jnp.asarray(mask, logp.dtype)
+    return ne - ((logp * m) @ c.T) / jnp.maximum(m @ c.T, 1e-30)
 
 
 # --- fits ----------------------------------------------------------------------------------------
@@ -327,6 +342,7 @@ def fit_reverse_kl(
     floor: float = DEFAULT_FLOOR,
     nodes: int = DEFAULT_NODES,
     kappa_max: float = 1e3,
+    mask=None,
     rtol: float = 1e-6,
     atol: float = 1e-6,
     max_steps: int = 100,
@@ -336,23 +352,26 @@ def fit_reverse_kl(
     W Sec. 5.2 / Fig. 4c: the gradient fit, mode-seeking, converging to the local minimum near
     its start (start at histogram maxima). Optimistix BFGS over ``(mu, log kappa)`` (``log``
     keeps kappa > 0; ``kappa`` is clipped to ``[1e-3, kappa_max]`` where quadrature is exact).
-    Pure and jit/vmap-able: batch over starts or histograms with ``jax.vmap``.
+    Pure and jit/vmap-able: batch over starts or histograms with ``jax.vmap``. ``mask``: as in
+    :func:`reverse_kl`.
     """
     hist = _check_hist(hist)
     floor = check_positive_float("floor", floor)
     nodes = check_int("nodes", nodes, minimum=1)
     kappa_max = check_positive_float("kappa_max", kappa_max)
     _check_kappa(kappa0)
-    return _fit_reverse_kl(hist, mu0, kappa0, floor, nodes, kappa_max, rtol, atol, max_steps)
+    return _fit_reverse_kl(hist, mu0, kappa0, floor, nodes, kappa_max, rtol, atol, max_steps,
+                           mask)
 
 
-def _fit_reverse_kl(hist, mu0, kappa0, floor, nodes, kappa_max, rtol, atol, max_steps):
+def _fit_reverse_kl(hist, mu0, kappa0, floor, nodes, kappa_max, rtol, atol, max_steps,
+                    mask=None):
     dtype = hist.dtype
     lo, hi = math.log(1e-3), math.log(kappa_max)
 
     def objective(y, _):
         kappa = jnp.exp(jnp.clip(y[1], lo, hi))
-        return _reverse_kl(hist, y[0], kappa, floor, nodes)
+        return _reverse_kl(hist, y[0], kappa, floor, nodes, mask)
 
     y0 = jnp.stack([jnp.asarray(mu0, dtype), jnp.log(jnp.asarray(kappa0, dtype))])
     sol = optx.minimise(

@@ -224,6 +224,22 @@ def test_fit_reverse_kl_single_mode_agrees_with_mle():
     assert float(mle.kappa) == pytest.approx(15.0, rel=0.01)
 
 
+def test_mask_treats_bins_as_unobserved():
+    hist = jnp.asarray(_test_hist(), jnp.float32)
+    full = vmf.reverse_kl_all_mu(hist, 20.0, mask=jnp.ones(90, bool))
+    np.testing.assert_allclose(full, vmf.reverse_kl_all_mu(hist, 20.0), rtol=1e-6, atol=1e-6)
+    mask = jnp.arange(90) % 7 != 0
+    x = vmf.bin_centers(90)
+    got = vmf.reverse_kl_all_mu(hist, 20.0, mask=mask)
+    q = jax.vmap(lambda m: vmf.bin_masses(m, 20.0, 90))(x)  # (mu, bins)
+    total = float(hist.sum())
+    p = (hist / total + vmf.DEFAULT_FLOOR) / (1 + 90 * vmf.DEFAULT_FLOOR)
+    logp = jnp.log(p / (2 * math.pi / 90))
+    mf = mask.astype(jnp.float32)[None, :]
+    ref = vmf.negentropy(20.0) - (q * mf * logp[None, :]).sum(1) / (q * mf).sum(1)
+    np.testing.assert_allclose(got, ref, rtol=1e-5, atol=1e-5)
+
+
 def test_fit_reverse_kl_is_jittable():
     hist = _fig4_hist()
     f = jax.jit(lambda h, m: vmf.fit_reverse_kl(h, m, 20.0).mu)
