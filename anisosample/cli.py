@@ -92,11 +92,55 @@ def _run_spectrum(args):
     print(f"wrote the {2 * radius + 1}^2 power spectrum of {n} points to {out}")
 
 
+# --- synthesize --------------------------------------------------------------------------------
+
+
+def _add_synthesize(sub):
+    p = sub.add_parser("synthesize", help="optimize a point set with dark spectral directions")
+    p.add_argument("-n", type=int, required=True, help="number of points")
+    p.add_argument("--directions", type=_float_list, required=True,
+                   help="spectral directions in degrees, e.g. 0,90,30 (axes are not implied)")
+    p.add_argument("--seed", type=int, default=0, help="integer seed of the JAX key")
+    p.add_argument("--recipe", default="rate", choices=["rate", "paper"],
+                   help="rate (default, reaches the rate) or paper (W Eqs. 10-15)")
+    p.add_argument("--steps", type=int, default=None, help="optimizer steps (recipe default)")
+    p.add_argument("--c", type=float, default=None, help="weight of the SW term (W Eq. 10)")
+    p.add_argument("--learning-rate", type=float, default=None,
+                   help="Adam step in units of 1/sqrt(n) (recipe default)")
+    p.add_argument("-o", "--output", required=True, help="output .npz (points + metadata)")
+    p.add_argument("--checkpoint", default=None,
+                   help="checkpoint .npz (default: OUTPUT.ckpt.npz); an interrupted run resumes")
+    p.add_argument("--force", action="store_true", help="overwrite an existing output")
+
+
+def _run_synthesize(args):
+    import jax
+
+    from . import synthesis
+
+    out = Path(args.output)
+    if out.suffix != ".npz":
+        raise ValueError(f"--output must end in .npz, got {out.name}")
+    if out.exists() and not args.force:
+        raise FileExistsError(f"{out} exists; pass --force to replace it")
+    ckpt = args.checkpoint or str(out.with_suffix(".ckpt.npz"))
+    pts, info = synthesis.synthesize(
+        jax.random.key(args.seed), args.n, args.directions, recipe=args.recipe,
+        steps=args.steps, c=args.c, learning_rate=args.learning_rate, checkpoint=ckpt,
+        return_info=True,
+    )
+    info["seed"] = args.seed
+    synthesis.save_result(out, pts, info, overwrite=args.force)
+    print(f"wrote {args.n} points optimized for {args.directions} deg to {out}"
+          f" (loss {info['history'][0]:.3g} -> {info['final_loss']:.3g})")
+
+
 # --- registry ----------------------------------------------------------------------------------
 
 _COMMANDS = {
     "points": (_add_points, _run_points),
     "spectrum": (_add_spectrum, _run_spectrum),
+    "synthesize": (_add_synthesize, _run_synthesize),
 }
 
 
