@@ -15,6 +15,8 @@ from . import frequencies as frequencies
 from . import losses as losses
 from . import synthesis as synthesis
 from . import warps as warps
+from . import directions as directions
+from . import vmf as vmf
 from .synthesis import synthesize as synthesize
 
 try:
