@@ -93,7 +93,7 @@ def _direct_chunk(points, v):
     re = jnp.sum(jnp.cos(angle), axis=-1)
     im = jnp.sum(jnp.sin(angle), axis=-1)
     n = points.shape[0]
-    return (re * re + im * im) / (n * n)
+    return (re * re + im * im) / (float(n) * float(n))
 
 
 @jax.jit

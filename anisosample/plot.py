@@ -1,0 +1,91 @@
+"""Matplotlib helpers shared by the experiment scripts, so every figure reads the same way."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["new_figure", "spectrum_panel", "convergence_panel", "save_figure"]
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def new_figure(nrows: int = 1, ncols: int = 1, *, size: float = 3.2, squeeze: bool = False, **kw):
+    """A figure with ``nrows x ncols`` panels of ``size`` inches each: ``(fig, axes)``."""
+    plt = _plt()
+    fig, axes = plt.subplots(nrows, ncols, figsize=(size * ncols, size * nrows), squeeze=squeeze,
+                             layout="constrained", **kw)
+    return fig, axes
+
+
+def spectrum_panel(ax, grid, *, n: int, title: str | None = None, vmax: float = 2.0,
+                   directions_deg: Sequence[float] = ()):
+    """Show ``N P_S`` of a centred spectrum grid (rows ``v_y``) upright, white noise at 1.
+
+    ``directions_deg`` draws the spectral directions a set was made for, as thin red lines.
+    """
+    g = np.asarray(grid)
+    r = g.shape[0] // 2
+    im = ax.imshow(n * g, origin="lower", cmap="gray", vmin=0.0, vmax=vmax,
+                   extent=(-r - 0.5, r + 0.5, -r - 0.5, r + 0.5), interpolation="nearest")
+    for d in directions_deg:
+        t = np.radians(d)
+        ax.plot([-r * np.cos(t), r * np.cos(t)], [-r * np.sin(t), r * np.sin(t)], color="tab:red",
+                lw=0.6, alpha=0.6)
+    ax.set_xlim(-r - 0.5, r + 0.5)
+    ax.set_ylim(-r - 0.5, r + 0.5)
+    ax.set_xticks([])
+    ax.set_yticks([])
+    if title:
+        ax.set_title(title, fontsize=9)
+    return im
+
+
+def convergence_panel(ax, ns, variances, *, label: str, slope: float | None = None,
+                      slope_ci: tuple[float, float] | None = None, lower=None, upper=None,
+                      **line_kw):
+    """Log-log variance against ``n`` with the fitted slope (and its interval) in the legend."""
+    ns = np.asarray(ns, dtype=float)
+    v = np.asarray(variances, dtype=float)
+    text = label
+    if slope is not None:
+        text += f" ({slope:+.2f}"
+        if slope_ci is not None:
+            text += f" [{slope_ci[0]:+.2f}, {slope_ci[1]:+.2f}]"
+        text += ")"
+    (line,) = ax.loglog(ns, v, marker="o", ms=3, lw=1.2, label=text, **line_kw)
+    if lower is not None and upper is not None:
+        ax.fill_between(ns, lower, upper, color=line.get_color(), alpha=0.15, lw=0)
+    ax.set_xscale("log", base=2)
+    ax.set_xlabel("N")
+    ax.set_ylabel("Var")
+    ax.grid(True, which="both", alpha=0.25)
+    return line
+
+
+def save_figure(fig, path, *, formats: Sequence[str] = ("png",), dpi: int = 150) -> list[Path]:
+    """Save ``fig`` as ``path`` with each suffix in ``formats`` (atomic), and close it.
+
+    Experiment scripts own their ``results/<name>/`` folder and rewrite their figures there.
+    """
+    from .io import atomic_path
+
+    plt = _plt()
+    out = []
+    base = Path(path)
+    for fmt in formats:
+        p = base.with_suffix("." + fmt)
+        with atomic_path(p, overwrite=True) as tmp:
+            fig.savefig(tmp, format=fmt, dpi=dpi, bbox_inches="tight")
+        out.append(p)
+    plt.close(fig)
+    return out

@@ -1,0 +1,48 @@
+"""What every experiment script shares: arguments, the results folder, and the JSON record.
+
+Experiments call the library only; this module holds no science, just the plumbing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import anisosample as asp
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def parser(name: str, doc: str | None) -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog=f"experiments/{name}.py", description=doc)
+    p.add_argument("--scale", choices=["small", "paper"], default="small",
+                   help="small: minutes on a 2-core laptop; paper: the papers' sizes (GPU)")
+    p.add_argument("--out", type=Path, default=ROOT / "results" / name,
+                   help=f"results folder (default results/{name}/)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the experiment's JAX key")
+    p.add_argument("--fresh", action="store_true",
+                   help="recompute everything instead of reusing finished results")
+    return p
+
+
+def cached_json(path: Path, fresh: bool):
+    """The JSON at ``path`` if it exists and ``fresh`` is false (rerun reuse), else None."""
+    if path.exists() and not fresh:
+        return json.loads(path.read_text())
+    return None
+
+
+def write_record(out: Path, name: str, data: dict, settings: dict, started: float) -> Path:
+    """``out/<name>.json`` with the numbers, the settings, the package version and the machine."""
+    record = {
+        "experiment": name,
+        "settings": settings,
+        "provenance": asp.io.provenance(),
+        "seconds": round(time.time() - started, 2),
+        "command": " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),
+        **data,
+    }
+    return asp.io.save_json(out / f"{name}.json", record, overwrite=True)
