@@ -11,6 +11,7 @@ from . import integrands as integrands
 from . import io as io
 from . import samplers as samplers
 from . import spectrum as spectrum
+from . import variance as variance
 from . import frequencies as frequencies
 from . import losses as losses
 from . import synthesis as synthesis

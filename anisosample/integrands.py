@@ -334,8 +334,7 @@ class Polygon(_PolygonalIndicator):
     vertices: tuple[tuple[float, float], ...] = eqx.field(static=True)
     convex: bool = eqx.field(static=True)
     _directions: tuple[float, ...] = eqx.field(static=True)
-    _a: jax.Array  # (m, 2) edge start points, float32
-    _b: jax.Array  # (m, 2) edge end points, float32
+    _tests: tuple[tuple[float, ...], ...] = eqx.field(static=True)  # per-edge constants
 
     def __init__(self, vertices, value=1.0, directions_deg=None):
         v = _check_simple_polygon("vertices", vertices)
@@ -352,8 +351,27 @@ class Polygon(_PolygonalIndicator):
         else:
             self._directions = check_directions_deg("directions_deg", directions_deg,
                                                     allow_empty=True)
-        self._a = jnp.asarray(v, dtype=jnp.float32)
-        self._b = jnp.asarray(np.roll(v, -1, axis=0), dtype=jnp.float32)
+        if self.convex:
+            # x is inside iff n_e . x <= c_e for every edge that cuts the square's interior
+            # (the border edges of the clipped polygon hold for every x in [0, 1)^2)
+            tests = []
+            for a, b in zip(clipped, np.roll(clipped, -1, axis=0), strict=True):
+                if any(a[d] == b[d] and a[d] in (0.0, 1.0) for d in range(2)):
+                    continue
+                nx, ny = b[1] - a[1], a[0] - b[0]  # outward normal of a CCW edge
+                scale = 1.0 / math.hypot(nx, ny)
+                tests.append((float(nx * scale), float(ny * scale),
+                              float((nx * a[0] + ny * a[1]) * scale)))
+            self._tests = tuple(tests)
+        else:
+            # crossing number: per edge (a_y, b_y, a_x, slope dx/dy) of the original polygon
+            tests = []
+            for a, b in zip(v, np.roll(v, -1, axis=0), strict=True):
+                if a[1] == b[1]:
+                    continue  # horizontal edges never straddle a horizontal ray
+                tests.append((float(a[1]), float(b[1]), float(a[0]),
+                              float((b[0] - a[0]) / (b[1] - a[1]))))
+            self._tests = tuple(tests)
 
     @property
     def directions_deg(self) -> tuple[float, ...]:
@@ -361,24 +379,23 @@ class Polygon(_PolygonalIndicator):
 
     def __call__(self, x):
         x = _as_float(x)
-        lead = (1,) * (x.ndim - 1)  # edges broadcast against (..., 1) explicitly
-        a = self._a.astype(x.dtype).reshape(lead + self._a.shape)
-        b = self._b.astype(x.dtype).reshape(lead + self._b.shape)
-        ax, ay, bx, by = a[..., 0], a[..., 1], b[..., 0], b[..., 1]
-        px, py = x[..., 0, None], x[..., 1, None]
-        ex, ey = bx - ax, by - ay
+        px, py = x[..., 0], x[..., 1]
+        dt = x.dtype
         if self.convex:
-            # inside a CCW convex polygon: left of (or on) every edge
-            cross = ex * (py - ay) - ey * (px - ax)
-            inside = jnp.all(cross >= 0, axis=-1)
+            # unrolled over the (few) edges: elementwise work that XLA fuses into one loop
+            inside = jnp.asarray(len(self.chain) > 0)
+            for nx, ny, c in self._tests:
+                inside = inside & (px * jnp.asarray(nx, dt) + py * jnp.asarray(ny, dt)
+                                   <= jnp.asarray(c, dt))
         else:
-            # crossing number of the ray from x towards +x (even-odd rule)
-            straddle = (ay > py) != (by > py)
-            safe_ey = jnp.where(ey == 0, jnp.ones_like(ey), ey)
-            x_cross = ax + (py - ay) * (ex / safe_ey)
-            crossings = jnp.sum(straddle & (px < x_cross), axis=-1)
-            inside = (crossings % 2) == 1
-        return jnp.where(inside, jnp.asarray(self.value, x.dtype), jnp.zeros((), x.dtype))
+            # even-odd rule for the ray from x towards +x
+            inside = jnp.zeros(px.shape, dtype=bool)
+            for ay, by, ax, slope in self._tests:
+                straddle = (py < jnp.asarray(ay, dt)) != (py < jnp.asarray(by, dt))
+                x_cross = jnp.asarray(ax, dt) + (py - jnp.asarray(ay, dt)) * jnp.asarray(slope, dt)
+                inside = inside ^ (straddle & (px < x_cross))
+        return jnp.where(inside, jnp.asarray(self.value, dt), jnp.zeros((), dt))
+
 
 def edges(directions_deg, *, center=(0.5, 0.5), radius=0.25, value=1.0) -> Polygon | HalfPlane:
     """An integrand with one edge perpendicular to each chosen spectral direction (W Fig. 6).

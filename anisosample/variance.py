@@ -1,0 +1,564 @@
+"""The variance engine: estimator variance over randomizations, sweeps over n, slope fits.
+
+The estimator of a point set ``S`` is ``I_N = mean_j f(x_j)`` (W Eq. 1). Its variance is taken
+over *randomizations* of the pattern, chosen explicitly with ``randomization``:
+
+* ``"shift"`` -- one fixed pattern (or ``patterns`` fixed patterns) moved by independent
+  toroidal shifts ``(x + t) mod 1`` (Cranley-Patterson; W Sec. 5.4 decorrelates its precomputed
+  sets this way). For a fixed set this is exactly ``sum_{v != 0} P_S(v) P_f(v)`` (W Eq. 5; see
+  ``shared/references/fourier_variance.md`` Sec. 2). The only sensible choice for deterministic
+  or precomputed sets (optimized sets, tables) and for slow constructions (pmj02, pmj02bn).
+* ``"fresh"`` -- a new pattern per realization from a new key (new jitter, new Owen scramble,
+  new permutation): the sampler's own randomization, what a renderer does per pixel.
+* ``"fresh+shift"`` -- both: the homogenized pattern for which W Eq. 5 holds with the expected
+  spectrum ``<P_S>`` (fresh patterns of a non-homogeneous sampler such as jittered are not
+  shift-invariant, fourier_variance.md Sec. 2).
+* ``"auto"`` -- ``"fresh"`` for samplers that can be traced (``sampler.jittable``), ``"shift"``
+  otherwise (NumPy constructions, fixed point sets, unknown callables).
+
+Accuracy (DESIGN "Accuracy"): each realization's estimate is accumulated as centred float32
+deviations ``f(x_j) - c`` summed in blocks of 256 and then over blocks, and the variance is
+formed in float64 from centred values; at ``n = 2^16`` the result matches a float64 reference to
+well under 1 % (tests/test_variance.py). Speed: realizations are evaluated in chunks (``vmap``
+inside ``lax.map``) inside one ``jit``, so memory is bounded by ``chunk_elements``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Mapping, Sequence
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import scipy.stats
+
+from . import samplers as _samplers
+from ._validate import ONE_MINUS_EPSILON, check_choice, check_int, check_key, check_points
+from .progress import progress as _progress_bar
+
+__all__ = [
+    "RANDOMIZATIONS",
+    "VarianceEstimate",
+    "SlopeFit",
+    "ConvergenceResult",
+    "realization_estimates",
+    "estimator_variance",
+    "estimate_variance",
+    "variance_from_estimates",
+    "fit_slope",
+    "convergence",
+    "predicted_variance",
+]
+
+RANDOMIZATIONS = ("auto", "shift", "fresh", "fresh+shift")
+
+_BLOCK = 256
+"""Block length of the two-level float32 sum of deviations (pairwise-like error growth)."""
+
+DEFAULT_CHUNK_ELEMENTS = 2**20
+"""Integrand evaluations per chunk of realizations (about 20 MB of float32 temporaries)."""
+
+
+# --- the jitted kernels ---------------------------------------------------------------------------
+
+
+def _wrap(x):
+    return jnp.minimum(x - jnp.floor(x), ONE_MINUS_EPSILON)
+
+
+def _block_mean(v, n: int):
+    """Mean over the last axis of centred float32 values: sums of 256-blocks, then of blocks."""
+    pad = (-n) % _BLOCK
+    if pad:
+        v = jnp.concatenate([v, jnp.zeros(v.shape[:-1] + (pad,), v.dtype)], axis=-1)
+    v = v.reshape(v.shape[:-1] + (-1, _BLOCK))
+    return jnp.sum(jnp.sum(v, axis=-1), axis=-1) / jnp.float32(n)
+
+
+def _evaluate(f, x, c):
+    v = jnp.asarray(f(x))
+    if v.shape != x.shape[:-1]:
+        raise ValueError(
+            f"the integrand must map points of shape (..., 2) to (...), got {v.shape} from "
+            f"{x.shape}"
+        )
+    return _block_mean(v.astype(jnp.float32) - c, x.shape[-2])
+
+
+@eqx.filter_jit
+def _shifted_deviations(f, points, shifts, c, chunk: int):
+    """``mean_j f((x_j + t_r) mod 1) - c`` for every shift ``t_r`` (``(R, 2)``, R % chunk = 0)."""
+    def body(t):  # t: (chunk, 2)
+        x = _wrap(points[None, :, :] + t[:, None, :])
+        return _evaluate(f, x, c)
+
+    out = jax.lax.map(body, shifts.reshape(-1, chunk, 2))
+    return out.reshape(-1)
+
+
+@eqx.filter_jit
+def _fresh_deviations(f, sampler, n: int, keys, shifts, c, chunk: int):
+    """Fresh patterns ``sampler.fn(key_r, n)`` (optionally shifted by ``t_r``), vmapped."""
+
+    def one(k, t):
+        return _wrap(sampler.fn(k, n) + t[None, :])
+
+    def body(args):
+        k, t = args
+        x = jax.vmap(one)(k, t)
+        return _evaluate(f, x, c)
+
+    out = jax.lax.map(body, (keys.reshape(-1, chunk), shifts.reshape(-1, chunk, 2)))
+    return out.reshape(-1)
+
+
+@eqx.filter_jit
+def _stacked_deviations(f, points, shifts, c):
+    """Deviations of a stack of point sets ``(C, n, 2)``, each shifted by its ``t``."""
+    return _evaluate(f, _wrap(points + shifts[:, None, :]), c)
+
+
+# --- argument handling --------------------------------------------------------------------------
+
+
+def _resolve_sampler(sampler, n: int):
+    """A sampler name, Sampler, callable ``(key, n)`` or a fixed ``(n, 2)`` point set."""
+    if isinstance(sampler, str):
+        return _samplers.get(sampler), None
+    if hasattr(sampler, "shape"):
+        pts = check_points("sampler", sampler)
+        if pts.shape[0] != n:
+            raise ValueError(f"n must equal the number of points of the given set "
+                             f"({pts.shape[0]}), got {n}")
+        return None, jnp.asarray(pts, dtype=jnp.float32)
+    if not callable(sampler):
+        raise TypeError(
+            "sampler must be a sampler name, a callable (key, n) -> (n, 2) or an (n, 2) point "
+            f"set, got {type(sampler).__name__}"
+        )
+    return sampler, None
+
+
+def _check_n_for(sampler, n: int) -> None:
+    if getattr(sampler, "power_of_two", False) and n & (n - 1):
+        name = getattr(sampler, "name", "this sampler")
+        raise ValueError(
+            f"n must be a power of two for sampler {name!r} (its net guarantees hold at 2^m), "
+            f"got {n}"
+        )
+
+
+def _choose_randomization(randomization: str, sampler, fixed) -> str:
+    check_choice("randomization", randomization, RANDOMIZATIONS)
+    jittable = isinstance(sampler, _samplers.Sampler) and sampler.jittable
+    if randomization == "auto":
+        return "fresh" if jittable else "shift"
+    if fixed is not None and randomization != "shift":
+        raise ValueError(
+            f"randomization must be 'shift' or 'auto' for a fixed point set, got {randomization!r}"
+        )
+    return randomization
+
+
+def _off(progress: bool):
+    return True if not progress else None  # None: tqdm follows ANISOSAMPLE_PROGRESS
+
+
+def _chunk_size(n: int, realizations: int, chunk_elements: int) -> int:
+    return max(1, min(realizations, chunk_elements // n))
+
+
+def _pad_rows(a, rows: int):
+    if a.shape[0] == rows:
+        return a
+    reps = rows - a.shape[0]
+    return jnp.concatenate([a, jnp.broadcast_to(a[:1], (reps,) + a.shape[1:])], axis=0)
+
+
+def realization_estimates(
+    f: Callable,
+    sampler,
+    n: int,
+    key,
+    realizations: int,
+    *,
+    randomization: str = "auto",
+    patterns: int = 1,
+    center: float | None = None,
+    chunk_elements: int = DEFAULT_CHUNK_ELEMENTS,
+    progress: bool = False,
+) -> np.ndarray:
+    """The ``realizations`` estimates ``I_N`` (float64 NumPy array), one per randomization.
+
+    ``sampler``: a name (``samplers.names()``), a sampler ``(key, n) -> (n, 2)``, or a fixed
+    ``(n, 2)`` point set (shift only). ``patterns``: with ``"shift"``, the number of independent
+    base patterns, each moved by ``realizations / patterns`` shifts. ``center``: the value the
+    float32 deviations are taken from (default: the estimate of the first pattern; the exact
+    integral is best). Results do not depend on ``chunk_elements``.
+    """
+    n = check_int("n", n, minimum=1)
+    realizations = check_int("realizations", realizations, minimum=2)
+    patterns = check_int("patterns", patterns, minimum=1)
+    chunk_elements = check_int("chunk_elements", chunk_elements, minimum=1)
+    key = check_key("key", key)
+    if not callable(f):
+        raise TypeError(f"f must be a callable integrand over (..., 2), got {type(f).__name__}")
+    sampler, fixed = _resolve_sampler(sampler, n)
+    if sampler is not None:
+        _check_n_for(sampler, n)
+    mode = _choose_randomization(randomization, sampler, fixed)
+    if patterns != 1 and mode != "shift":
+        raise ValueError(f"patterns applies to randomization 'shift' only, got {mode!r}")
+    if realizations % patterns:
+        raise ValueError(
+            f"realizations must be a multiple of patterns ({patterns}), got {realizations}"
+        )
+    k_pat, k_shift = jax.random.split(key)
+    shifts = jax.random.uniform(k_shift, (realizations, 2), dtype=jnp.float32)
+
+    if mode == "shift":
+        if fixed is not None:
+            if patterns != 1:
+                raise ValueError("patterns must be 1 for a fixed point set")
+            bases = [fixed]
+        else:
+            bases = [jnp.asarray(sampler(k, n), dtype=jnp.float32)
+                     for k in jax.random.split(k_pat, patterns)]
+    else:
+        bases = [jnp.asarray(sampler(jax.random.split(k_pat, realizations)[0], n),
+                             dtype=jnp.float32)]
+    if center is None:
+        center = float(np.mean(np.asarray(f(bases[0]), dtype=np.float64)))
+    c = jnp.float32(center)
+    per = realizations // patterns
+    chunk = _chunk_size(n, per if mode == "shift" else realizations, chunk_elements)
+
+    out = []
+    if mode == "shift":
+        bar = _progress_bar(total=patterns, desc="patterns", disable=_off(progress))
+        for p, base in enumerate(bases):
+            t = shifts[p * per : (p + 1) * per]
+            rows = -(-per // chunk) * chunk
+            dev = _shifted_deviations(f, base, _pad_rows(t, rows), c, chunk)
+            out.append(np.asarray(dev, dtype=np.float64)[:per])
+            bar.update(1)
+        bar.close()
+    else:
+        use_shift = mode == "fresh+shift"
+        t = shifts if use_shift else jnp.zeros_like(shifts)
+        keys = jax.random.split(k_pat, realizations)
+        jittable = isinstance(sampler, _samplers.Sampler) and sampler.jittable
+        if jittable:
+            rows = -(-realizations // chunk) * chunk
+            dev = _fresh_deviations(f, sampler, n, _pad_rows(keys, rows), _pad_rows(t, rows), c,
+                                    chunk)
+            out.append(np.asarray(dev, dtype=np.float64)[:realizations])
+        else:  # NumPy constructions or unknown callables: make the sets in Python, evaluate stacked
+            bar = _progress_bar(total=realizations, desc="patterns", disable=_off(progress))
+            for start in range(0, realizations, chunk):
+                stop = min(start + chunk, realizations)
+                pts = jnp.stack([jnp.asarray(sampler(keys[r], n), dtype=jnp.float32)
+                                 for r in range(start, stop)])
+                dev = _stacked_deviations(f, pts, t[start:stop], c)
+                out.append(np.asarray(dev, dtype=np.float64))
+                bar.update(stop - start)
+            bar.close()
+    return float(center) + np.concatenate(out)
+
+
+# --- variance and its interval ------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class VarianceEstimate:
+    """A variance with its standard error and confidence interval.
+
+    ``variance``: unbiased sample variance of the estimates (``exact=None``) or their mean
+    squared error about ``exact``. ``std_error`` uses the sample fourth moment (no normality
+    assumption); the interval is ``variance * exp(+-z std_error / variance)`` (log-normal).
+    """
+
+    variance: float
+    std_error: float
+    ci_low: float
+    ci_high: float
+    mean: float
+    n: int
+    realizations: int
+    randomization: str
+    confidence: float
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def variance_from_estimates(estimates, exact: float | None = None, *, n: int = 0,
+                            randomization: str = "", confidence: float = 0.95) -> VarianceEstimate:
+    """Variance, standard error and interval from per-realization estimates (float64)."""
+    x = np.asarray(estimates, dtype=np.float64).reshape(-1)
+    r = x.size
+    if r < 2:
+        raise ValueError(f"realizations must be >= 2, got {r}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError("the integrand produced NaN or Inf estimates")
+    if not 0.0 < confidence < 1.0:
+        raise ValueError(f"confidence must lie in (0, 1), got {confidence}")
+    mean = float(np.mean(x))
+    if exact is None:
+        d = x - mean
+        var = float(np.sum(d * d) / (r - 1))
+        m4 = float(np.mean(d**4))
+        se2 = (m4 - var * var * (r - 3) / (r - 1)) / r
+    else:
+        d = x - float(exact)
+        sq = d * d
+        var = float(np.mean(sq))
+        se2 = float(np.var(sq, ddof=1)) / r
+    se = math.sqrt(max(se2, 0.0))
+    z = float(scipy.stats.norm.ppf(0.5 + confidence / 2))
+    if var > 0:
+        spread = math.exp(z * se / var)
+        lo, hi = var / spread, var * spread
+    else:
+        lo = hi = 0.0
+    return VarianceEstimate(var, se, lo, hi, mean, n, r, randomization, confidence)
+
+
+def _known_integral(f) -> float | None:
+    """``f.integral`` when the integrand knows it (a good centre for the deviations)."""
+    try:
+        value = float(getattr(f, "integral", None))
+    except (TypeError, ValueError, NotImplementedError):
+        return None
+    return value if math.isfinite(value) else None
+
+
+def estimate_variance(
+    f: Callable,
+    sampler,
+    n: int,
+    key,
+    realizations: int,
+    exact: float | None = None,
+    *,
+    randomization: str = "auto",
+    patterns: int = 1,
+    confidence: float = 0.95,
+    chunk_elements: int = DEFAULT_CHUNK_ELEMENTS,
+    progress: bool = False,
+) -> VarianceEstimate:
+    """Like :func:`estimator_variance`, with the standard error and a confidence interval."""
+    if exact is not None:
+        exact = float(exact)
+        if not math.isfinite(exact):
+            raise ValueError(f"exact must be finite, got {exact}")
+    center = exact if exact is not None else _known_integral(f)
+    est = realization_estimates(f, sampler, n, key, realizations, randomization=randomization,
+                                patterns=patterns, center=center, chunk_elements=chunk_elements,
+                                progress=progress)
+    sampler_obj, fixed = _resolve_sampler(sampler, n)
+    mode = _choose_randomization(randomization, sampler_obj, fixed)
+    return variance_from_estimates(est, exact, n=n, randomization=mode, confidence=confidence)
+
+
+def estimator_variance(
+    f: Callable,
+    sampler,
+    n: int,
+    key,
+    realizations: int = 1024,
+    exact: float | None = None,
+    *,
+    randomization: str = "auto",
+    patterns: int = 1,
+    chunk_elements: int = DEFAULT_CHUNK_ELEMENTS,
+) -> float:
+    """``Var(I_N)`` of ``I_N = mean_j f(x_j)`` over ``realizations`` randomizations (W Eq. 5's
+    left-hand side), as a float.
+
+    ``exact``: the true integral, if known (e.g. ``f.integral``); then the mean squared error
+    about it is returned (the estimators are unbiased, so it estimates the same variance with one
+    more degree of freedom). ``randomization``: ``"auto"``, ``"shift"``, ``"fresh"`` or
+    ``"fresh+shift"`` (see the module docstring). Raises ``ValueError`` for ``realizations < 2``
+    and for ``n`` that is not a power of two with a net sampler (sobol-owen, pmj02, pmj02bn).
+    """
+    return estimate_variance(f, sampler, n, key, realizations, exact,
+                             randomization=randomization, patterns=patterns,
+                             chunk_elements=chunk_elements).variance
+
+
+# --- convergence sweeps and slope fits ------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class SlopeFit:
+    """``log Var = intercept + slope log n`` by weighted least squares.
+
+    Weights are ``1 / se(log Var)^2`` from each variance's standard error. The slope's standard
+    error is inflated by ``sqrt(chi2 / dof)`` when the points scatter more than their errors say
+    (model error: the curve is not exactly a power law), and the interval uses Student's t with
+    ``k - 2`` degrees of freedom.
+    """
+
+    slope: float
+    intercept: float
+    std_error: float
+    ci_low: float
+    ci_high: float
+    confidence: float
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def fit_slope(ns, variances, std_errors=None, *, confidence: float = 0.95) -> SlopeFit:
+    """Fit the log-log convergence slope of ``variances`` over ``ns`` with its interval."""
+    ns = np.asarray(ns, dtype=np.float64).reshape(-1)
+    v = np.asarray(variances, dtype=np.float64).reshape(-1)
+    if ns.shape != v.shape or ns.size < 2:
+        raise ValueError(f"ns and variances must have the same length >= 2, got {ns.size} "
+                         f"and {v.size}")
+    if np.any(v <= 0) or np.any(ns <= 0):
+        raise ValueError("ns and variances must be positive for a log-log fit")
+    x, y = np.log(ns), np.log(v)
+    if std_errors is None:
+        w = np.ones_like(y)
+    else:
+        se = np.asarray(std_errors, dtype=np.float64).reshape(-1) / v
+        w = 1.0 / np.maximum(se, 1e-12) ** 2
+    a = np.stack([np.ones_like(x), x], axis=-1)
+    cov = np.linalg.inv(a.T @ (w[:, None] * a))
+    beta = cov @ (a.T @ (w * y))
+    k = x.size
+    dof = k - 2
+    resid = y - a @ beta
+    chi2 = float(np.sum(w * resid**2))
+    scale = 1.0
+    if std_errors is None:
+        scale = math.sqrt(chi2 / dof) if dof > 0 else float("inf")
+    elif dof > 0:
+        scale = max(1.0, math.sqrt(chi2 / dof))
+    se_slope = math.sqrt(cov[1, 1]) * scale
+    q = float(scipy.stats.t.ppf(0.5 + confidence / 2, dof)) if dof > 0 else float("inf")
+    if std_errors is not None and dof > 0 and scale == 1.0:
+        q = float(scipy.stats.norm.ppf(0.5 + confidence / 2))
+    return SlopeFit(float(beta[1]), float(beta[0]), se_slope, float(beta[1] - q * se_slope),
+                    float(beta[1] + q * se_slope), confidence)
+
+
+@dataclasses.dataclass(frozen=True)
+class ConvergenceResult:
+    """Per sampler: the variance estimates over ``ns`` and the fitted slope."""
+
+    ns: tuple[int, ...]
+    estimates: dict[str, tuple[VarianceEstimate, ...]]
+    fits: dict[str, SlopeFit]
+
+    def variances(self, name: str) -> np.ndarray:
+        return np.array([e.variance for e in self.estimates[name]])
+
+    def as_dict(self) -> dict:
+        return {
+            "ns": list(self.ns),
+            "samplers": {
+                name: {
+                    "variance": [e.variance for e in ests],
+                    "std_error": [e.std_error for e in ests],
+                    "ci_low": [e.ci_low for e in ests],
+                    "ci_high": [e.ci_high for e in ests],
+                    "randomization": ests[0].randomization,
+                    "realizations": ests[0].realizations,
+                    "fit": self.fits[name].as_dict(),
+                }
+                for name, ests in self.estimates.items()
+            },
+        }
+
+
+def convergence(
+    f: Callable,
+    samplers: Sequence[str] | Mapping[str, object],
+    ns: Sequence[int],
+    key,
+    realizations: int = 1024,
+    *,
+    exact: float | None = None,
+    randomization: str | Mapping[str, str] = "auto",
+    patterns: int | Mapping[str, int] = 1,
+    fit_min_n: int = 1,
+    confidence: float = 0.95,
+    progress: bool = False,
+) -> ConvergenceResult:
+    """Sweep ``n`` over ``ns`` for each sampler and fit ``Var ~ n^slope`` (W Figs. 6, 11).
+
+    ``samplers``: names, or a mapping ``label -> sampler`` (name, callable or ``(key, n)``-free
+    fixed sets are not allowed here since n varies). ``randomization`` and ``patterns`` may be
+    per-label mappings. The same key is used for every n and sampler (common random numbers).
+    Only ``n >= fit_min_n`` enter the fit (skip the pre-asymptotic regime).
+    """
+    key = check_key("key", key)
+    ns = tuple(check_int("ns", m, minimum=1) for m in ns)
+    if len(ns) < 2:
+        raise ValueError(f"ns must hold at least 2 sizes for a slope, got {list(ns)}")
+    if isinstance(samplers, str):
+        samplers = [samplers]
+    table = dict(samplers) if isinstance(samplers, Mapping) else {s: s for s in samplers}
+    if not table:
+        raise ValueError("samplers must name at least one sampler")
+    fit_ns = [m for m in ns if m >= fit_min_n]
+    if len(fit_ns) < 2:
+        raise ValueError(f"fit_min_n leaves fewer than 2 sizes to fit, got {fit_min_n}")
+
+    def option(opt, label):
+        return opt[label] if isinstance(opt, Mapping) else opt
+
+    estimates: dict[str, tuple[VarianceEstimate, ...]] = {}
+    fits: dict[str, SlopeFit] = {}
+    bar = _progress_bar(total=len(table) * len(ns), desc="convergence", disable=_off(progress))
+    for label, smp in table.items():
+        row = []
+        for m in ns:
+            row.append(estimate_variance(f, smp, m, key, realizations, exact,
+                                         randomization=option(randomization, label),
+                                         patterns=option(patterns, label),
+                                         confidence=confidence))
+            bar.update(1)
+        estimates[label] = tuple(row)
+        sel = [i for i, m in enumerate(ns) if m >= fit_min_n]
+        fits[label] = fit_slope([ns[i] for i in sel], [row[i].variance for i in sel],
+                                [row[i].std_error for i in sel], confidence=confidence)
+    bar.close()
+    return ConvergenceResult(ns, estimates, fits)
+
+
+# --- the spectral prediction -----------------------------------------------------------------
+
+
+def predicted_variance(P_S, P_f, freqs=None) -> float:
+    """W Eq. 5: ``Var(I_N) = sum_{v != 0} <P_S(v)> P_f(v)`` over the given frequencies (float64).
+
+    ``P_S``: the (expected) power spectrum of the pattern, normalised so that ``P_S(0) = 1`` and
+    white noise has ``1/N``; ``P_f``: the integrand's power spectrum ``|F_f(v)|^2`` (e.g.
+    ``f.power_spectrum(freqs)``), both over the same frequencies. With ``freqs`` the zero
+    frequency is dropped; without, the caller must have left it out. The sum is truncated to
+    the frequencies given: for a jump integrand the missing tail beyond radius ``K`` is about
+    ``(edge length)^2 / (2 pi^2 N K)`` for a pattern that is white there.
+    """
+    ps = np.asarray(P_S, dtype=np.float64)
+    pf = np.asarray(P_f, dtype=np.float64)
+    if ps.shape != pf.shape:
+        raise ValueError(f"P_S and P_f must have the same shape, got {ps.shape} and {pf.shape}")
+    if not (np.all(np.isfinite(ps)) and np.all(np.isfinite(pf))):
+        raise ValueError("P_S and P_f must be finite")
+    if np.any(ps < 0) or np.any(pf < 0):
+        raise ValueError("P_S and P_f must be non-negative (they are power spectra)")
+    if freqs is not None:
+        v = np.asarray(freqs)
+        if v.shape != ps.shape + (2,):
+            raise ValueError(f"freqs must have shape {ps.shape + (2,)}, got {v.shape}")
+        keep = np.any(v != 0, axis=-1)
+        ps, pf = ps[keep], pf[keep]
+    return float(np.sum(ps * pf))
