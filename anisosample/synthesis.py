@@ -52,10 +52,30 @@ RECIPES = ("rate", "paper")
 BOUNDARIES = ("wrap", "clip")
 
 _DEFAULTS = {
-    "rate": dict(steps=400, learning_rate=0.05, final_lr_fraction=0.01, b1=0.9, b2=0.9,
-                 adam_eps=1e-30, c=0.0, boundary="wrap", design="rate", nufft_eps=1e-7),
-    "paper": dict(steps=1000, learning_rate=0.1, final_lr_fraction=0.01, b1=0.9, b2=0.999,
-                  adam_eps=1e-8, c=1.0, boundary="clip", design="paper", nufft_eps=1e-7),
+    "rate": dict(
+        steps=400,
+        learning_rate=0.05,
+        final_lr_fraction=0.01,
+        b1=0.9,
+        b2=0.9,
+        adam_eps=1e-30,
+        c=0.0,
+        boundary="wrap",
+        design="rate",
+        nufft_eps=1e-7,
+    ),
+    "paper": dict(
+        steps=1000,
+        learning_rate=0.1,
+        final_lr_fraction=0.01,
+        b1=0.9,
+        b2=0.999,
+        adam_eps=1e-8,
+        c=1.0,
+        boundary="clip",
+        design="paper",
+        nufft_eps=1e-7,
+    ),
 }
 
 
@@ -77,17 +97,20 @@ def adam_update(grad, state, step, *, lr, b1, b2, eps):
 
 def _make_loss(fset, directions_deg, c, recipe, method, eps):
     if recipe == "rate":
+
         def loss(x):
             val = _losses.linear_spectrum_loss(x, fset, method=method, eps=eps)
             if c > 0:
                 val = val + c * _losses.sliced_wasserstein_loss(x, directions_deg)
             return val
     else:
+
         def loss(x):
             val = _losses.spectrum_loss(x, fset, method=method, eps=eps)
             if c > 0:
                 val = val + c * _losses.sliced_wasserstein_loss(x, directions_deg)
             return val
+
     return loss
 
 
@@ -217,20 +240,40 @@ def synthesize(
         history: list[float] = []
         if checkpoint is not None and Path(checkpoint).exists():
             arrays, old = _io.load_npz(checkpoint)
-            same = {k: old.get(k) for k in ("n", "directions_deg", "recipe", "options", "key",
-                                            "init", "frequency_design")}
+            same = {
+                k: old.get(k)
+                for k in (
+                    "n",
+                    "directions_deg",
+                    "recipe",
+                    "options",
+                    "key",
+                    "init",
+                    "frequency_design",
+                )
+            }
             want = {k: _io._to_jsonable(meta[k]) for k in same}
             if same != want:
-                raise ValueError(f"checkpoint {checkpoint} was made with other settings;"
-                                 " delete it or choose another path")
-            state = (jnp.asarray(arrays["x"]), jnp.asarray(arrays["m"]),
-                     jnp.asarray(arrays["v"]), jnp.asarray(int(arrays["step"]), jnp.int64))
+                raise ValueError(
+                    f"checkpoint {checkpoint} was made with other settings;"
+                    " delete it or choose another path"
+                )
+            state = (
+                jnp.asarray(arrays["x"]),
+                jnp.asarray(arrays["m"]),
+                jnp.asarray(arrays["v"]),
+                jnp.asarray(int(arrays["step"]), jnp.int64),
+            )
             history = [float(h) for h in arrays["history"]]
         loss = _make_loss(fset, directions_deg, opts["c"], recipe, method, opts["nufft_eps"])
         done = int(state[3])
         runners = {}
-        bar = _progress(total=steps, initial=done, desc=f"synthesize n={n}",
-                        disable=None if show_progress else True)
+        bar = _progress(
+            total=steps,
+            initial=done,
+            desc=f"synthesize n={n}",
+            disable=None if show_progress else True,
+        )
         try:
             while done < steps:
                 k = min(checkpoint_every, steps - done)
@@ -244,9 +287,15 @@ def synthesize(
                 if checkpoint is not None and done < steps:
                     _io.save_npz(
                         checkpoint,
-                        {"x": state[0], "m": state[1], "v": state[2], "step": done,
-                         "history": np.asarray(history)},
-                        meta, overwrite=True,
+                        {
+                            "x": state[0],
+                            "m": state[1],
+                            "v": state[2],
+                            "step": done,
+                            "history": np.asarray(history),
+                        },
+                        meta,
+                        overwrite=True,
                     )
                 if callback is not None:
                     callback(done, history[-1])
@@ -257,8 +306,7 @@ def synthesize(
     if checkpoint is not None and Path(checkpoint).exists():
         Path(checkpoint).unlink()
     if return_info:
-        info = dict(meta, history=history + [final], final_loss=final,
-                    frequency_count=len(fset))
+        info = dict(meta, history=history + [final], final_loss=final, frequency_count=len(fset))
         return jnp.asarray(points), info
     return jnp.asarray(points)
 
@@ -267,11 +315,38 @@ def save_result(path, points, info, *, overwrite: bool = False) -> Path:
     """Write a synthesized set and its ``info`` (from ``return_info=True``) to ``.npz``."""
     history = np.asarray(info.get("history", []), np.float64)
     meta = {k: v for k, v in info.items() if k != "history"}
-    return _io.save_npz(path, {"points": np.asarray(points), "loss_history": history},
-                        meta, overwrite=overwrite)
+    return _io.save_npz(
+        path, {"points": np.asarray(points), "loss_history": history}, meta, overwrite=overwrite
+    )
 
 
 def load_result(path):
     """Inverse of :func:`save_result`: ``(points, metadata)``."""
     arrays, meta = _io.load_npz(path)
     return jnp.asarray(arrays["points"]), dict(meta, history=arrays.get("loss_history"))
+
+
+def load_or_synthesize(path, key, n: int, directions_deg, **options):
+    """Load the set saved at ``path`` if it was made with the same settings, else synthesize it
+    (checkpointed beside ``path``, so an interrupted run resumes) and save it there.
+
+    Returns ``(points, info)``.  Experiments use this to reuse finished sets on rerun.
+    """
+    path = Path(path)
+    key = check_key("key", key)
+    directions_deg = check_directions_deg("directions_deg", directions_deg)
+    if path.exists():
+        pts, meta = load_result(path)
+        if (
+            meta.get("n") == n
+            and meta.get("directions_deg") == list(directions_deg)
+            and meta.get("key") == _key_record(key)
+            and meta.get("recipe") == options.get("recipe", "rate")
+        ):
+            return pts, meta
+    options = dict(options)
+    options.pop("return_info", None)
+    ckpt = path.with_name(path.stem + ".ckpt.npz")
+    pts, info = synthesize(key, n, directions_deg, checkpoint=ckpt, return_info=True, **options)
+    save_result(path, pts, info, overwrite=True)
+    return pts, info

@@ -1,0 +1,186 @@
+"""W Fig. 6: variance vs n of our aligned sets next to pmj02bn and sobol-owen.
+
+Cases (integrands from ``anisosample.integrands.edges``; the square's border adds 0 and 90):
+
+* ``one edge at theta``: our 3-direction set ``{0, 90, theta}`` — the rate claim (-1.70 or
+  steeper over 2^8..2^12, 2^14 at paper scale);
+* ``two edges at (a, b)``: our 4-direction set ``{0, 90, a, b}``;
+* ``four edges``: a 3-direction set on an integrand with more edges than it covers (back near
+  -1.5, the paper's observation);
+* ``misaligned``: the set made for theta on edges at theta + delta (the robustness curve).
+
+Our sets are fixed sets (several seeds per n) randomized by toroidal shifts; baselines use their
+own randomization plus a shift.  Writes ``results/w_fig6/w_fig6.png`` and ``w_fig6.json`` (every
+plotted number, slopes with 95 % intervals, settings, provenance).  Reuses finished sets and
+variances on rerun.
+
+    python experiments/w_fig6.py --scale small|paper [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from anisosample import io, integrands, synthesis
+from anisosample import variance as V
+from anisosample.progress import progress
+
+SCALES = {
+    "small": dict(
+        log2_ns=[8, 9, 10, 11, 12], seeds=2, realizations=2048,
+        one_edge=[30.0, 67.0], two_edges=[], four_edges=[(30.0, [30.0, 75.0, 115.0, 150.0])],
+        misaligned=(30.0, [-2.0, -1.0, -0.5, 0.5, 1.0, 2.0]),
+    ),
+    "paper": dict(
+        log2_ns=[8, 9, 10, 11, 12, 13, 14], seeds=3, realizations=4096,
+        one_edge=[30.0, 67.0, 15.0, 50.0], two_edges=[(30.0, 120.0), (67.0, 150.0)],
+        four_edges=[(30.0, [30.0, 75.0, 115.0, 150.0])],
+        misaligned=(30.0, [-2.0, -1.0, -0.5, 0.5, 1.0, 2.0]),
+    ),
+}
+BASELINES = {"pmj02bn": "shift", "sobol-owen": "fresh+shift"}
+
+
+def our_sets(out: Path, dirs, ns, seeds, bar):
+    sets = {}
+    for n in ns:
+        for s in range(seeds):
+            name = "_".join(f"{d:g}" for d in dirs) + f"_n{n}_s{s}.npz"
+            pts, _ = synthesis.load_or_synthesize(out / "sets" / name, jax.random.key(1000 + s),
+                                                  n, dirs, show_progress=False)
+            sets[(n, s)] = pts
+            bar.update(1)
+    return sets
+
+
+def variance_of_sets(f, sets, ns, seeds, realizations, key):
+    rows = []
+    for n in ns:
+        est = np.concatenate([
+            V.realization_estimates(f, sets[(n, s)], n, jax.random.fold_in(key, s),
+                                    realizations // seeds, randomization="shift",
+                                    center=f.integral)
+            for s in range(seeds)
+        ])
+        rows.append(V.variance_from_estimates(est, f.integral, n=n, randomization="shift"))
+    return rows
+
+
+def variance_of_baseline(f, name, ns, realizations, key):
+    mode = BASELINES[name]
+    kw = {"patterns": 16} if mode == "shift" else {}
+    return [V.estimate_variance(f, name, n, key, realizations, f.integral, randomization=mode,
+                                **kw) for n in ns]
+
+
+def curve(rows, ns):
+    var = [r.variance for r in rows]
+    se = [r.std_error for r in rows]
+    fit = V.fit_slope(ns, var, se)
+    return {"variance": var, "std_error": se, "fit": fit.as_dict()}
+
+
+def cached(path: Path, fn):
+    if path.exists():
+        return json.loads(path.read_text())
+    val = fn()
+    io.save_json(path, val, overwrite=True)
+    return val
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scale", choices=list(SCALES), default="small")
+    ap.add_argument("--out", default="results/w_fig6")
+    args = ap.parse_args(argv)
+    cfg = SCALES[args.scale]
+    out = Path(args.out)
+    ns = [2**k for k in cfg["log2_ns"]]
+    seeds, R = cfg["seeds"], cfg["realizations"]
+    key = jax.random.key(6)
+
+    cases = []  # (label, integrand directions, our set directions)
+    for t in cfg["one_edge"]:
+        cases.append((f"one edge {t:g}", [t], [0.0, 90.0, t]))
+    for a, b in cfg["two_edges"]:
+        cases.append((f"two edges {a:g},{b:g}", [a, b], [0.0, 90.0, a, b]))
+    for t, four in cfg["four_edges"]:
+        cases.append((f"four edges {'/'.join(f'{x:g}' for x in four)} (set 0/90/{t:g})", four,
+                      [0.0, 90.0, t]))
+    t0, deltas = cfg["misaligned"]
+
+    set_dirs = {tuple(c[2]) for c in cases}
+    bar = progress(total=len(set_dirs) * len(ns) * seeds, desc="w_fig6 sets")
+    sets = {d: our_sets(out, list(d), ns, seeds, bar) for d in sorted(set_dirs)}
+    bar.close()
+
+    results = {"settings": {"scale": args.scale, **cfg, "ns": ns,
+                            "recipe": "rate", "defaults": synthesis.recipe_defaults("rate")},
+               "provenance": io.provenance(), "cases": {}}
+    for label, fdirs, sdirs in progress(cases, desc="w_fig6 variance"):
+        f = integrands.edges(fdirs)
+        slug = label.replace(" ", "_").replace("/", "-").replace(",", "-")
+        entry = {"integrand_directions_deg": fdirs, "set_directions_deg": sdirs}
+        entry["ours"] = cached(out / "var" / f"{slug}_ours.json", lambda: curve(
+            variance_of_sets(f, sets[tuple(sdirs)], ns, seeds, R, key), ns))
+        for b in BASELINES:
+            entry[b] = cached(out / "var" / f"{slug}_{b}.json", lambda b=b: curve(
+                variance_of_baseline(f, b, ns, R, key), ns))
+        results["cases"][label] = entry
+        print(f"{label}: ours {entry['ours']['fit']['slope']:.3f} "
+              f"[{entry['ours']['fit']['ci_low']:.3f}, {entry['ours']['fit']['ci_high']:.3f}]  "
+              + "  ".join(f"{b} {entry[b]['fit']['slope']:.3f}" for b in BASELINES), flush=True)
+
+    # robustness: the set made for t0 on edges at t0 + delta
+    rob = {}
+    for dl in progress(deltas, desc="w_fig6 misalignment"):
+        f = integrands.edges([t0 + dl])
+        rob[f"{dl:+g}"] = cached(out / "var" / f"misaligned_{t0:g}_{dl:+g}.json", lambda f=f: curve(
+            variance_of_sets(f, sets[(0.0, 90.0, t0)], ns, seeds, R, key), ns))
+    rob["+0"] = results["cases"][f"one edge {t0:g}"]["ours"]
+    results["misalignment"] = {"set_direction_deg": t0,
+                               "slope_by_delta": {k: v["fit"] for k, v in sorted(
+                                   rob.items(), key=lambda kv: float(kv[0]))}}
+    for k, v in sorted(rob.items(), key=lambda kv: float(kv[0])):
+        print(f"misaligned {k} deg: slope {v['fit']['slope']:.3f}")
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    k = len(results["cases"]) + 1
+    fig, axes = plt.subplots(1, k, figsize=(3.4 * k, 3.2), squeeze=False)
+    for ax, (label, e) in zip(axes[0], results["cases"].items()):
+        for name, style in (("ours", "-o"), ("pmj02bn", "--s"), ("sobol-owen", ":^")):
+            ax.loglog(ns, e[name]["variance"], style, ms=3,
+                      label=f"{name} {e[name]['fit']['slope']:.2f}")
+        ax.set_title(label, fontsize=8)
+        ax.set_xlabel("n")
+        ax.legend(fontsize=7)
+    axes[0][0].set_ylabel("variance")
+    ax = axes[0][-1]
+    d = sorted(float(x) for x in rob)
+    s = [results["misalignment"]["slope_by_delta"][f"{x:+g}"]["slope"] for x in d]
+    lo = [results["misalignment"]["slope_by_delta"][f"{x:+g}"]["ci_low"] for x in d]
+    hi = [results["misalignment"]["slope_by_delta"][f"{x:+g}"]["ci_high"] for x in d]
+    ax.errorbar(d, s, yerr=[np.subtract(s, lo), np.subtract(hi, s)], fmt="-o", ms=3)
+    ax.axhline(-1.70, color="gray", lw=0.5)
+    ax.axhline(-1.5, color="gray", lw=0.5, ls=":")
+    ax.set_xlabel("edge misalignment (deg)")
+    ax.set_ylabel("slope")
+    ax.set_title(f"set for {t0:g} deg on edges at {t0:g}+delta", fontsize=8)
+    fig.tight_layout()
+    out.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out / "w_fig6.png", dpi=130)
+    io.save_json(out / "w_fig6.json", results, overwrite=True)
+    print(f"wrote {out / 'w_fig6.png'} and {out / 'w_fig6.json'}")
+
+
+if __name__ == "__main__":
+    main()
