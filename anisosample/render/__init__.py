@@ -1,0 +1,20 @@
+"""The small JAX ray caster: direct illumination and depth of field, with each pixel's 2D
+integrand exposed (W Sec. 6.2, H Sec. 4).
+
+Scenes come from Mitsuba 3's XML format (:func:`load_xml`) or from :class:`SceneBuilder`;
+:func:`pixel_integrand` gives ``f_q(x)`` of one pixel for the variance engine and the direction
+estimator; :func:`render` renders images over realizations; :func:`save_result` writes EXR/PNG.
+"""
+
+from .image import RenderResult as RenderResult
+from .image import render as render
+from .image import save_result as save_result
+from .image import tonemap as tonemap
+from .integrator import PixelIntegrand as PixelIntegrand
+from .integrator import pixel_integrand as pixel_integrand
+from .integrator import radiance as radiance
+from .lights import TECHNIQUES as TECHNIQUES
+from .scene import Scene as Scene
+from .scene import SceneBuilder as SceneBuilder
+from .xml import SceneFormatError as SceneFormatError
+from .xml import load_xml as load_xml

@@ -1,0 +1,191 @@
+"""Rendering whole images: realizations, per-pixel variance, EXR and PNG output.
+
+The image estimator of pixel ``q`` is ``mean_j f_q(shift_q(S)_j)`` with one point set ``S`` per
+realization from the chosen sampler and an independent toroidal shift per pixel (W Sec. 5.4).
+Over ``R`` realizations the result holds the mean image and the per-pixel sample variance of
+the one-realization estimator (its MSE when the estimator is unbiased).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._validate import check_int, check_key
+from .integrator import _check_options, _render_chunk
+from .scene import Scene
+
+
+class RenderResult(NamedTuple):
+    mean: np.ndarray  # (h, w, 3) float32, row 0 at the top
+    variance: np.ndarray | None  # (h, w, 3) sample variance over realizations (None if R = 1)
+    spp: int
+    realizations: int
+    settings: dict
+
+
+def _get_sampler(sampler) -> tuple[Callable, str]:
+    if callable(sampler):
+        return sampler, getattr(sampler, "name", getattr(sampler, "__name__", "custom"))
+    from .. import samplers
+
+    if not isinstance(sampler, str):
+        raise TypeError(f"sampler must be a sampler name or a callable (key, n), got {sampler!r}")
+    return samplers.get(sampler), sampler
+
+
+def render(
+    scene: Scene,
+    key,
+    *,
+    spp: int | None = None,
+    sampler="random",
+    realizations: int = 1,
+    pixel_center: bool = False,
+    dimension: str = "auto",
+    technique: str = "area",
+    mis: bool | None = None,
+    square_aperture: bool = False,
+    chunk: int | None = None,
+    progress: bool = True,
+) -> RenderResult:
+    """Render ``scene`` ``realizations`` times with ``spp`` points per pixel per realization.
+
+    ``sampler``: a name from :func:`anisosample.samplers.names` or a callable ``(key, n)``;
+    ``spp`` defaults to the scene's sample count; ``mis`` defaults to the XML integrator's
+    ``bsdf_samples > 0``. Deterministic for a given ``key``.
+    """
+    key = check_key("key", key)
+    spp = check_int("spp", scene.spp if spp is None else spp, minimum=1)
+    realizations = check_int("realizations", realizations, minimum=1)
+    dimension = _check_options(scene, dimension, technique)
+    if mis is None:
+        mis = scene.bsdf_samples > 0
+    mis = bool(mis) and dimension == "light"
+    sample_points, sampler_name = _get_sampler(sampler)
+    w, h = scene.width, scene.height
+    npix = w * h
+    if chunk is None:
+        chunk = max(1, min(npix, 2**16 // spp))
+    chunk = check_int("chunk", chunk, minimum=1)
+    n_chunks = -(-npix // chunk)
+    from ..progress import progress as bar
+
+    total = np.zeros((npix, 3), np.float64)
+    total2 = np.zeros((npix, 3), np.float64)
+    opts = dict(
+        dimension=dimension,
+        technique=technique,
+        mis=mis,
+        pixel_center=bool(pixel_center),
+        square_aperture=bool(square_aperture),
+    )
+    with bar(
+        total=realizations * n_chunks,
+        desc="render",
+        disable=None if progress else True,
+        unit="chunk",
+    ) as pb:
+        for r in range(realizations):
+            k_pts, k_pix = jax.random.split(jax.random.fold_in(key, r))
+            pts = jnp.asarray(sample_points(k_pts, spp), jnp.float32)
+            if pts.shape != (spp, 2):
+                raise ValueError(
+                    f"sampler {sampler_name!r} returned shape {pts.shape}, expected ({spp}, 2)"
+                )
+            est = np.zeros((npix, 3), np.float64)
+            for c in range(n_chunks):
+                idx = np.arange(c * chunk, (c + 1) * chunk)
+                valid = idx < npix
+                idx = np.where(valid, idx, npix - 1).astype(np.int32)
+                out = _render_chunk(scene, pts, k_pix, jnp.asarray(idx), **opts)
+                est[idx[valid]] = np.asarray(out, np.float64)[valid]
+                pb.update(1)
+            if not np.all(np.isfinite(est)):
+                raise FloatingPointError("the render produced NaN or Inf (a bug: please report)")
+            total += est
+            total2 += est * est
+    mean = total / realizations
+    var = None
+    if realizations > 1:
+        var = np.maximum(total2 - realizations * mean * mean, 0.0) / (realizations - 1)
+        var = var.reshape(h, w, 3).astype(np.float32)
+    settings = dict(
+        spp=spp,
+        sampler=sampler_name,
+        realizations=realizations,
+        pixel_center=bool(pixel_center),
+        dimension=dimension,
+        technique=technique,
+        mis=mis,
+        square_aperture=bool(square_aperture),
+        width=w,
+        height=h,
+    )
+    return RenderResult(
+        mean=mean.reshape(h, w, 3).astype(np.float32),
+        variance=var,
+        spp=spp,
+        realizations=realizations,
+        settings=settings,
+    )
+
+
+def tonemap(image, *, exposure: float = 0.0) -> np.ndarray:
+    """Linear RGB to 8-bit-ready sRGB in ``[0, 1]``: ``2^exposure`` scale, clamp, sRGB curve."""
+    x = np.clip(np.asarray(image, np.float64) * 2.0**exposure, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055).astype(np.float32)
+
+
+def save_result(
+    path,
+    result: RenderResult,
+    *,
+    overwrite: bool = False,
+    exposure: float = 0.0,
+    reference: np.ndarray | None = None,
+    png: bool = True,
+    metadata: dict | None = None,
+) -> list[Path]:
+    """Write ``path`` (EXR, the mean image), ``*_variance.exr`` (when R > 1), ``*_mse.exr``
+    (against ``reference``) and ``*.png`` previews. Every file is written atomically and
+    nothing is replaced unless ``overwrite``; all targets are checked before the first write.
+    """
+    from .. import io
+
+    path = Path(path)
+    if path.suffix != ".exr":
+        raise ValueError(f"output must end in .exr, got {path.name}")
+    meta = {**io.provenance(), **result.settings, **(metadata or {})}
+    stem = path.with_suffix("")
+    jobs: list[tuple[Path, str, np.ndarray]] = [(path, "exr", result.mean)]
+    if result.variance is not None:
+        jobs.append((Path(f"{stem}_variance.exr"), "exr", result.variance))
+    if reference is not None:
+        ref = np.asarray(reference, np.float32)
+        if ref.shape != result.mean.shape:
+            raise ValueError(f"reference must have shape {result.mean.shape}, got {ref.shape}")
+        # MSE of one realization's estimate: variance + squared bias of the mean.
+        err = (result.mean - ref) ** 2
+        if result.variance is not None:
+            err = result.variance + err
+        jobs.append((Path(f"{stem}_mse.exr"), "exr", err))
+    if png:
+        jobs.append((path.with_suffix(".png"), "png", tonemap(result.mean, exposure=exposure)))
+    if not overwrite:
+        for p, _, _ in jobs:
+            if p.exists():
+                raise FileExistsError(f"{p} exists; pass overwrite=True (CLI: --force)")
+    written = []
+    for p, kind, img in jobs:
+        if kind == "exr":
+            io.write_exr(p, img, meta, overwrite=overwrite)
+        else:
+            io.save_png(p, img, overwrite=overwrite)
+        written.append(p)
+    return written

@@ -1,0 +1,247 @@
+"""Direct illumination and depth of field, with each pixel's 2D integrand exposed (W Eq. 8).
+
+One sample of pixel ``q`` is a function of four 2D points: the film position inside the pixel,
+the lens sample, the light sample and (with MIS) the BSDF sample. :func:`radiance` evaluates it.
+The *integrand dimension* is the one the sampler under study drives; the others are either fixed
+(pixel centre, lens centre) or independent uniform random numbers:
+
+* ``dimension="light"``: ``x`` is the light sample; ``f_q(x) = L_e + f_r L_e G V / p(x)`` at the
+  primary hit (Veach's area form, the pixel's direct illumination estimated with one light
+  sample; W Sec. 6.2 Cornell box / breakfast room / attic, H Sec. 4).
+* ``dimension="lens"``: ``x`` is the aperture sample of the thin lens; the primary hit is
+  connected deterministically to the point lights (W Sec. 6.2 depth of field).
+
+With ``pixel_center=True`` (W's setting) the film position is the pixel centre and
+:func:`pixel_integrand` is a true 2D function of ``x``. With ``pixel_center=False`` (default,
+Mitsuba's box-filtered film) the film position is uniform in the pixel, drawn from the key.
+
+MIS (``mis=True``): one light sample and one BSDF sample combined with the power heuristic
+(Veach & Guibas 1995; H renders with one light and one BSDF sample). Mitsuba's ``direct``
+integrator with ``emitter_samples = bsdf_samples = 1`` computes the same estimator.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from ._vec import dot
+from .bsdf import eval_bsdf, pdf_bsdf, sample_bsdf
+from .camera import generate_ray
+from .geometry import intersect, occluded, offset_origin
+from .lights import emitted, light_pdf, sample_light
+from .scene import THINLENS, Scene
+
+DIMENSIONS = ("light", "lens")
+LUMINANCE = (0.212671, 0.715160, 0.072169)  # linear sRGB (Rec. 709) luminance weights
+
+
+def _power(a, b):
+    a2, b2 = a * a, b * b
+    s = a2 + b2
+    return jnp.where(s > 0, a2 / jnp.where(s > 0, s, 1.0), 0.0)
+
+
+def radiance(
+    scene: Scene,
+    film: Float[Array, "2"],
+    lens: Float[Array, "2"],
+    light: Float[Array, "2"],
+    bsdf_u: Float[Array, "2"],
+    *,
+    technique: str = "area",
+    mis: bool = False,
+    square_aperture: bool = False,
+) -> Float[Array, "3"]:
+    """One sample of the radiance through film point ``film`` (``[0, 1]^2``, row 0 on top)."""
+    o, d = generate_ray(scene.camera, film, lens, square_aperture=square_aperture)
+    hit = intersect(scene, o, d)
+    wi = -d
+    mats = scene.materials
+    # Emission seen directly (front side only, Mitsuba's area emitter).
+    front = dot(hit.n, wi) > 0
+    see_light = hit.valid & (hit.light >= 0) & front
+    L = jnp.where(see_light, emitted(scene, jnp.maximum(hit.light, 0), hit.uv), 0.0)
+
+    # Light sampling.
+    ls = sample_light(scene, light, hit.p, technique)
+    v = ls.p - hit.p
+    d2 = jnp.maximum(dot(v, v), 1e-30)
+    wo = v * jax.lax.rsqrt(d2)
+    cos_l = jnp.where(ls.delta, 1.0, dot(ls.n, -wo))
+    f = eval_bsdf(mats, hit.material, hit.n, wi, wo)
+    origin = offset_origin(scene, hit.p, hit.n, wo)
+    visible = ~occluded(scene, origin, ls.p)
+    ok = hit.valid & (cos_l > 0) & (ls.pdf > 0) & visible & jnp.any(f > 0)
+    contrib = f * ls.radiance * (cos_l / (d2 * jnp.where(ls.pdf > 0, ls.pdf, 1.0)))
+    if mis:
+        pdf_l_sa = ls.pdf * d2 / jnp.maximum(cos_l, 1e-30)
+        w = jnp.where(ls.delta, 1.0, _power(pdf_l_sa, pdf_bsdf(mats, hit.material, hit.n, wi, wo)))
+        contrib = contrib * w
+    L = L + jnp.where(ok, contrib, 0.0)
+
+    if mis:
+        wb, pdf_b = sample_bsdf(mats, hit.material, hit.n, wi, bsdf_u)
+        ob = offset_origin(scene, hit.p, hit.n, wb)
+        h2 = intersect(scene, ob, wb)
+        cos2 = dot(h2.n, -wb)
+        lit = hit.valid & h2.valid & (h2.light >= 0) & (cos2 > 0) & (pdf_b > 0)
+        prim = jnp.maximum(h2.light, 0)
+        pdf_l_sa = (
+            light_pdf(scene, prim, h2.p, hit.p, technique) * h2.t**2 / jnp.maximum(cos2, 1e-30)
+        )
+        fb = eval_bsdf(mats, hit.material, hit.n, wi, wb)
+        wgt = _power(pdf_b, pdf_l_sa)
+        cb = fb * emitted(scene, prim, h2.uv) * (wgt / jnp.where(pdf_b > 0, pdf_b, 1.0))
+        L = L + jnp.where(lit, cb, 0.0)
+    return L
+
+
+def default_dimension(scene: Scene) -> str:
+    """``"lens"`` for a thin-lens scene lit by point lights only, else ``"light"``."""
+    if scene.camera.kind == THINLENS and not scene.has_area_lights:
+        return "lens"
+    return "light"
+
+
+def _check_options(scene, dimension, technique):
+    from .._validate import check_choice
+    from .lights import TECHNIQUES
+
+    dimension = default_dimension(scene) if dimension in (None, "auto") else dimension
+    check_choice("dimension", dimension, DIMENSIONS)
+    check_choice("technique", technique, TECHNIQUES)
+    if dimension == "lens" and scene.camera.kind != THINLENS:
+        raise ValueError("dimension='lens' needs a thinlens sensor; this scene's is perspective")
+    if dimension == "lens" and scene.has_area_lights:
+        raise ValueError(
+            "dimension='lens' needs a scene lit by point lights only (the light is"
+            " connected deterministically, W Sec. 6.2); this one has area lights"
+        )
+    return dimension
+
+
+def _sample_fn(scene: Scene, dimension: str, technique: str, mis: bool, square_aperture: bool):
+    """``g(x, film, other, bsdf_u) -> rgb`` where ``x`` drives ``dimension``."""
+
+    def g(x, film, other, bsdf_u):
+        if dimension == "light":
+            lens = other if scene.camera.kind == THINLENS else jnp.full(2, 0.5, jnp.float32)
+            light = x
+        else:
+            lens, light = x, other
+        return radiance(
+            scene,
+            film,
+            lens,
+            light,
+            bsdf_u,
+            technique=technique,
+            mis=mis,
+            square_aperture=square_aperture,
+        )
+
+    return g
+
+
+class PixelIntegrand(eqx.Module):
+    """``f_q(x)`` of one pixel: a callable over ``x`` of shape ``(..., 2)`` returning ``(...)``.
+
+    The value is the luminance (or one RGB channel) of the one-sample estimate of the pixel with
+    ``x`` as its light or lens sample: the image estimator is ``mean_j f_q(x_j)`` (W Eq. 8),
+    exactly :func:`anisosample.variance.estimator_variance`'s estimator. Everything except ``x``
+    is fixed: the film position at the pixel centre (or at ``film`` if given), the lens at its
+    centre, no BSDF sample (``mis`` is off: a 2D integrand has one sampling technique).
+    """
+
+    scene: Scene
+    film: Float[Array, "2"]
+    weights: Float[Array, "3"]
+    dimension: str = eqx.field(static=True)
+    technique: str = eqx.field(static=True)
+    square_aperture: bool = eqx.field(static=True)
+
+    def rgb(self, x: Float[Array, "... 2"]) -> Float[Array, "... 3"]:
+        x = jnp.asarray(x, jnp.float32)
+        g = _sample_fn(self.scene, self.dimension, self.technique, False, self.square_aperture)
+        half = jnp.full(2, 0.5, jnp.float32)
+        flat = x.reshape(-1, 2)
+        out = jax.vmap(lambda xi: g(xi, self.film, half, half))(flat)
+        return out.reshape(*x.shape[:-1], 3)
+
+    def __call__(self, x: Float[Array, "... 2"]) -> Float[Array, "..."]:
+        return jnp.tensordot(self.rgb(x), self.weights, axes=1)
+
+
+def pixel_integrand(
+    scene: Scene,
+    pixel: tuple[int, int],
+    *,
+    dimension: str = "auto",
+    technique: str = "area",
+    channel: str = "luminance",
+    film: tuple[float, float] | None = None,
+    square_aperture: bool = False,
+) -> PixelIntegrand:
+    """The 2D integrand ``f_q`` of pixel ``pixel = (column, row)`` (row 0 at the image top).
+
+    ``channel``: ``"luminance"`` (Rec. 709 weights), ``"r"``, ``"g"`` or ``"b"``. ``film``
+    overrides the film position inside ``[0, 1]^2`` (default: the pixel centre).
+    """
+    from .._validate import check_choice, check_int
+
+    dimension = _check_options(scene, dimension, technique)
+    col = check_int("pixel[0] (column)", pixel[0], minimum=0, maximum=scene.width - 1)
+    row = check_int("pixel[1] (row)", pixel[1], minimum=0, maximum=scene.height - 1)
+    check_choice("channel", channel, ("luminance", "r", "g", "b"))
+    weights = {"luminance": LUMINANCE, "r": (1, 0, 0), "g": (0, 1, 0), "b": (0, 0, 1)}[channel]
+    if film is None:
+        film = ((col + 0.5) / scene.width, (row + 0.5) / scene.height)
+    return PixelIntegrand(
+        scene=scene,
+        film=jnp.asarray(film, jnp.float32),
+        weights=jnp.asarray(weights, jnp.float32),
+        dimension=dimension,
+        technique=technique,
+        square_aperture=square_aperture,
+    )
+
+
+@functools.partial(
+    jax.jit, static_argnames=("dimension", "technique", "mis", "pixel_center", "square_aperture")
+)
+def _render_chunk(
+    scene: Scene, points, key, pixels, *, dimension, technique, mis, pixel_center, square_aperture
+):
+    """Mean over the ``spp`` points of each pixel in ``pixels`` (flat indices): ``(chunk, 3)``.
+
+    Each pixel gets its own toroidal shift of the shared point set (W Sec. 5.4) and its own
+    independent random numbers for the other dimensions, all from ``fold_in(key, pixel)``.
+    """
+    from ..samplers import toroidal_shift
+
+    g = _sample_fn(scene, dimension, technique, mis, square_aperture)
+    w, h = scene.width, scene.height
+    spp = points.shape[0]
+
+    def one_pixel(q):
+        kq = jax.random.fold_in(key, q)
+        k_shift, k_film, k_other, k_bsdf = jax.random.split(kq, 4)
+        x = toroidal_shift(k_shift, points)
+        col = (q % w).astype(jnp.float32)
+        row = (q // w).astype(jnp.float32)
+        if pixel_center:
+            jit_ = jnp.full((spp, 2), 0.5, jnp.float32)
+        else:
+            jit_ = jax.random.uniform(k_film, (spp, 2), jnp.float32)
+        film = jnp.stack([(col + jit_[:, 0]) / w, (row + jit_[:, 1]) / h], axis=-1)
+        other = jax.random.uniform(k_other, (spp, 2), jnp.float32)
+        bsdf_u = jax.random.uniform(k_bsdf, (spp, 2), jnp.float32)
+        vals = jax.vmap(g)(x, film, other, bsdf_u)
+        return jnp.mean(vals, axis=0)
+
+    return jax.vmap(one_pixel)(pixels)
