@@ -68,7 +68,7 @@ class FrequencySet:
     def groups(self):
         """Yield ``(direction_deg, freqs_g, weights_g)`` for each non-empty group."""
         start = 0
-        for theta, size in zip(self.group_directions_deg, self.group_sizes):
+        for theta, size in zip(self.group_directions_deg, self.group_sizes, strict=True):
             if size:
                 yield theta, self.freqs[start : start + size], self.weights[start : start + size]
             start += size

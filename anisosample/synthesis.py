@@ -95,21 +95,17 @@ def adam_update(grad, state, step, *, lr, b1, b2, eps):
     return -lr * mhat / (jnp.sqrt(vhat) + eps), (m, v)
 
 
-def _make_loss(fset, directions_deg, c, recipe, method, eps):
-    if recipe == "rate":
+def _make_loss(fset, directions_deg, c, recipe, method, eps, a=1.0):
+    """``a L_spec + c L_SW`` (W Eq. 10; ``a = 0`` or ``c = 0`` drops a term, as in W Fig. 3)."""
+    spec = _losses.linear_spectrum_loss if recipe == "rate" else _losses.spectrum_loss
 
-        def loss(x):
-            val = _losses.linear_spectrum_loss(x, fset, method=method, eps=eps)
-            if c > 0:
-                val = val + c * _losses.sliced_wasserstein_loss(x, directions_deg)
-            return val
-    else:
-
-        def loss(x):
-            val = _losses.spectrum_loss(x, fset, method=method, eps=eps)
-            if c > 0:
-                val = val + c * _losses.sliced_wasserstein_loss(x, directions_deg)
-            return val
+    def loss(x):
+        val = jnp.zeros((), x.dtype)
+        if a > 0:
+            val = val + a * spec(x, fset, method=method, eps=eps)
+        if c > 0:
+            val = val + c * _losses.sliced_wasserstein_loss(x, directions_deg)
+        return val
 
     return loss
 
@@ -168,6 +164,7 @@ def synthesize(
     steps: int | None = None,
     learning_rate: float | None = None,
     c: float | None = None,
+    spectrum_weight: float = 1.0,
     boundary: str | None = None,
     init: str = "jittered",
     method: str = "auto",
@@ -189,6 +186,7 @@ def synthesize(
         recipe: ``"rate"`` (default, reaches the rate) or ``"paper"`` (W Eqs. 10-15).
         steps, learning_rate, c, boundary: override the recipe's value (see
             :func:`recipe_defaults`); ``c >= 0`` weighs the SW term (W Eq. 10).
+        spectrum_weight: weight of the spectrum term (0 leaves SW alone, W Fig. 3 b).
         init: a sampler name for the initial set (default ``"jittered"``).
         method: spectrum evaluation, ``"auto" | "direct" | "nufft3"``.
         frequency_options: overrides for :func:`anisosample.frequencies.design`.
@@ -216,6 +214,10 @@ def synthesize(
         opts["learning_rate"] = check_positive_float("learning_rate", learning_rate)
     if c is not None:
         opts["c"] = check_positive_float("c", c, allow_zero=True)
+    opts["spectrum_weight"] = check_positive_float("spectrum_weight", spectrum_weight,
+                                                   allow_zero=True)
+    if opts["spectrum_weight"] == 0 and opts["c"] == 0:
+        raise ValueError("spectrum_weight and c must not both be 0 (nothing to minimise)")
     if boundary is not None:
         opts["boundary"] = check_choice("boundary", boundary, BOUNDARIES)
     check_choice("method", method, _losses.METHODS)
@@ -265,7 +267,8 @@ def synthesize(
                 jnp.asarray(int(arrays["step"]), jnp.int64),
             )
             history = [float(h) for h in arrays["history"]]
-        loss = _make_loss(fset, directions_deg, opts["c"], recipe, method, opts["nufft_eps"])
+        loss = _make_loss(fset, directions_deg, opts["c"], recipe, method, opts["nufft_eps"],
+                          opts["spectrum_weight"])
         done = int(state[3])
         runners = {}
         bar = _progress(

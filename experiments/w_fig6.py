@@ -26,7 +26,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from anisosample import io, integrands, synthesis
+from anisosample import integrands, io, synthesis
 from anisosample import variance as V
 from anisosample.progress import progress
 
@@ -126,10 +126,10 @@ def main(argv=None):
         f = integrands.edges(fdirs)
         slug = label.replace(" ", "_").replace("/", "-").replace(",", "-")
         entry = {"integrand_directions_deg": fdirs, "set_directions_deg": sdirs}
-        entry["ours"] = cached(out / "var" / f"{slug}_ours.json", lambda: curve(
+        entry["ours"] = cached(out / "var" / f"{slug}_ours.json", lambda f=f, sdirs=sdirs: curve(
             variance_of_sets(f, sets[tuple(sdirs)], ns, seeds, R, key), ns))
         for b in BASELINES:
-            entry[b] = cached(out / "var" / f"{slug}_{b}.json", lambda b=b: curve(
+            entry[b] = cached(out / "var" / f"{slug}_{b}.json", lambda b=b, f=f: curve(
                 variance_of_baseline(f, b, ns, R, key), ns))
         results["cases"][label] = entry
         print(f"{label}: ours {entry['ours']['fit']['slope']:.3f} "
@@ -156,7 +156,7 @@ def main(argv=None):
 
     k = len(results["cases"]) + 1
     fig, axes = plt.subplots(1, k, figsize=(3.4 * k, 3.2), squeeze=False)
-    for ax, (label, e) in zip(axes[0], results["cases"].items()):
+    for ax, (label, e) in zip(axes[0], results["cases"].items(), strict=False):
         for name, style in (("ours", "-o"), ("pmj02bn", "--s"), ("sobol-owen", ":^")):
             ax.loglog(ns, e[name]["variance"], style, ms=3,
                       label=f"{name} {e[name]['fit']['slope']:.2f}")

@@ -1,7 +1,6 @@
 """synthesize(): contract, the losses going down, the spectrum getting dark where asked,
 checkpoint/resume giving the same result, bad input, the .npz record."""
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest

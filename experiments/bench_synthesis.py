@@ -1,0 +1,62 @@
+"""Wall time to a converged set at the design that reaches the rate (issue 4 targets on 2 CPU
+cores: <= 17 s for n = 2^12 and <= 10 min for n = 2^16, 3 directions).
+
+Prints, per n: frequency count, one gradient's time (rotated type-3 NUFFT, after compilation),
+the compile time, and the wall time of ``synthesize`` with the default recipe (compilation
+included) and the final loss.  Not a test: nothing is asserted.
+
+    python experiments/bench_synthesis.py [--log2-n 12 16] [--directions 0,90,30]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import anisosample as asp
+from anisosample import frequencies, losses, synthesis
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--log2-n", type=int, nargs="+", default=[12, 16])
+    ap.add_argument("--directions", default="0,90,30")
+    ap.add_argument("--steps", type=int, default=None, help="override the recipe's steps")
+    args = ap.parse_args(argv)
+    dirs = [float(x) for x in args.directions.split(",")]
+    opts = synthesis.recipe_defaults("rate")
+    print(f"backend {jax.default_backend()}, {os.cpu_count()} CPUs, directions {dirs}, "
+          f"recipe 'rate' {opts}")
+    for k in args.log2_n:
+        n = 2**k
+        fset = frequencies.design(n, dirs, "rate")
+        with jax.enable_x64(True):
+            x = jnp.asarray(np.asarray(asp.samplers.get("jittered")(jax.random.key(0), n)),
+                            jnp.float64)
+            g = jax.jit(jax.grad(lambda y, fset=fset: losses.linear_spectrum_loss(
+                y, fset, method="nufft3", eps=opts["nufft_eps"])))
+            t = time.perf_counter()
+            g(x).block_until_ready()
+            compile_s = time.perf_counter() - t
+            t = time.perf_counter()
+            reps = 5
+            for _ in range(reps):
+                g(x).block_until_ready()
+            grad_s = (time.perf_counter() - t) / reps
+        t = time.perf_counter()
+        _, info = synthesis.synthesize(jax.random.key(0), n, dirs, steps=args.steps,
+                                       return_info=True, show_progress=True)
+        wall = time.perf_counter() - t
+        print(f"n=2^{k}: {len(fset)} frequencies; gradient {grad_s:.3f} s (first call incl. "
+              f"compile {compile_s:.1f} s); synthesize {len(info['history']) - 1} steps: "
+              f"{wall:.1f} s wall; loss {info['history'][0]:.3g} -> {info['final_loss']:.3g}",
+              flush=True)
+
+
+if __name__ == "__main__":
+    main()
