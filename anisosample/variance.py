@@ -26,6 +26,7 @@ inside ``lax.map``) inside one ``jit``, so memory is bounded by ``chunk_elements
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
 
@@ -91,6 +92,7 @@ def _evaluate(f, x, c):
 @eqx.filter_jit
 def _shifted_deviations(f, points, shifts, c, chunk: int):
     """``mean_j f((x_j + t_r) mod 1) - c`` for every shift ``t_r`` (``(R, 2)``, R % chunk = 0)."""
+
     def body(t):  # t: (chunk, 2)
         x = _wrap(points[None, :, :] + t[:, None, :])
         return _evaluate(f, x, c)
@@ -99,20 +101,14 @@ def _shifted_deviations(f, points, shifts, c, chunk: int):
     return out.reshape(-1)
 
 
-@eqx.filter_jit
-def _fresh_deviations(f, sampler, n: int, keys, shifts, c, chunk: int):
-    """Fresh patterns ``sampler.fn(key_r, n)`` (optionally shifted by ``t_r``), vmapped."""
+@functools.partial(jax.jit, static_argnums=(0, 1))
+def _fresh_points(sampler, n: int, keys):
+    """A stack of fresh patterns ``sampler.fn(key_r, n)``, vmapped over the keys.
 
-    def one(k, t):
-        return _wrap(sampler.fn(k, n) + t[None, :])
-
-    def body(args):
-        k, t = args
-        x = jax.vmap(one)(k, t)
-        return _evaluate(f, x, c)
-
-    out = jax.lax.map(body, (keys.reshape(-1, chunk), shifts.reshape(-1, chunk, 2)))
-    return out.reshape(-1)
+    Kept apart from the integrand's kernel so that its (costly) compilation is shared by every
+    integrand measured with the same sampler, n and chunk.
+    """
+    return jax.vmap(lambda k: sampler.fn(k, n))(keys)
 
 
 @eqx.filter_jit
@@ -131,8 +127,9 @@ def _resolve_sampler(sampler, n: int):
     if hasattr(sampler, "shape"):
         pts = check_points("sampler", sampler)
         if pts.shape[0] != n:
-            raise ValueError(f"n must equal the number of points of the given set "
-                             f"({pts.shape[0]}), got {n}")
+            raise ValueError(
+                f"n must equal the number of points of the given set ({pts.shape[0]}), got {n}"
+            )
         return None, jnp.asarray(pts, dtype=jnp.float32)
     if not callable(sampler):
         raise TypeError(
@@ -225,11 +222,14 @@ def realization_estimates(
                 raise ValueError("patterns must be 1 for a fixed point set")
             bases = [fixed]
         else:
-            bases = [jnp.asarray(sampler(k, n), dtype=jnp.float32)
-                     for k in jax.random.split(k_pat, patterns)]
+            bases = [
+                jnp.asarray(sampler(k, n), dtype=jnp.float32)
+                for k in jax.random.split(k_pat, patterns)
+            ]
     else:
-        bases = [jnp.asarray(sampler(jax.random.split(k_pat, realizations)[0], n),
-                             dtype=jnp.float32)]
+        bases = [
+            jnp.asarray(sampler(jax.random.split(k_pat, realizations)[0], n), dtype=jnp.float32)
+        ]
     if center is None:
         center = float(np.mean(np.asarray(f(bases[0]), dtype=np.float64)))
     c = jnp.float32(center)
@@ -253,15 +253,25 @@ def realization_estimates(
         jittable = isinstance(sampler, _samplers.Sampler) and sampler.jittable
         if jittable:
             rows = -(-realizations // chunk) * chunk
-            dev = _fresh_deviations(f, sampler, n, _pad_rows(keys, rows), _pad_rows(t, rows), c,
-                                    chunk)
-            out.append(np.asarray(dev, dtype=np.float64)[:realizations])
+            keys, t = _pad_rows(keys, rows), _pad_rows(t, rows)
+            devs = [
+                _stacked_deviations(
+                    f, _fresh_points(sampler, n, keys[i : i + chunk]), t[i : i + chunk], c
+                )
+                for i in range(0, rows, chunk)
+            ]
+            dev = np.concatenate([np.asarray(d, dtype=np.float64) for d in devs])
+            out.append(dev[:realizations])
         else:  # NumPy constructions or unknown callables: make the sets in Python, evaluate stacked
             bar = _progress_bar(total=realizations, desc="patterns", disable=_off(progress))
             for start in range(0, realizations, chunk):
                 stop = min(start + chunk, realizations)
-                pts = jnp.stack([jnp.asarray(sampler(keys[r], n), dtype=jnp.float32)
-                                 for r in range(start, stop)])
+                pts = jnp.stack(
+                    [
+                        jnp.asarray(sampler(keys[r], n), dtype=jnp.float32)
+                        for r in range(start, stop)
+                    ]
+                )
                 dev = _stacked_deviations(f, pts, t[start:stop], c)
                 out.append(np.asarray(dev, dtype=np.float64))
                 bar.update(stop - start)
@@ -295,8 +305,14 @@ class VarianceEstimate:
         return dataclasses.asdict(self)
 
 
-def variance_from_estimates(estimates, exact: float | None = None, *, n: int = 0,
-                            randomization: str = "", confidence: float = 0.95) -> VarianceEstimate:
+def variance_from_estimates(
+    estimates,
+    exact: float | None = None,
+    *,
+    n: int = 0,
+    randomization: str = "",
+    confidence: float = 0.95,
+) -> VarianceEstimate:
     """Variance, standard error and interval from per-realization estimates (float64)."""
     x = np.asarray(estimates, dtype=np.float64).reshape(-1)
     r = x.size
@@ -356,9 +372,18 @@ def estimate_variance(
         if not math.isfinite(exact):
             raise ValueError(f"exact must be finite, got {exact}")
     center = exact if exact is not None else _known_integral(f)
-    est = realization_estimates(f, sampler, n, key, realizations, randomization=randomization,
-                                patterns=patterns, center=center, chunk_elements=chunk_elements,
-                                progress=progress)
+    est = realization_estimates(
+        f,
+        sampler,
+        n,
+        key,
+        realizations,
+        randomization=randomization,
+        patterns=patterns,
+        center=center,
+        chunk_elements=chunk_elements,
+        progress=progress,
+    )
     sampler_obj, fixed = _resolve_sampler(sampler, n)
     mode = _choose_randomization(randomization, sampler_obj, fixed)
     return variance_from_estimates(est, exact, n=n, randomization=mode, confidence=confidence)
@@ -385,9 +410,17 @@ def estimator_variance(
     ``"fresh+shift"`` (see the module docstring). Raises ``ValueError`` for ``realizations < 2``
     and for ``n`` that is not a power of two with a net sampler (sobol-owen, pmj02, pmj02bn).
     """
-    return estimate_variance(f, sampler, n, key, realizations, exact,
-                             randomization=randomization, patterns=patterns,
-                             chunk_elements=chunk_elements).variance
+    return estimate_variance(
+        f,
+        sampler,
+        n,
+        key,
+        realizations,
+        exact,
+        randomization=randomization,
+        patterns=patterns,
+        chunk_elements=chunk_elements,
+    ).variance
 
 
 # --- convergence sweeps and slope fits ------------------------------------------------------------
@@ -419,8 +452,9 @@ def fit_slope(ns, variances, std_errors=None, *, confidence: float = 0.95) -> Sl
     ns = np.asarray(ns, dtype=np.float64).reshape(-1)
     v = np.asarray(variances, dtype=np.float64).reshape(-1)
     if ns.shape != v.shape or ns.size < 2:
-        raise ValueError(f"ns and variances must have the same length >= 2, got {ns.size} "
-                         f"and {v.size}")
+        raise ValueError(
+            f"ns and variances must have the same length >= 2, got {ns.size} and {v.size}"
+        )
     if np.any(v <= 0) or np.any(ns <= 0):
         raise ValueError("ns and variances must be positive for a log-log fit")
     x, y = np.log(ns), np.log(v)
@@ -445,8 +479,14 @@ def fit_slope(ns, variances, std_errors=None, *, confidence: float = 0.95) -> Sl
     q = float(scipy.stats.t.ppf(0.5 + confidence / 2, dof)) if dof > 0 else float("inf")
     if std_errors is not None and dof > 0 and scale == 1.0:
         q = float(scipy.stats.norm.ppf(0.5 + confidence / 2))
-    return SlopeFit(float(beta[1]), float(beta[0]), se_slope, float(beta[1] - q * se_slope),
-                    float(beta[1] + q * se_slope), confidence)
+    return SlopeFit(
+        float(beta[1]),
+        float(beta[0]),
+        se_slope,
+        float(beta[1] - q * se_slope),
+        float(beta[1] + q * se_slope),
+        confidence,
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -521,15 +561,28 @@ def convergence(
     for label, smp in table.items():
         row = []
         for m in ns:
-            row.append(estimate_variance(f, smp, m, key, realizations, exact,
-                                         randomization=option(randomization, label),
-                                         patterns=option(patterns, label),
-                                         confidence=confidence))
+            row.append(
+                estimate_variance(
+                    f,
+                    smp,
+                    m,
+                    key,
+                    realizations,
+                    exact,
+                    randomization=option(randomization, label),
+                    patterns=option(patterns, label),
+                    confidence=confidence,
+                )
+            )
             bar.update(1)
         estimates[label] = tuple(row)
         sel = [i for i, m in enumerate(ns) if m >= fit_min_n]
-        fits[label] = fit_slope([ns[i] for i in sel], [row[i].variance for i in sel],
-                                [row[i].std_error for i in sel], confidence=confidence)
+        fits[label] = fit_slope(
+            [ns[i] for i in sel],
+            [row[i].variance for i in sel],
+            [row[i].std_error for i in sel],
+            confidence=confidence,
+        )
     bar.close()
     return ConvergenceResult(ns, estimates, fits)
 

@@ -352,3 +352,16 @@ def test_textured_integral_against_quadrature():
         I.Textured(tex, I.GaussianBump())
     with pytest.raises(ValueError, match="zero frequency"):
         I.Texture([(0, 0)], [0.1])
+
+
+def test_from_spec_builds_each_kind():
+    assert I.from_spec("edges:30,75").directions_deg == (30.0, 75.0)
+    assert isinstance(I.from_spec("halfplane:30,0.4"), I.HalfPlane)
+    assert I.from_spec("polygon:0.1,0.1,0.9,0.2,0.5,0.8").integral == pytest.approx(0.26)
+    assert I.from_spec("disk:0.5,0.5,0.2").integral == pytest.approx(np.pi * 0.04)
+    assert isinstance(I.from_spec("bump"), I.GaussianBump)
+    assert I.from_spec("smoothed:30,0.001").sigma == 0.001
+    assert isinstance(I.from_spec("textured-edges:30"), I.Textured)
+    for bad in ("", "edges", "edges:1,2,3,4,5", "polygon:0,0,1", "wave:3", "halfplane:x,y"):
+        with pytest.raises(ValueError, match="spec|directions"):
+            I.from_spec(bad)
