@@ -108,8 +108,15 @@ class _Params:
 
 def _params(**kw) -> _Params:
     p = {}
-    for name in ("sigma_px", "bin_deg", "kappa", "window_deg", "min_separation_deg",
-                 "confidence_window_deg", "floor"):
+    for name in (
+        "sigma_px",
+        "bin_deg",
+        "kappa",
+        "window_deg",
+        "min_separation_deg",
+        "confidence_window_deg",
+        "floor",
+    ):
         if name in kw:
             p[name] = check_positive_float(name, kw[name])
     for name in ("min_gradient", "zero_window_deg", "threshold"):
@@ -122,9 +129,7 @@ def _params(**kw) -> _Params:
     params = _Params(**p)
     nb = 180.0 / params.bin_deg
     if abs(nb - round(nb)) > 1e-9 or round(nb) < 8:
-        raise ValueError(
-            f"bin_deg must divide 180 into at least 8 bins, got {params.bin_deg}"
-        )
+        raise ValueError(f"bin_deg must divide 180 into at least 8 bins, got {params.bin_deg}")
     if params.zero_window_deg >= 45.0:
         raise ValueError(f"zero_window_deg must be < 45, got {params.zero_window_deg}")
     if params.min_separation_deg > 90.0:
@@ -223,8 +228,9 @@ def _check_grid(values, params: _Params, name="values"):
     return jnp.asarray(values, jnp.float32)
 
 
-def orientation_histogram(values, *, sigma_px: float = 2.0, bin_deg: float = 1.0,
-                          min_gradient: float = 0.05):
+def orientation_histogram(
+    values, *, sigma_px: float = 2.0, bin_deg: float = 1.0, min_gradient: float = 0.05
+):
     """W Sec. 5.1: gradient magnitude binned by gradient direction, ``(180/bin_deg,)`` float32.
 
     Bin ``i`` is centred at ``i * bin_deg`` degrees (nearest-bin rounding, 180 wraps to 0);
@@ -252,8 +258,9 @@ def zero_axes(hist, *, bin_deg: float = 1.0, zero_window_deg: float = 3.0):
     params = _params(bin_deg=bin_deg, zero_window_deg=zero_window_deg)
     hist = jnp.asarray(hist)
     if hist.shape[-1:] != (params.nbins,):
-        raise ValueError(f"hist must have {params.nbins} bins for bin_deg={bin_deg}, "
-                         f"got shape {hist.shape}")
+        raise ValueError(
+            f"hist must have {params.nbins} bins for bin_deg={bin_deg}, got shape {hist.shape}"
+        )
     return jnp.where(jnp.asarray(_keep_mask(params)), hist, 0.0)
 
 
@@ -283,8 +290,15 @@ def _estimate_hist(hist, k: int, params: _Params) -> Estimate:
             kap = kappa
         else:
             fit = vmf._fit_reverse_kl(
-                p, jnp.radians(2.0 * centres[seed]), kappa, params.floor, params.nodes,
-                1e3, 1e-6, 1e-6, 100,
+                p,
+                jnp.radians(2.0 * centres[seed]),
+                kappa,
+                params.floor,
+                params.nodes,
+                1e3,
+                1e-6,
+                1e-6,
+                100,
             )
             mu_deg = jnp.mod(jnp.degrees(fit.mu) / 2.0, 180.0)
             kap = fit.kappa
@@ -295,9 +309,7 @@ def _estimate_hist(hist, k: int, params: _Params) -> Estimate:
         valids.append(ok)
         confs.append(jnp.where(has_mass, conf, 0.0))
         kappas.append(kap)
-        available = available & (
-            axial_distance_deg(centres, mu_deg) >= params.min_separation_deg
-        )
+        available = available & (axial_distance_deg(centres, mu_deg) >= params.min_separation_deg)
     if k == 0:
         z = jnp.zeros((0,), jnp.float32)
         return Estimate(z, jnp.zeros((0,), bool), z, z)
@@ -323,24 +335,33 @@ _DOC_OPTIONS = """
 """
 
 
+def _with_options(fn):
+    fn.__doc__ = (fn.__doc__ or "").rstrip() + "\n" + _DOC_OPTIONS
+    return fn
+
+
+@_with_options
 def estimate_from_histogram(hist, k: int = 2, **options) -> Estimate:
     """Extra directions from a raw orientation histogram ``(..., 180/bin_deg)`` (W Sec. 5.2).
 
     The windows around 0 and 90 degrees are zeroed here. Raises ``ValueError`` for an empty,
     all-zero, negative or non-finite histogram.
-    """ + _DOC_OPTIONS
+    """
     k = check_int("k", k, minimum=0)
     params = _params(**options)
     hist = vmf._check_hist(hist)
     if hist.shape[-1] != params.nbins:
-        raise ValueError(f"hist must have {params.nbins} bins for bin_deg={params.bin_deg}, "
-                         f"got shape {hist.shape}")
+        raise ValueError(
+            f"hist must have {params.nbins} bins for bin_deg={params.bin_deg}, "
+            f"got shape {hist.shape}"
+        )
     fn = functools.partial(_estimate_hist_jit, k=k, params=params)
     for _ in range(hist.ndim - 1):
         fn = jax.vmap(fn)
     return fn(hist.astype(jnp.float32))
 
 
+@_with_options
 def estimate(values, k: int = 2, *, details: bool = False, **options):
     """Extra principal directions (degrees, ``[0, 180)``) of the integrand sampled on ``values``.
 
@@ -349,7 +370,7 @@ def estimate(values, k: int = 2, *, details: bool = False, **options):
     axis-aligned ones: 0 and 90 degrees are always handled by the caller). With
     ``details=True`` returns the :class:`Estimate` with all ``k`` slots instead.
     Bad input (NaN samples, grids smaller than the filters, ``k < 0``, ``kappa <= 0``) raises.
-    """ + _DOC_OPTIONS
+    """
     k = check_int("k", k, minimum=0)
     params = _params(**options)
     values = _check_grid(values, params)
@@ -370,29 +391,39 @@ def block_grid(samples_per_block: int, dtype=jnp.float32):
     return jnp.stack(jnp.meshgrid(c, c, indexing="xy"), axis=-1)
 
 
+_BATCH = 8
+"""Blocks per vectorised step. ``lax.map`` over chunks of a few blocks keeps the filter
+intermediates in cache; one ``vmap`` over all 6400 blocks of a screen was 2-3x slower on CPU
+(``experiments/bench_directions.py``)."""
+
+
 @functools.partial(jax.jit, static_argnums=(1, 2, 3))
 def _estimate_blocks_array(samples, block, k, params):
     h, w = samples.shape
     by, bx = h // block, w // block
     blocks = samples.reshape(by, block, bx, block).transpose(0, 2, 1, 3)
-    fn = jax.vmap(jax.vmap(lambda v: _estimate_hist(_histogram(v, params), k, params)))
-    return fn(blocks)
+    blocks = blocks.reshape(by * bx, block, block)
+    one = lambda v: _estimate_hist(_histogram(v, params), k, params)
+    est = jax.lax.map(one, blocks, batch_size=min(_BATCH, by * bx))
+    return jax.tree.map(lambda a: a.reshape(by, bx, *a.shape[1:]), est)
 
 
 @functools.partial(jax.jit, static_argnums=(0, 1, 2, 3, 4))
 def _estimate_blocks_fn(f, blocks, s, k, params):
     by, bx = blocks
     iy, ix = jnp.meshgrid(jnp.arange(by), jnp.arange(bx), indexing="ij")
+    idx = jnp.stack([iy.reshape(-1), ix.reshape(-1)], axis=-1)
     x = block_grid(s)
 
-    def one(i, j):
-        v = jnp.asarray(f(jnp.stack([i, j]), x), jnp.float32)
+    def one(i):
+        v = jnp.asarray(f(i, x), jnp.float32)
         return _estimate_hist(_histogram(v, params), k, params), jnp.all(jnp.isfinite(v))
 
-    est, finite = jax.vmap(jax.vmap(one))(iy, ix)
-    return est, finite
+    est, finite = jax.lax.map(one, idx, batch_size=min(_BATCH, by * bx))
+    return jax.tree.map(lambda a: a.reshape(by, bx, *a.shape[1:]), (est, finite))
 
 
+@_with_options
 def estimate_blocks(
     samples_or_fn: Array | np.ndarray | Callable,
     k: int = 2,
@@ -411,13 +442,15 @@ def estimate_blocks(
       block's integrand; needs ``blocks=(rows, cols)``. Must be jax-traceable (it is vmapped).
 
     Returns an :class:`Estimate` with leading axes ``(rows, cols)``.
-    """ + _DOC_OPTIONS
+    """
     k = check_int("k", k, minimum=0)
     s = check_int("samples_per_block", samples_per_block, minimum=1)
     params = _params(**options)
     if s < params.min_size:
-        raise ValueError(f"samples_per_block must be >= {params.min_size} for sigma_px="
-                         f"{params.sigma_px}, got {s}")
+        raise ValueError(
+            f"samples_per_block must be >= {params.min_size} for sigma_px="
+            f"{params.sigma_px}, got {s}"
+        )
     if callable(samples_or_fn):
         if blocks is None:
             raise ValueError("blocks=(rows, cols) is required when passing a callable")

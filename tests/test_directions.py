@@ -97,7 +97,8 @@ def test_details_never_contain_nan():
         est = directions.estimate(grid(f, 64), k=3, details=True)
         for a in est:
             assert bool(jnp.all(jnp.isfinite(a)))
-        assert bool(jnp.all(jnp.where(est.valid, est.directions_deg >= 0, est.directions_deg == -1)))
+        d = est.directions_deg
+        assert bool(jnp.all(jnp.where(est.valid, d >= 0, d == -1)))
 
 
 def test_estimate_from_histogram_uses_same_path():
