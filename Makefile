@@ -7,7 +7,9 @@ SCALE  ?= small
 JOBS   ?= 2
 
 .PHONY: demo test test-all lint bench figures clean-venv help \
-        w-fig5-baselines
+        w-directions-accuracy \
+        w-fig5-baselines \
+        docs w-fig3 w-fig4 w-fig6
 
 help:
 	@echo "make demo      set up .venv and run the headline experiment at small scale"
@@ -16,6 +18,7 @@ help:
 	@echo "make bench     run the benchmark scripts (prints their figures)"
 	@echo "make figures   regenerate every paper figure (SCALE=small|paper)"
 	@echo "make lint      ruff"
+	@echo "make docs      regenerate docs/api.md and the measured numbers in docs/reproduction.md"
 
 # The virtual environment is rebuilt when pyproject.toml changes.
 $(VENV)/.installed: pyproject.toml
@@ -42,7 +45,27 @@ bench: $(VENV)/.installed
 w-fig5-baselines: $(VENV)/.installed
 	$(PY) experiments/w_fig5_baselines.py --scale $(SCALE)
 
-figures: w-fig5-baselines
+figures: w-directions-accuracy w-fig5-baselines \
+         w-fig3 w-fig4 w-fig6
+	@echo "figures done: run 'make docs' to refresh docs/api.md and the numbers in docs/reproduction.md"
+
+# Figure targets for experiment scripts (one each; SCALE=small|paper).
+w-fig3: $(VENV)/.installed
+	$(PY) experiments/w_fig3.py --scale $(SCALE)
+
+w-fig4: $(VENV)/.installed
+	$(PY) experiments/w_fig4.py --scale $(SCALE)
+
+w-fig6: $(VENV)/.installed
+	$(PY) experiments/w_fig6.py --scale $(SCALE)
+
+# The API reference from the docstrings, and the measured numbers quoted in the report.
+docs: $(VENV)/.installed
+	$(PY) docs/gen_api.py
+	$(PY) docs/numbers.py --write
+
+w-directions-accuracy: $(VENV)/.installed
+	$(PY) experiments/w_directions_accuracy.py --scale $(SCALE)
 
 clean-venv:
 	rm -rf $(VENV)
