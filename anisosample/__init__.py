@@ -18,6 +18,7 @@ from . import synthesis as synthesis
 from . import warps as warps
 from . import directions as directions
 from . import vmf as vmf
+from . import tables as tables
 from .synthesis import synthesize as synthesize
 
 try:
