@@ -9,7 +9,8 @@ JOBS   ?= 2
 .PHONY: demo test test-all lint bench figures clean-venv help \
         w-directions-accuracy \
         w-fig5-baselines \
-        docs w-fig3 w-fig4 w-fig6
+        docs w-fig3 w-fig4 w-fig6 \
+        w-fig6-baselines w-fig11
 
 help:
 	@echo "make demo      set up .venv and run the headline experiment at small scale"
@@ -45,8 +46,15 @@ bench: $(VENV)/.installed
 w-fig5-baselines: $(VENV)/.installed
 	$(PY) experiments/w_fig5_baselines.py --scale $(SCALE)
 
+w-fig6-baselines: $(VENV)/.installed
+	$(PY) experiments/w_fig6_baselines.py --scale $(SCALE)
+
+w-fig11: $(VENV)/.installed
+	$(PY) experiments/w_fig11.py --scale $(SCALE)
+
 figures: w-directions-accuracy w-fig5-baselines \
-         w-fig3 w-fig4 w-fig6
+         w-fig3 w-fig4 w-fig6 \
+         w-fig6-baselines w-fig11
 	@echo "figures done: run 'make docs' to refresh docs/api.md and the numbers in docs/reproduction.md"
 
 # Figure targets for experiment scripts (one each; SCALE=small|paper).

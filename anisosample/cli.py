@@ -135,75 +135,59 @@ def _run_synthesize(args):
           f" (loss {info['history'][0]:.3g} -> {info['final_loss']:.3g})")
 
 
-# --- directions --------------------------------------------------------------------------------
+# --- variance ----------------------------------------------------------------------------------
 
 
-def _add_directions(sub):
-    p = sub.add_parser(
-        "directions",
-        help="principal (spectral) directions of a sampled integrand (W Sec. 5), per grid or "
-             "per block",
-    )
-    p.add_argument("grid", help=".exr or .npy (h, w) grid of integrand samples")
-    p.add_argument("-k", type=int, default=2, help="most extra directions per grid/block")
-    p.add_argument("--block", type=int, default=None,
-                   help="samples per block side: estimate per block (W Sec. 5.3, e.g. 96)")
-    p.add_argument("-o", "--output", default=None,
-                   help="per-block maps as PNG (needs --block): one panel per slot, hue = "
-                        "direction, black = none")
-    p.add_argument("--top-down", action="store_true",
-                   help="the grid's first row is the largest y (renderer images)")
-    p.add_argument("--method", default="fixed", choices=["fixed", "gradient"])
-    p.add_argument("--kappa", type=float, default=None, help="vMF concentration (doubled angle)")
-    p.add_argument("--threshold", type=float, default=None, help="confidence threshold")
-    p.add_argument("--sigma", type=float, default=None, help="Gaussian sigma in grid cells")
+def _add_variance(sub):
+    from . import integrands, samplers
+
+    p = sub.add_parser("variance", help="estimator variance vs n on an analytic integrand")
+    p.add_argument("--integrand", required=True, help=integrands.SPEC_HELP)
+    p.add_argument("--sampler", default="random,jittered,sobol-owen,pmj02bn",
+                   help=f"comma-separated; any of: {', '.join(samplers.names())}")
+    p.add_argument("--n", type=_int_list, default=[64, 256, 1024], help="comma-separated sizes")
+    p.add_argument("--realizations", type=int, default=1024)
+    p.add_argument("--randomization", default="auto",
+                   choices=["auto", "shift", "fresh", "fresh+shift"],
+                   help="auto: fresh for traceable samplers, shifts of fixed sets otherwise")
+    p.add_argument("--patterns", type=int, default=1,
+                   help="fixed sets per n for randomization 'shift'")
+    p.add_argument("--seed", type=int, default=0, help="integer seed of the JAX key")
+    p.add_argument("-o", "--output", default="variance.json", help="output JSON")
     p.add_argument("--force", action="store_true", help="overwrite an existing output")
 
 
-def _run_directions(args):
-    import numpy as np
+def _run_variance(args):
+    import jax
 
-    from . import directions, io
+    from . import integrands, io
+    from . import variance as V
 
-    values = io.load_grid(args.grid, top_down=args.top_down)
-    opts = {"method": args.method}
-    for name, value in (("kappa", args.kappa), ("threshold", args.threshold),
-                        ("sigma_px", args.sigma)):
-        if value is not None:
-            opts[name] = value
-    if args.block is None:
-        if args.output is not None:
-            raise ValueError("--output (per-block maps) needs --block")
-        est = directions.estimate(values, k=args.k, details=True, **opts)
-        found = [(float(d), float(c)) for d, c, v in
-                 zip(est.directions_deg, est.confidence, est.valid, strict=True) if v]
-        h, w = values.shape
-        if not found:
-            print(f"{args.grid} ({h}x{w}): no extra direction (besides 0 and 90 degrees)")
-        for d, c in found:
-            print(f"{d:.1f} deg (confidence {c:.3f})")
-        return
-    est = directions.estimate_blocks(values, k=args.k, samples_per_block=args.block, **opts)
-    d, v = np.asarray(est.directions_deg), np.asarray(est.valid)
-    by, bx = v.shape[:2]
-    counts = np.bincount(v.sum(axis=-1).reshape(-1), minlength=args.k + 1)
-    print(f"{by}x{bx} blocks of {args.block}^2 samples; blocks with 0..{args.k} extra "
-          f"directions: {counts.tolist()}")
-    if args.output is not None:
-        out = Path(args.output)
-        if out.suffix != ".png":
-            raise ValueError(f"--output must end in .png, got {out.name}")
-        import matplotlib
-
-        # hue = direction / 180 (a cyclic map for axial data), black where there is none;
-        # row 0 (smallest y) at the bottom, as in DESIGN's grid convention
-        rgb = matplotlib.colormaps["hsv"](np.clip(d, 0, 180) / 180.0)[..., :3]
-        rgb = np.where(v[..., None], rgb, 0.0)
-        panels = [np.pad(rgb[:, :, s][::-1], ((0, 0), (0, 1), (0, 0)), constant_values=1.0)
-                  for s in range(args.k)]
-        io.save_png(out, np.concatenate(panels, axis=1) if panels else np.zeros((by, bx, 3)),
-                    overwrite=args.force)
-        print(f"wrote per-block direction maps to {out}")
+    out = Path(args.output)
+    if out.suffix != ".json":
+        raise ValueError(f"--output must end in .json, got {out.name}")
+    if out.exists() and not args.force:
+        raise FileExistsError(f"{out} exists; pass --force to overwrite it")
+    f = integrands.from_spec(args.integrand)
+    names = [s.strip() for s in args.sampler.split(",") if s.strip()]
+    result = V.convergence(f, names, args.n, jax.random.key(args.seed), args.realizations,
+                           exact=f.integral, randomization=args.randomization,
+                           patterns=args.patterns, progress=True)
+    width = max(16, *(len(s) + 2 for s in names))
+    print(f"integrand {args.integrand}: exact integral {f.integral:.12g}")
+    print(f"{'n':>8}" + "".join(f"{s:>{width}}" for s in names))
+    for i, n in enumerate(result.ns):
+        print(f"{n:>8}" + "".join(f"{result.estimates[s][i].variance:>{width}.4e}" for s in names))
+    print(f"{'slope':>8}" + "".join(f"{result.fits[s].slope:>{width}.3f}" for s in names))
+    print(f"{'95% CI':>8}" + "".join(
+        f"{f' [{result.fits[s].ci_low:.2f},{result.fits[s].ci_high:.2f}]':>{width}}"
+        for s in names))
+    record = {"integrand": args.integrand, "integral": f.integral, "seed": args.seed,
+              "realizations": args.realizations, "patterns": args.patterns,
+              "randomization": args.randomization, **result.as_dict(),
+              "provenance": io.provenance()}
+    io.save_json(out, record, overwrite=args.force)
+    print(f"wrote {out}")
 
 
 # --- tables ------------------------------------------------------------------------------------
@@ -340,11 +324,12 @@ def _run_directions(args):
 # --- registry ----------------------------------------------------------------------------------
 
 _COMMANDS = {
-    "tables": (_add_tables, _run_tables),
     "directions": (_add_directions, _run_directions),
+    "tables": (_add_tables, _run_tables),
     "points": (_add_points, _run_points),
     "spectrum": (_add_spectrum, _run_spectrum),
     "synthesize": (_add_synthesize, _run_synthesize),
+    "variance": (_add_variance, _run_variance),
 }
 
 

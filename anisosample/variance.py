@@ -534,9 +534,10 @@ def convergence(
 ) -> ConvergenceResult:
     """Sweep ``n`` over ``ns`` for each sampler and fit ``Var ~ n^slope`` (W Figs. 6, 11).
 
-    ``samplers``: names, or a mapping ``label -> sampler`` (name, callable or ``(key, n)``-free
-    fixed sets are not allowed here since n varies). ``randomization`` and ``patterns`` may be
-    per-label mappings. The same key is used for every n and sampler (common random numbers).
+    ``samplers``: names, or a mapping ``label -> sampler`` (a name or a callable ``(key, n)``;
+    fixed point sets do not fit a sweep over n). ``randomization`` and ``patterns`` may be
+    per-label mappings; ``patterns`` applies to the samplers randomized by ``"shift"``.
+    The same key is used for every n and sampler (common random numbers).
     Only ``n >= fit_min_n`` enter the fit (skip the pre-asymptotic regime).
     """
     key = check_key("key", key)
@@ -560,18 +561,15 @@ def convergence(
     bar = _progress_bar(total=len(table) * len(ns), desc="convergence", disable=_off(progress))
     for label, smp in table.items():
         row = []
+        mode = option(randomization, label)
+        pats = option(patterns, label)
+        if _choose_randomization(mode, *_resolve_sampler(smp, ns[0])) != "shift":
+            pats = 1  # patterns counts fixed sets; fresh randomizations have none
         for m in ns:
             row.append(
                 estimate_variance(
-                    f,
-                    smp,
-                    m,
-                    key,
-                    realizations,
-                    exact,
-                    randomization=option(randomization, label),
-                    patterns=option(patterns, label),
-                    confidence=confidence,
+                    f, smp, m, key, realizations, exact,
+                    randomization=mode, patterns=pats, confidence=confidence,
                 )
             )
             bar.update(1)

@@ -249,3 +249,20 @@ def test_bad_input_is_refused():
         V.estimator_variance(f, "random", 0, key, 8)
     with pytest.raises(ValueError, match="at least 2 sizes"):
         V.convergence(f, ["random"], [64], key, 8)
+
+
+def test_cli_variance_writes_table_and_json(tmp_path, capsys):
+    from anisosample import cli
+
+    out = tmp_path / "v.json"
+    argv = ["variance", "--integrand", "edges:30,75", "--sampler", "random,pmj02",
+            "--n", "16,64,256", "--realizations", "64", "-o", str(out)]
+    assert cli.main(argv) == 0
+    text = capsys.readouterr().out
+    assert "slope" in text and "pmj02" in text
+    import json
+
+    rec = json.loads(out.read_text())
+    assert rec["ns"] == [16, 64, 256] and len(rec["samplers"]["random"]["variance"]) == 3
+    assert cli.main(argv) == 2  # refuses to overwrite
+    assert cli.main(["variance", "--integrand", "wave:3", "-o", str(tmp_path / "w.json")]) == 2

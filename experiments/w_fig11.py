@@ -1,0 +1,104 @@
+"""W Fig. 11: variance vs n on a discontinuity and on two smoothed versions of it.
+
+The edge passes through the centre with spectral direction 30 degrees; the smoothed integrands
+are that half-plane convolved with a Gaussian of sigma = 2.83 and 8.5 pixels of a 2048^2 grid
+(``integrands.SmoothedEdge``, sigma = 2.83/2048 and 8.5/2048 of the unit square, exact
+integrals). The blur cuts the 30-degree ray of the spectrum off at ``|v| ~ 1/(2 pi sigma)``, so
+the asymptotic rate stops depending on that direction (W Sec. 6.3); the square's border stays a
+discontinuity on the torus. Samplers and randomizations as in ``w_fig6_baselines.py``.
+
+Writes ``results/w_fig11/w_fig11.png`` (integrands on top, log-log curves with fitted slopes and
+95 % intervals below) and ``w_fig11.json`` (every plotted number, settings, provenance). Finished
+curves are reused on rerun (``--fresh`` redoes).
+
+    python experiments/w_fig11.py --scale small|paper [--out DIR]
+"""
+
+from __future__ import annotations
+
+import time
+
+import common
+import jax
+import jax.numpy as jnp
+import numpy as np
+from w_fig6_baselines import JITTABLE, SCALES, Memo, measure
+
+import anisosample as asp
+from anisosample import integrands, plot
+from anisosample.progress import progress
+
+NAME = "w_fig11"
+THETA = 30.0
+SIGMAS_PX = [2.83, 8.5]
+GRID = 2048
+
+
+def integrand_cases():
+    cases = {"discontinuity": integrands.HalfPlane.through((0.5, 0.5), THETA)}
+    for s in SIGMAS_PX:
+        cases[f"smoothed sigma={s:g}px"] = integrands.SmoothedEdge.through(
+            (0.5, 0.5), THETA, s / GRID)
+    return cases
+
+
+def main(argv=None):
+    args = common.parser(NAME, __doc__.splitlines()[0]).parse_args(argv)
+    started = time.time()
+    cfg = SCALES[args.scale]
+    ns = [2**k for k in cfg["log2_ns"]]
+    out = args.out
+    (out / "curves").mkdir(parents=True, exist_ok=True)
+    key = jax.random.key(args.seed)
+    samplers = {name: (name, "fresh+shift") for name in JITTABLE}
+    samplers["pmj02bn"] = (Memo(asp.samplers.get("pmj02bn")), "shift")
+    samplers[f"sheared pmj02bn {THETA:g}"] = (
+        Memo(asp.samplers.get("sheared", base="pmj02bn", direction_deg=THETA)), "shift")
+    cases = integrand_cases()
+    results: dict[str, dict] = {}
+    tasks = [(label, s) for label in cases for s in samplers]
+    for label, sname in progress(tasks, desc=NAME):
+        f = cases[label]
+        sampler, mode = samplers[sname]
+        slug = f"{label}__{sname}".replace(" ", "_").replace("=", "")
+        path = out / "curves" / f"{slug}.json"
+        settings = {"scale": args.scale, "seed": args.seed, "ns": ns, **cfg}
+        cached = common.cached_json(path, args.fresh)
+        if cached is None or cached.get("settings") != settings:
+            curve = measure(f, sampler, mode, ns, key, cfg)
+            asp.io.save_json(path, {"settings": settings, "curve": curve}, overwrite=True)
+        else:
+            curve = cached["curve"]
+        entry = results.setdefault(label, {
+            "integrand": type(f).__name__, "normal_deg": THETA, "integral": f.integral,
+            "sigma": getattr(f, "sigma", 0.0), "samplers": {}})
+        entry["samplers"][sname] = curve
+
+    fig, axes = plot.new_figure(2, len(cases), size=3.6)
+    m = 256
+    u = (jnp.arange(m, dtype=jnp.float32) + 0.5) / m
+    xy = jnp.stack(jnp.meshgrid(u, u, indexing="xy"), axis=-1)  # values[i, j] = f(x_j, y_i)
+    for j, (label, f) in enumerate(cases.items()):
+        axes[0, j].imshow(np.asarray(f(xy)), origin="lower", cmap="gray", extent=(0, 1, 0, 1))
+        axes[0, j].set_title(label, fontsize=9)
+        axes[0, j].set_xticks([])
+        axes[0, j].set_yticks([])
+        for sname, c in results[label]["samplers"].items():
+            fit = c["fit"]
+            plot.convergence_panel(axes[1, j], ns, c["variance"], label=sname,
+                                   slope=fit["slope"], slope_ci=(fit["ci_low"], fit["ci_high"]),
+                                   lower=c["ci_low"], upper=c["ci_high"])
+        axes[1, j].legend(fontsize=5.5, loc="lower left")
+    pngs = plot.save_figure(fig, out / NAME, formats=("png",))
+    json_path = common.write_record(out, NAME, {
+        "ns": ns, "fit_min_n": cfg["fit_min_n"], "realizations": cfg["realizations"],
+        "sigmas_px": SIGMAS_PX, "grid": GRID, "cases": results,
+    }, vars(args) | {"out": str(args.out)}, started)
+    print(f"figure: {pngs[0]}\nnumbers: {json_path}")
+    for label, entry in results.items():
+        print(f"  {label:22s} " + "  ".join(
+            f"{s}: {c['fit']['slope']:+.2f}" for s, c in entry["samplers"].items()))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,150 @@
+"""W Fig. 6, existing-pattern half: variance vs n of the baseline samplers on integrands with one,
+two, three and four edges in non-axis directions, with and without a smooth texture.
+
+Samplers: random, jittered, cmj, sobol-owen (each a fresh randomization plus a toroidal shift per
+realization: the homogenized pattern of W Eq. 5), pmj02bn and pmj02bn sheared to the integrand's
+first edge direction (Singh & Jarosz 2017; a few fixed sets per n, each moved by toroidal shifts,
+as W does with its precomputed sets). Integrands come from ``anisosample.integrands.edges`` (the
+square's border adds 0 and 90 degrees on the torus); the texture is
+``integrands.smooth_texture()``. Variances are mean squared errors about the exact integral.
+
+Writes ``results/w_fig6_baselines/w_fig6_baselines.png`` (one log-log panel per integrand, the
+fitted slope and its 95 % interval in the legend) and ``w_fig6_baselines.json`` (every plotted
+number, the fits, settings, provenance). Finished curves are reused on rerun (``--fresh`` redoes).
+
+    python experiments/w_fig6_baselines.py --scale small|paper [--out DIR]
+"""
+
+from __future__ import annotations
+
+import json
+import time
+
+import common
+import jax
+import numpy as np
+
+import anisosample as asp
+from anisosample import integrands, plot
+from anisosample import variance as V
+from anisosample.progress import progress
+
+NAME = "w_fig6_baselines"
+SCALES = {
+    "small": dict(log2_ns=list(range(4, 15)), realizations=256, patterns=4, fit_min_n=64),
+    "paper": dict(log2_ns=list(range(4, 17)), realizations=4096, patterns=16, fit_min_n=64),
+}
+EDGES = {1: [30.0], 2: [30.0, 110.0], 3: [30.0, 75.0, 140.0], 4: [30.0, 75.0, 115.0, 150.0]}
+JITTABLE = ["random", "jittered", "cmj", "sobol-owen"]
+
+
+class Memo:
+    """Remember the fixed sets a slow (NumPy) sampler made, across integrands."""
+
+    def __init__(self, sampler):
+        self.sampler, self.sets = sampler, {}
+
+    def __call__(self, key, n):
+        k = (np.asarray(jax.random.key_data(key)).tobytes(), int(n))
+        if k not in self.sets:
+            self.sets[k] = self.sampler(key, n)
+        return self.sets[k]
+
+
+def integrand_cases():
+    cases = {}
+    for k, dirs in EDGES.items():
+        shape = integrands.edges(dirs)
+        cases[f"{k} edge{'s' if k > 1 else ''}"] = (shape, dirs)
+        cases[f"{k} edge{'s' if k > 1 else ''} + texture"] = (
+            integrands.Textured(integrands.smooth_texture(), shape), dirs)
+    return cases
+
+
+def sampler_table(dirs, memo_pmj, memo_sheared):
+    table = {name: (name, "fresh+shift") for name in JITTABLE}
+    table["pmj02bn"] = (memo_pmj, "shift")
+    theta = dirs[0]
+    if theta not in memo_sheared:
+        memo_sheared[theta] = Memo(asp.samplers.get("sheared", base="pmj02bn",
+                                                    direction_deg=theta))
+    table[f"sheared pmj02bn {theta:g}"] = (memo_sheared[theta], "shift")
+    return table
+
+
+def measure(f, sampler, mode, ns, key, cfg):
+    patterns = cfg["patterns"] if mode == "shift" else 1
+    rows = [V.estimate_variance(f, sampler, n, key, cfg["realizations"], f.integral,
+                                randomization=mode, patterns=patterns) for n in ns]
+    fit_ns = [n for n in ns if n >= cfg["fit_min_n"]]
+    sel = [i for i, n in enumerate(ns) if n >= cfg["fit_min_n"]]
+    fit = V.fit_slope(fit_ns, [rows[i].variance for i in sel], [rows[i].std_error for i in sel])
+    return {
+        "randomization": mode, "patterns": patterns,
+        "variance": [r.variance for r in rows], "std_error": [r.std_error for r in rows],
+        "ci_low": [r.ci_low for r in rows], "ci_high": [r.ci_high for r in rows],
+        "fit": fit.as_dict(),
+    }
+
+
+def main(argv=None):
+    args = common.parser(NAME, __doc__.splitlines()[0]).parse_args(argv)
+    started = time.time()
+    cfg = SCALES[args.scale]
+    ns = [2**k for k in cfg["log2_ns"]]
+    out = args.out
+    (out / "curves").mkdir(parents=True, exist_ok=True)
+    key = jax.random.key(args.seed)
+    memo_pmj = Memo(asp.samplers.get("pmj02bn"))
+    memo_sheared: dict[float, Memo] = {}
+    cases = integrand_cases()
+    tasks = [(label, s) for label, (f, dirs) in cases.items()
+             for s in sampler_table(dirs, memo_pmj, memo_sheared)]
+    results: dict[str, dict] = {}
+    for label, sname in progress(tasks, desc=NAME):
+        f, dirs = cases[label]
+        sampler, mode = sampler_table(dirs, memo_pmj, memo_sheared)[sname]
+        slug = f"{label}__{sname}".replace(" ", "_").replace("+", "plus")
+        path = out / "curves" / f"{slug}.json"
+        settings = {"scale": args.scale, "seed": args.seed, "ns": ns, **cfg}
+        cached = common.cached_json(path, args.fresh)
+        if cached is None or cached.get("settings") != settings:
+            curve = measure(f, sampler, mode, ns, key, cfg)
+            asp.io.save_json(path, {"settings": settings, "curve": curve}, overwrite=True)
+        else:
+            curve = cached["curve"]
+        entry = results.setdefault(label, {
+            "integrand": type(f).__name__, "edge_directions_deg": dirs,
+            "integral": f.integral, "samplers": {}})
+        entry["samplers"][sname] = curve
+
+    fig, axes = plot.new_figure(2, 4, size=3.4)
+    for j, k in enumerate(EDGES):
+        for i, suffix in enumerate(["", " + texture"]):
+            label = f"{k} edge{'s' if k > 1 else ''}{suffix}"
+            ax = axes[i, j]
+            for sname, c in results[label]["samplers"].items():
+                fit = c["fit"]
+                plot.convergence_panel(ax, ns, c["variance"], label=sname, slope=fit["slope"],
+                                       slope_ci=(fit["ci_low"], fit["ci_high"]),
+                                       lower=c["ci_low"], upper=c["ci_high"])
+            dirs = ", ".join(f"{d:g}" for d in EDGES[k])
+            ax.set_title(f"{label} ({dirs} deg)", fontsize=9)
+            ax.legend(fontsize=5.5, loc="lower left")
+    pngs = plot.save_figure(fig, out / NAME, formats=("png",))
+    json_path = common.write_record(out, NAME, {
+        "ns": ns, "fit_min_n": cfg["fit_min_n"], "realizations": cfg["realizations"],
+        "texture": {"freqs": integrands.smooth_texture().freqs,
+                    "amplitudes": integrands.smooth_texture().amplitudes,
+                    "phases": integrands.smooth_texture().phases},
+        "cases": results,
+    }, vars(args) | {"out": str(args.out)}, started)
+    print(f"figure: {pngs[0]}\nnumbers: {json_path}")
+    for label, entry in results.items():
+        print(f"  {label:20s} " + "  ".join(
+            f"{s}: {c['fit']['slope']:+.2f}" for s, c in entry["samplers"].items()))
+    return json.loads(json_path.read_text())
+
+
+if __name__ == "__main__":
+    main()
