@@ -14,6 +14,9 @@ a small pure-function implementation, :func:`adam_update`), initialised from a s
     :func:`~anisosample.losses.spectrum_loss` (Eq. 11, uniform weights, target 0) on the
     ``"paper"`` design (wedges of length ``3 sqrt(n)``) plus ``c`` times the sliced Wasserstein
     loss (Eqs. 12-15) along the same directions; standard Adam; positions clipped to the square.
+    The paper's ``c`` is in its supplemental (not available); ``c = 100`` balances our scaled
+    terms (measured at n = 256, directions 0/90/30, 300 steps: spectrum loss 0.017 alone ->
+    0.057 with SW; n L_SW 0.0063 without SW -> 0.00058 with it; SW alone reaches 0.00022).
 
 Boundary handling: the spectrum loss is periodic, so ``"wrap"`` (``x mod 1``) leaves it exact
 and never piles points on the border; the SW target assumes the square (not the torus), so a
@@ -53,8 +56,8 @@ BOUNDARIES = ("wrap", "clip")
 
 _DEFAULTS = {
     "rate": dict(
-        steps=400,
-        learning_rate=0.05,
+        steps=200,
+        learning_rate=0.5,
         final_lr_fraction=0.01,
         b1=0.9,
         b2=0.9,
@@ -71,7 +74,7 @@ _DEFAULTS = {
         b1=0.9,
         b2=0.999,
         adam_eps=1e-8,
-        c=1.0,
+        c=100.0,
         boundary="clip",
         design="paper",
         nufft_eps=1e-7,

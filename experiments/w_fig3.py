@@ -28,7 +28,7 @@ DIRS = [0.0, 90.0, 30.0]
 VARIANTS = {
     "spectrum loss only": dict(c=0.0),
     "SW loss only": dict(c=1.0, spectrum_weight=0.0),
-    "both": dict(c=1.0),
+    "both": dict(c=100.0),
 }
 
 
