@@ -135,6 +135,208 @@ def _run_synthesize(args):
           f" (loss {info['history'][0]:.3g} -> {info['final_loss']:.3g})")
 
 
+# --- directions --------------------------------------------------------------------------------
+
+
+def _add_directions(sub):
+    p = sub.add_parser(
+        "directions",
+        help="principal (spectral) directions of a sampled integrand (W Sec. 5), per grid or "
+             "per block",
+    )
+    p.add_argument("grid", help=".exr or .npy (h, w) grid of integrand samples")
+    p.add_argument("-k", type=int, default=2, help="most extra directions per grid/block")
+    p.add_argument("--block", type=int, default=None,
+                   help="samples per block side: estimate per block (W Sec. 5.3, e.g. 96)")
+    p.add_argument("-o", "--output", default=None,
+                   help="per-block maps as PNG (needs --block): one panel per slot, hue = "
+                        "direction, black = none")
+    p.add_argument("--top-down", action="store_true",
+                   help="the grid's first row is the largest y (renderer images)")
+    p.add_argument("--method", default="fixed", choices=["fixed", "gradient"])
+    p.add_argument("--kappa", type=float, default=None, help="vMF concentration (doubled angle)")
+    p.add_argument("--threshold", type=float, default=None, help="confidence threshold")
+    p.add_argument("--sigma", type=float, default=None, help="Gaussian sigma in grid cells")
+    p.add_argument("--force", action="store_true", help="overwrite an existing output")
+
+
+def _run_directions(args):
+    import numpy as np
+
+    from . import directions, io
+
+    values = io.load_grid(args.grid, top_down=args.top_down)
+    opts = {"method": args.method}
+    for name, value in (("kappa", args.kappa), ("threshold", args.threshold),
+                        ("sigma_px", args.sigma)):
+        if value is not None:
+            opts[name] = value
+    if args.block is None:
+        if args.output is not None:
+            raise ValueError("--output (per-block maps) needs --block")
+        est = directions.estimate(values, k=args.k, details=True, **opts)
+        found = [(float(d), float(c)) for d, c, v in
+                 zip(est.directions_deg, est.confidence, est.valid, strict=True) if v]
+        h, w = values.shape
+        if not found:
+            print(f"{args.grid} ({h}x{w}): no extra direction (besides 0 and 90 degrees)")
+        for d, c in found:
+            print(f"{d:.1f} deg (confidence {c:.3f})")
+        return
+    est = directions.estimate_blocks(values, k=args.k, samples_per_block=args.block, **opts)
+    d, v = np.asarray(est.directions_deg), np.asarray(est.valid)
+    by, bx = v.shape[:2]
+    counts = np.bincount(v.sum(axis=-1).reshape(-1), minlength=args.k + 1)
+    print(f"{by}x{bx} blocks of {args.block}^2 samples; blocks with 0..{args.k} extra "
+          f"directions: {counts.tolist()}")
+    if args.output is not None:
+        out = Path(args.output)
+        if out.suffix != ".png":
+            raise ValueError(f"--output must end in .png, got {out.name}")
+        import matplotlib
+
+        # hue = direction / 180 (a cyclic map for axial data), black where there is none;
+        # row 0 (smallest y) at the bottom, as in DESIGN's grid convention
+        rgb = matplotlib.colormaps["hsv"](np.clip(d, 0, 180) / 180.0)[..., :3]
+        rgb = np.where(v[..., None], rgb, 0.0)
+        panels = [np.pad(rgb[:, :, s][::-1], ((0, 0), (0, 1), (0, 0)), constant_values=1.0)
+                  for s in range(args.k)]
+        io.save_png(out, np.concatenate(panels, axis=1) if panels else np.zeros((by, bx, 3)),
+                    overwrite=args.force)
+        print(f"wrote per-block direction maps to {out}")
+
+
+# --- tables ------------------------------------------------------------------------------------
+
+
+def _add_tables(sub):
+    p = sub.add_parser("tables", help="aligned point-set tables (W Sec. 5.4): build, info")
+    tsub = p.add_subparsers(dest="tables_command", required=True, metavar="ACTION")
+    b = tsub.add_parser("build", help="synthesize every canonical set (resumable)")
+    b.add_argument("--n", type=int, required=True, help="points per set")
+    b.add_argument("--directions", type=int, choices=[3, 4], default=3,
+                   help="3 (axes + 1 direction, 46 sets) or 4 (axes + 2, 4141 sets)")
+    b.add_argument("--out", default=None,
+                   help="table directory (default: the user cache, see tables.cache_dir())")
+    b.add_argument("--seed", type=int, default=0, help="integer seed of the JAX key")
+    b.add_argument("--sets", default=None,
+                   help="only these canonical sets, e.g. 0,30,45 or 10:20;0:45 (default: all)")
+    b.add_argument("--recipe", default=None, choices=["rate", "paper"])
+    b.add_argument("--steps", type=int, default=None, help="optimizer steps (recipe default)")
+    b.add_argument("--checkpoint-every", type=int, default=25,
+                   help="synthesis checkpoint interval in steps")
+    b.add_argument("--distributed", action="store_true",
+                   help="call jax.distributed.initialize() first (several hosts, shared --out)")
+    i = tsub.add_parser("info", help="describe and verify a table directory")
+    i.add_argument("path", help="table directory (holds table.json)")
+
+
+def _parse_sets(text):
+    """``"0,30,45"`` -> [(0,), (30,), (45,)]; pairs as ``"10:20,0:45"``."""
+    if text is None:
+        return None
+    try:
+        return [tuple(int(a) for a in part.split(":")) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise ValueError(f"--sets must look like 0,30,45 or 10:20,0:45, got {text!r}") from None
+
+
+def _run_tables(args):
+    from . import tables
+
+    if args.tables_command == "info":
+        tab = tables.open_table(args.path)
+        sets = tables.canonical_sets(tab.kind)
+        have = [e for e in sets if tab.has(e)]
+        for e in have:
+            tab.load(e)
+        print(f"{tab.path}: {tab.kind}-direction table, n={tab.n}, {len(have)}/{len(sets)} sets "
+              f"(all verified), complete={tab.complete}, seed={tab.settings['seed']}, "
+              f"synthesis={tab.settings['synthesis']}")
+        return
+    if args.distributed:
+        import jax
+
+        jax.distributed.initialize()
+    opts = {k: v for k, v in (("recipe", args.recipe), ("steps", args.steps)) if v is not None}
+    summary = tables.build(args.n, args.directions, out=args.out, seed=args.seed,
+                           sets=_parse_sets(args.sets), checkpoint_every=args.checkpoint_every,
+                           **opts)
+    print(f"table {summary['path']}: built {len(summary['built'])} set(s), kept "
+          f"{len(summary['skipped'])} finished one(s); complete={summary['complete']}")
+
+
+# --- directions --------------------------------------------------------------------------------
+
+
+def _add_directions(sub):
+    p = sub.add_parser(
+        "directions",
+        help="principal (spectral) directions of a sampled integrand (W Sec. 5), per grid or "
+             "per block",
+    )
+    p.add_argument("grid", help=".exr or .npy (h, w) grid of integrand samples")
+    p.add_argument("-k", type=int, default=2, help="most extra directions per grid/block")
+    p.add_argument("--block", type=int, default=None,
+                   help="samples per block side: estimate per block (W Sec. 5.3, e.g. 96)")
+    p.add_argument("-o", "--output", default=None,
+                   help="per-block maps as PNG (needs --block): one panel per slot, hue = "
+                        "direction, black = none")
+    p.add_argument("--top-down", action="store_true",
+                   help="the grid's first row is the largest y (renderer images)")
+    p.add_argument("--method", default="fixed", choices=["fixed", "gradient"])
+    p.add_argument("--kappa", type=float, default=None, help="vMF concentration (doubled angle)")
+    p.add_argument("--threshold", type=float, default=None, help="confidence threshold")
+    p.add_argument("--sigma", type=float, default=None, help="Gaussian sigma in grid cells")
+    p.add_argument("--force", action="store_true", help="overwrite an existing output")
+
+
+def _run_directions(args):
+    import numpy as np
+
+    from . import directions, io
+
+    values = io.load_grid(args.grid, top_down=args.top_down)
+    opts = {"method": args.method}
+    for name, value in (("kappa", args.kappa), ("threshold", args.threshold),
+                        ("sigma_px", args.sigma)):
+        if value is not None:
+            opts[name] = value
+    if args.block is None:
+        if args.output is not None:
+            raise ValueError("--output (per-block maps) needs --block")
+        est = directions.estimate(values, k=args.k, details=True, **opts)
+        found = [(float(d), float(c)) for d, c, v in
+                 zip(est.directions_deg, est.confidence, est.valid, strict=True) if v]
+        h, w = values.shape
+        if not found:
+            print(f"{args.grid} ({h}x{w}): no extra direction (besides 0 and 90 degrees)")
+        for d, c in found:
+            print(f"{d:.1f} deg (confidence {c:.3f})")
+        return
+    est = directions.estimate_blocks(values, k=args.k, samples_per_block=args.block, **opts)
+    d, v = np.asarray(est.directions_deg), np.asarray(est.valid)
+    by, bx = v.shape[:2]
+    counts = np.bincount(v.sum(axis=-1).reshape(-1), minlength=args.k + 1)
+    print(f"{by}x{bx} blocks of {args.block}^2 samples; blocks with 0..{args.k} extra "
+          f"directions: {counts.tolist()}")
+    if args.output is not None:
+        out = Path(args.output)
+        if out.suffix != ".png":
+            raise ValueError(f"--output must end in .png, got {out.name}")
+        import matplotlib
+
+        # hue = direction / 180 (a cyclic map for axial data), black where there is none;
+        # row 0 (smallest y) at the bottom, as in DESIGN's grid convention
+        rgb = matplotlib.colormaps["hsv"](np.clip(d, 0, 180) / 180.0)[..., :3]
+        rgb = np.where(v[..., None], rgb, 0.0)
+        panels = [np.pad(rgb[:, :, s][::-1], ((0, 0), (0, 1), (0, 0)), constant_values=1.0)
+                  for s in range(args.k)]
+        io.save_png(out, np.concatenate(panels, axis=1) if panels else np.zeros((by, bx, 3)),
+                    overwrite=args.force)
+        print(f"wrote per-block direction maps to {out}")
+
+
 # --- variance ----------------------------------------------------------------------------------
 
 
@@ -324,8 +526,8 @@ def _run_directions(args):
 # --- registry ----------------------------------------------------------------------------------
 
 _COMMANDS = {
-    "directions": (_add_directions, _run_directions),
     "tables": (_add_tables, _run_tables),
+    "directions": (_add_directions, _run_directions),
     "points": (_add_points, _run_points),
     "spectrum": (_add_spectrum, _run_spectrum),
     "synthesize": (_add_synthesize, _run_synthesize),
