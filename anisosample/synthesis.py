@@ -332,6 +332,16 @@ def load_result(path):
     return jnp.asarray(arrays["points"]), dict(meta, history=arrays.get("loss_history"))
 
 
+def _expected_options(recipe, options) -> dict:
+    opts = recipe_defaults(recipe)
+    for k in ("steps", "learning_rate", "c", "boundary", "b1", "b2", "adam_eps",
+              "final_lr_fraction", "nufft_eps"):
+        if options.get(k) is not None:
+            opts[k] = options[k]
+    opts["spectrum_weight"] = options.get("spectrum_weight", 1.0)
+    return opts
+
+
 def load_or_synthesize(path, key, n: int, directions_deg, **options):
     """Load the set saved at ``path`` if it was made with the same settings, else synthesize it
     (checkpointed beside ``path``, so an interrupted run resumes) and save it there.
@@ -341,14 +351,13 @@ def load_or_synthesize(path, key, n: int, directions_deg, **options):
     path = Path(path)
     key = check_key("key", key)
     directions_deg = check_directions_deg("directions_deg", directions_deg)
+    recipe = options.get("recipe", "rate")
     if path.exists():
         pts, meta = load_result(path)
-        if (
-            meta.get("n") == n
-            and meta.get("directions_deg") == list(directions_deg)
-            and meta.get("key") == _key_record(key)
-            and meta.get("recipe") == options.get("recipe", "rate")
-        ):
+        want = _io._to_jsonable(_expected_options(recipe, options))
+        if (meta.get("n") == n and meta.get("directions_deg") == list(directions_deg)
+                and meta.get("key") == _key_record(key) and meta.get("recipe") == recipe
+                and meta.get("options") == want):
             return pts, meta
     options = dict(options)
     options.pop("return_info", None)
