@@ -9,7 +9,7 @@ JOBS   ?= 2
 .PHONY: demo test test-all lint bench figures clean-venv help \
         w-directions-accuracy \
         w-fig5-baselines \
-        docs w-fig3 w-fig4 w-fig6 \
+        docs w-fig3 w-fig4 w-fig6 w-fig5 \
         w-fig6-baselines w-fig11
 
 help:
@@ -53,7 +53,7 @@ w-fig11: $(VENV)/.installed
 	$(PY) experiments/w_fig11.py --scale $(SCALE)
 
 figures: w-directions-accuracy w-fig5-baselines \
-         w-fig3 w-fig4 w-fig6 \
+         w-fig3 w-fig4 w-fig6 w-fig5 \
          w-fig6-baselines w-fig11
 	@echo "figures done: run 'make docs' to refresh docs/api.md and the numbers in docs/reproduction.md"
 
@@ -66,6 +66,9 @@ w-fig4: $(VENV)/.installed
 
 w-fig6: $(VENV)/.installed
 	$(PY) experiments/w_fig6.py --scale $(SCALE)
+
+w-fig5: $(VENV)/.installed
+	$(PY) experiments/w_fig5.py --scale $(SCALE)
 
 # The API reference from the docstrings, and the measured numbers quoted in the report.
 docs: $(VENV)/.installed

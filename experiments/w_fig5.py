@@ -1,0 +1,93 @@
+"""W Fig. 5 (our half): power spectra of our optimized sets for n = 2^12..2^16 (small: 2^10..2^12).
+
+For a fixed set a toroidal shift does not change ``P_S``, so the expected spectrum of a shifted
+set is its own spectrum; with several seeds we average them.  Shown as ``n P_S`` on the centred
+grid ``|v_x|, |v_y| <= 512`` (the paper's "1024 frequencies"), white noise at 1, with the
+directions drawn.  The JSON holds, per set and direction, the mean of ``n P_S`` in octave bins
+of ``|v|`` along the direction's wedge (how deep and how far the dark lines go) and the same for
+the rest of the grid.
+
+    python experiments/w_fig5.py --scale small|paper [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from anisosample import io, plot, spectrum, synthesis
+from anisosample.progress import progress
+
+SCALES = {
+    "small": dict(log2_ns=[10, 11, 12], seeds=1, direction_sets=[[0.0, 90.0, 30.0]]),
+    "paper": dict(log2_ns=[12, 13, 14, 15, 16], seeds=1,
+                  direction_sets=[[0.0, 90.0, 30.0], [0.0, 90.0, 30.0, 120.0]]),
+}
+RADIUS = 512
+
+
+def line_profile(grid, n, dirs, half_width=2.0):
+    r = grid.shape[0] // 2
+    vy, vx = np.mgrid[-r:r + 1, -r:r + 1]
+    rad = np.hypot(vx, vy)
+    edges = 2.0 ** np.arange(0, int(math.log2(r)) + 2)
+    near_any = np.zeros_like(rad, bool)
+    out = {}
+    for d in dirs:
+        t = math.radians(d)
+        s = np.abs(-vx * math.sin(t) + vy * math.cos(t))
+        near = (s <= half_width) & (rad > 0)
+        near_any |= near
+        out[f"{d:g}"] = [float(np.mean(n * grid[near & (rad >= a) & (rad < b)]))
+                         if np.any(near & (rad >= a) & (rad < b)) else None
+                         for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    rest = ~near_any & (rad > 0)
+    out["elsewhere"] = [float(np.mean(n * grid[rest & (rad >= a) & (rad < b)]))
+                        if np.any(rest & (rad >= a) & (rad < b)) else None
+                        for a, b in zip(edges[:-1], edges[1:], strict=True)]
+    return edges.tolist(), out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scale", choices=list(SCALES), default="small")
+    ap.add_argument("--out", default="results/w_fig5")
+    args = ap.parse_args(argv)
+    cfg = SCALES[args.scale]
+    out = Path(args.out)
+    ns = [2**k for k in cfg["log2_ns"]]
+    res = {"settings": {"scale": args.scale, **cfg, "radius": RADIUS,
+                        "defaults": synthesis.recipe_defaults("rate")},
+           "provenance": io.provenance(), "sets": {}}
+    import matplotlib
+
+    matplotlib.use("Agg")
+    fig, axes = plot.new_figure(len(cfg["direction_sets"]), len(ns))
+    jobs = [(i, dirs, j, n) for i, dirs in enumerate(cfg["direction_sets"])
+            for j, n in enumerate(ns)]
+    for i, dirs, j, n in progress(jobs, desc="w_fig5"):
+        grids = []
+        for s in range(cfg["seeds"]):
+            name = "_".join(f"{d:g}" for d in dirs) + f"_n{n}_s{s}.npz"
+            pts, _ = synthesis.load_or_synthesize(out / "sets" / name, jax.random.key(500 + s),
+                                                  n, dirs, show_progress=True)
+            grids.append(np.asarray(spectrum.power_spectrum_grid(pts, RADIUS)))
+        grid = np.mean(grids, axis=0)
+        edges, prof = line_profile(grid, n, dirs)
+        label = f"{'/'.join(f'{d:g}' for d in dirs)} n={n}"
+        res["sets"][label] = {"n": n, "directions_deg": dirs, "radius_edges": edges,
+                              "mean_nP_by_octave": prof}
+        plot.spectrum_panel(axes[i][j], grid, n=n, title=label, directions_deg=())
+        print(label, {k: [None if v is None else round(v, 4) for v in vals[:8]]
+                      for k, vals in prof.items()}, flush=True)
+    paths = plot.save_figure(fig, out / "w_fig5")
+    io.save_json(out / "w_fig5.json", res, overwrite=True)
+    print(f"wrote {paths[0]} and {out / 'w_fig5.json'}")
+
+
+if __name__ == "__main__":
+    main()
