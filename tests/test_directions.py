@@ -38,6 +38,15 @@ def test_histogram_convention_matches_edge_normal(phi):
     assert directions.axial_distance_deg(doubled_angle_mean_deg(hist), phi) < 1.0
 
 
+def test_matrix_filters_equal_shifted_slice_filters():
+    rng = np.random.default_rng(0)
+    for shape, sigma in [((40, 56), 2.0), ((17, 17), 1.0), ((96, 96), 1.5)]:
+        v = jnp.asarray(rng.uniform(size=shape), jnp.float32)
+        for a, b in zip(directions._gradients(v, sigma),
+                        directions._gradients_reference(v, sigma), strict=True):
+            np.testing.assert_allclose(a, b, atol=2e-6)
+
+
 def test_histogram_bins_are_centred_and_configurable():
     h2 = directions.orientation_histogram(grid(step(40.0)), bin_deg=2.0)
     assert h2.shape == (90,)
