@@ -10,7 +10,8 @@ JOBS   ?= 2
         w-directions-accuracy \
         w-fig5-baselines \
         docs w-fig3 w-fig4 w-fig6 w-fig5 \
-        w-fig6-baselines w-fig11
+        w-fig6-baselines w-fig11 \
+        tables w-aligned-end-to-end
 
 help:
 	@echo "make demo      set up .venv and run the headline experiment at small scale"
@@ -54,7 +55,8 @@ w-fig11: $(VENV)/.installed
 
 figures: w-directions-accuracy w-fig5-baselines \
          w-fig3 w-fig4 w-fig6 w-fig5 \
-         w-fig6-baselines w-fig11
+         w-fig6-baselines w-fig11 \
+         w-aligned-end-to-end
 	@echo "figures done: run 'make docs' to refresh docs/api.md and the numbers in docs/reproduction.md"
 
 # Figure targets for experiment scripts (one each; SCALE=small|paper).
@@ -77,6 +79,17 @@ docs: $(VENV)/.installed
 
 w-directions-accuracy: $(VENV)/.installed
 	$(PY) experiments/w_directions_accuracy.py --scale $(SCALE)
+
+# The shipped aligned-set table (W Sec. 5.4; resumable: rerun after an interruption).
+# The paper's n = 4096: `make tables TABLE_N=4096` (or `anisosample tables build --n 4096`
+# to build it into the user cache); 4-direction tables: `anisosample tables build --directions 4`.
+TABLE_N ?= 1024
+tables: $(VENV)/.installed
+	nice -n 10 $(PY) -m anisosample.cli tables build --n $(TABLE_N) --directions 3 \
+		--out anisosample/data/tables/d3_n$(TABLE_N)
+
+w-aligned-end-to-end: $(VENV)/.installed
+	$(PY) experiments/w_aligned_end_to_end.py --scale $(SCALE)
 
 clean-venv:
 	rm -rf $(VENV)

@@ -306,35 +306,36 @@ def _cli(args, env_extra=None):
 
 def test_build_kill_and_resume_on_two_devices(tmp_path):
     """Kill a 2-device build at a random moment, restart it: same sets as an uninterrupted build."""
-    common = ["--n", "64", "--directions", "3", "--sets", "0,20,45", "--steps", "20",
+    common = ["--n", "64", "--directions", "3", "--sets", "0,45", "--steps", "10",
               "--checkpoint-every", "5", "--seed", "3"]
+    sets = [(0,), (45,)]
     ref_dir, run_dir = tmp_path / "ref", tmp_path / "run"
     two = {"XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
     cmd, env = _cli([*common, "--out", str(run_dir)], two)
-    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     # random moment after work began: wait for the table index, then a random extra delay
     rng = np.random.default_rng(int(time.time()))
     t0 = time.time()
     while not (run_dir / "table.json").exists() and proc.poll() is None and time.time() - t0 < 120:
         time.sleep(0.1)
-    time.sleep(float(rng.uniform(0.5, 6.0)))
+    time.sleep(float(rng.uniform(0.5, 4.0)))
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     cmd, env = _cli([*common, "--out", str(run_dir)], two)
     done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
-    assert "complete=False" in done.stdout  # a 3-set subset of the 46
+    assert "complete=False" in done.stdout  # a 2-set subset of the 46
     # the uninterrupted reference, in this process on one device
-    tables.build(64, 3, out=ref_dir, sets=[(0,), (20,), (45,)], steps=20, checkpoint_every=5,
-                 seed=3, show_progress=False)
+    tables.build(64, 3, out=ref_dir, sets=sets, steps=10, checkpoint_every=5, seed=3,
+                 show_progress=False)
     a, b = tables.open_table(ref_dir), tables.open_table(run_dir)
     assert a.settings["fingerprint"] == b.settings["fingerprint"]
-    for e in [(0,), (20,), (45,)]:
+    for e in sets:
         np.testing.assert_array_equal(a.load(e), b.load(e))
     # a rerun builds nothing
-    again = tables.build(64, 3, out=run_dir, sets=[(0,), (20,), (45,)], steps=20,
-                         checkpoint_every=5, seed=3, show_progress=False)
-    assert again["built"] == [] and len(again["skipped"]) == 3
+    again = tables.build(64, 3, out=run_dir, sets=sets, steps=10, checkpoint_every=5, seed=3,
+                         show_progress=False)
+    assert again["built"] == [] and len(again["skipped"]) == 2
 
 
 def test_cli_tables_info_and_errors(tmp_path, capsys):
