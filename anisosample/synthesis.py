@@ -365,3 +365,125 @@ def load_or_synthesize(path, key, n: int, directions_deg, **options):
     pts, info = synthesize(key, n, directions_deg, checkpoint=ckpt, return_info=True, **options)
     save_result(path, pts, info, overwrite=True)
     return pts, info
+
+
+def _padded_groups(fsets, dtype):
+    """Stack the per-direction groups of several frequency sets, padding each group to the
+    largest size with zero-weight copies of its first frequency (so the loss is unchanged)."""
+    k = len(fsets[0].group_sizes)
+    out = []
+    for g in range(k):
+        groups = [list(fs.groups())[g] for fs in fsets]
+        m = max(len(fg) for _, fg, _ in groups)
+        vs, ws, rs = [], [], []
+        for theta, fg, wg in groups:
+            pad = m - len(fg)
+            vs.append(np.concatenate([fg, np.repeat(fg[:1], pad, axis=0)]).astype(np.float64))
+            ws.append(np.concatenate([wg, np.zeros(pad)]))
+            rs.append(np.asarray(_losses._rot(theta, jnp.float64)))
+        out.append((jnp.asarray(np.stack(vs), dtype), jnp.asarray(np.stack(ws), dtype),
+                    jnp.asarray(np.stack(rs), dtype)))
+    return out
+
+
+def synthesize_batch(key, n: int, direction_sets, *, recipe: str = "rate",
+                     steps: int | None = None, learning_rate: float | None = None,
+                     c: float | None = None, init: str = "jittered", method: str = "nufft3",
+                     show_progress: bool = True, return_info: bool = False, **adam_options):
+    """Several sets at once: ``direction_sets`` is a list of ``B`` direction lists of equal
+    length; returns ``(B, n, 2)``.  One optimizer loop, the loss ``vmap``ped over the sets
+    (frequency groups padded to a common size with zero weights), so a batch costs one
+    compilation and runs as batched NUFFTs.  Set ``b`` starts from
+    ``jax.random.split(key, B)[b]`` and equals ``synthesize(that key, n, direction_sets[b])``
+    up to rounding.  No checkpoints (use :func:`synthesize` for long single runs)."""
+    key = check_key("key", key)
+    n = check_int("n", n, minimum=2)
+    recipe = check_choice("recipe", recipe, RECIPES)
+    sets = [check_directions_deg("direction_sets[i]", d) for d in direction_sets]
+    if not sets:
+        raise ValueError("direction_sets must hold at least one direction set")
+    if len({len(d) for d in sets}) != 1:
+        raise ValueError("direction_sets must all have the same number of directions, got "
+                         f"{[len(d) for d in sets]}")
+    method = check_choice("method", method, ("direct", "nufft3"))
+    opts = recipe_defaults(recipe)
+    for name, val in adam_options.items():
+        if name not in ("b1", "b2", "adam_eps", "final_lr_fraction", "nufft_eps"):
+            raise TypeError(f"synthesize_batch() got an unexpected keyword argument {name!r}")
+        opts[name] = check_positive_float(name, val)
+    if steps is not None:
+        opts["steps"] = check_int("steps", steps, minimum=1)
+    if learning_rate is not None:
+        opts["learning_rate"] = check_positive_float("learning_rate", learning_rate)
+    if c is not None:
+        opts["c"] = check_positive_float("c", c, allow_zero=True)
+    b = len(sets)
+    keys = jax.random.split(key, b)
+    x_init = np.stack([np.asarray(_initial_points(k, n, init), np.float64) for k in keys])
+    fsets = [_freq.design(n, d, opts["design"]) for d in sets]
+    eps = opts["nufft_eps"]
+    spec_sq = recipe == "paper"
+    cw = opts["c"]
+    with jax.enable_x64(True):
+        groups = _padded_groups(fsets, jnp.float64)
+        th = jnp.asarray(np.deg2rad(np.asarray(sets)), jnp.float64)  # (B, k)
+        u = jnp.asarray((np.arange(n) + 0.5) / n - 0.5, jnp.float64)
+
+        def loss_one(x, grp, theta):
+            num = jnp.zeros((), x.dtype)
+            den = jnp.zeros((), x.dtype)
+            for v, w, r in grp:
+                p = _losses._power(x, v, r, method, eps)
+                num = num + jnp.sum(w * (p * p * n if spec_sq else p))
+                den = den + jnp.sum(w)
+            val = n * num / den
+            if cw > 0:  # sliced Wasserstein (W Eqs. 12-15) with traced directions
+                d = jnp.stack([jnp.cos(theta), jnp.sin(theta)], 1)
+                tgt = _losses.square_projection_quantile(jnp.rad2deg(theta)[:, None], u[None])
+                srt = jnp.sort((x - 0.5) @ d.T, axis=0).T
+                val = val + cw * jnp.mean(jnp.sum((srt - tgt) ** 2, axis=1))
+            return val
+
+        def total(xb):
+            vals = jax.vmap(loss_one)(xb, groups, th)
+            return jnp.sum(vals), vals
+
+        lr0 = opts["learning_rate"] / math.sqrt(n)
+        decay = opts["final_lr_fraction"] ** (1.0 / max(opts["steps"] - 1, 1))
+        wrap = opts["boundary"] == "wrap"
+
+        def one(state, _):
+            x, m, v, t = state
+            (_, vals), g = jax.value_and_grad(total, has_aux=True)(x)
+            lr = lr0 * decay ** t.astype(x.dtype)
+            dx, (m, v) = adam_update(g, (m, v), (t + 1).astype(x.dtype), lr=lr, b1=opts["b1"],
+                                     b2=opts["b2"], eps=opts["adam_eps"])
+            x = x + dx
+            x = x - jnp.floor(x) if wrap else jnp.clip(x, 0.0, 1.0 - 2.0**-53)
+            return (x, m, v, t + 1), vals
+
+        chunk = 25
+        runners = {}
+        x0 = jnp.asarray(x_init)
+        state = (x0, jnp.zeros_like(x0), jnp.zeros_like(x0), jnp.asarray(0, jnp.int64))
+        history = []
+        bar = _progress(total=opts["steps"], desc=f"synthesize_batch {b} x n={n}",
+                        disable=None if show_progress else True)
+        done = 0
+        while done < opts["steps"]:
+            k = min(chunk, opts["steps"] - done)
+            if k not in runners:
+                runners[k] = jax.jit(lambda s, k=k: jax.lax.scan(one, s, None, length=k))
+            state, vals = runners[k](state)
+            history.append(np.asarray(vals))
+            done += k
+            bar.update(k)
+        bar.close()
+        final = np.asarray(jax.jit(total)(state[0])[1])
+    pts = jnp.asarray(np.stack([_to_float32_unit(x) for x in np.asarray(state[0])]))
+    if return_info:
+        hist = np.concatenate(history + [final[None]], axis=0).T
+        return pts, {"n": n, "direction_sets": [list(d) for d in sets], "recipe": recipe,
+                     "options": opts, "history": hist, "final_loss": final,
+                     "frequency_design": [fs.params for fs in fsets]}
+    return pts

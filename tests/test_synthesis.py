@@ -1,6 +1,7 @@
 """synthesize(): contract, the losses going down, the spectrum getting dark where asked,
 checkpoint/resume giving the same result, bad input, the .npz record."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -143,3 +144,19 @@ def test_variance_decomposition_matches_measured_variance(getkey):
     assert d["regions"]["line 30 deg"]["variance"] > 0.3 * d["total"]
     s = diagnostics.summary(d)
     assert "freqs" not in s and len(s["by_radius"]["elsewhere"]) == len(s["radius_edges"]) - 1
+
+
+def test_batch_matches_single_runs(getkey):
+    key = getkey()
+    sets = [[0.0, 90.0, 30.0], [0.0, 90.0, 67.0]]
+    opts = dict(steps=10, method="direct", show_progress=False)
+    batch, info = synthesis.synthesize_batch(key, 64, sets, return_info=True, **opts)
+    assert batch.shape == (2, 64, 2) and batch.dtype == jnp.float32
+    assert info["history"].shape == (2, 11)
+    keys = jax.random.split(key, 2)
+    for b, dirs in enumerate(sets):
+        single, sinfo = asp.synthesize(keys[b], 64, dirs, return_info=True, **opts)
+        np.testing.assert_allclose(np.asarray(batch[b]), np.asarray(single), atol=1e-5)
+        np.testing.assert_allclose(info["history"][b], sinfo["history"], rtol=1e-6)
+    with pytest.raises(ValueError, match="same number"):
+        synthesis.synthesize_batch(key, 64, [[0.0, 90.0], [0.0, 90.0, 30.0]], **opts)
