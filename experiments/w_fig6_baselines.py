@@ -31,7 +31,7 @@ from anisosample.progress import progress
 
 NAME = "w_fig6_baselines"
 SCALES = {
-    "small": dict(log2_ns=list(range(4, 15)), realizations=256, patterns=4, fit_min_n=64),
+    "small": dict(log2_ns=list(range(4, 15, 2)), realizations=256, patterns=4, fit_min_n=64),
     "paper": dict(log2_ns=list(range(4, 17)), realizations=4096, patterns=16, fit_min_n=64),
 }
 EDGES = {1: [30.0], 2: [30.0, 110.0], 3: [30.0, 75.0, 140.0], 4: [30.0, 75.0, 115.0, 150.0]}
