@@ -445,7 +445,11 @@ def synthesize_batch(key, n: int, direction_sets, *, recipe: str = "rate",
             return val
 
         def total(xb):
-            vals = jax.vmap(loss_one)(xb, groups, th)
+            if method == "direct":
+                vals = jax.vmap(loss_one)(xb, groups, th)
+            else:  # jax-finufft 1.3.1's batching rule fails under jax 0.10 (no
+                # batching.not_mapped): map over the sets inside the same jit instead
+                vals = jax.lax.map(lambda a: loss_one(*a), (xb, groups, th))
             return jnp.sum(vals), vals
 
         lr0 = opts["learning_rate"] / math.sqrt(n)
