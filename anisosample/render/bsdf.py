@@ -81,6 +81,8 @@ def eval_bsdf(materials: Materials, mat, n, wi, wo) -> Float[Array, "3"]:
     ok = (li[2] > 0) & (lo[2] > 0)
     kind = materials.kind[mat]
     diffuse = materials.reflectance[mat] * (lo[2] / jnp.pi)
+    if not materials.has_glossy:
+        return jnp.where(ok, diffuse, 0.0)
     alpha = materials.alpha[mat]
     h = li + lo
     h = h / jnp.maximum(norm(h), 1e-30)

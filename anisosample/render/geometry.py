@@ -72,7 +72,10 @@ def intersect(
     """Closest hit with ``tmin < t < tmax``; ``d`` must be a unit vector."""
     tt, b1, b2 = _triangle_t(scene, o, d)
     tt = jnp.where((tt > tmin) & (tt < tmax), tt, _INF)
-    s0, s1 = _sphere_t(scene, o, d)
+    if scene.has_spheres:
+        s0, s1 = _sphere_t(scene, o, d)
+    else:
+        s0 = s1 = jnp.full(scene.sph_radius.shape, _INF)
     s0 = jnp.where((s0 > tmin) & (s0 < tmax), s0, _INF)
     s1 = jnp.where((s1 > tmin) & (s1 < tmax), s1, _INF)
     ts = jnp.minimum(s0, s1)
@@ -107,9 +110,11 @@ def occluded(
     dist = norm(v)
     d = v / jnp.maximum(dist, 1e-30)
     tt, _, _ = _triangle_t(scene, o, d)
-    s0, s1 = _sphere_t(scene, o, d)
     lo, hi = dist * eps, dist * (1 - eps)
     inside = lambda t: (t > lo) & (t < hi)
+    if not scene.has_spheres:
+        return jnp.any(inside(tt))
+    s0, s1 = _sphere_t(scene, o, d)
     return jnp.any(inside(tt)) | jnp.any(inside(s0)) | jnp.any(inside(s1))
 
 

@@ -52,6 +52,7 @@ def render(
     mis: bool | None = None,
     square_aperture: bool = False,
     chunk: int | None = None,
+    chunk_samples: int = 4096,
     progress: bool = True,
 ) -> RenderResult:
     """Render ``scene`` ``realizations`` times with ``spp`` points per pixel per realization.
@@ -70,10 +71,13 @@ def render(
     sample_points, sampler_name = _get_sampler(sampler)
     w, h = scene.width, scene.height
     npix = w * h
+    # A chunk of pixels is vmapped (about ``chunk_samples`` samples: small enough to stay in
+    # cache); ``per_call`` chunks run per jit call under lax.map (few dispatches, live progress).
     if chunk is None:
-        chunk = max(1, min(npix, 2**16 // spp))
+        chunk = max(1, min(npix, chunk_samples // spp))
     chunk = check_int("chunk", chunk, minimum=1)
-    n_chunks = -(-npix // chunk)
+    per_call = max(1, min(-(-npix // chunk), 2**18 // (chunk * spp)))
+    n_chunks = -(-npix // (chunk * per_call))
     from ..progress import progress as bar
 
     total = np.zeros((npix, 3), np.float64)
@@ -100,11 +104,12 @@ def render(
                 )
             est = np.zeros((npix, 3), np.float64)
             for c in range(n_chunks):
-                idx = np.arange(c * chunk, (c + 1) * chunk)
+                idx = np.arange(c * chunk * per_call, (c + 1) * chunk * per_call)
                 valid = idx < npix
                 idx = np.where(valid, idx, npix - 1).astype(np.int32)
-                out = _render_chunk(scene, pts, k_pix, jnp.asarray(idx), **opts)
-                est[idx[valid]] = np.asarray(out, np.float64)[valid]
+                out = _render_chunk(scene, pts, k_pix, jnp.asarray(idx.reshape(per_call, chunk)),
+                                    **opts)
+                est[idx[valid]] = np.asarray(out, np.float64).reshape(-1, 3)[valid]
                 pb.update(1)
             if not np.all(np.isfinite(est)):
                 raise FloatingPointError("the render produced NaN or Inf (a bug: please report)")

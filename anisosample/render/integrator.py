@@ -167,14 +167,27 @@ class PixelIntegrand(eqx.Module):
 
     def rgb(self, x: Float[Array, "... 2"]) -> Float[Array, "... 3"]:
         x = jnp.asarray(x, jnp.float32)
-        g = _sample_fn(self.scene, self.dimension, self.technique, False, self.square_aperture)
-        half = jnp.full(2, 0.5, jnp.float32)
-        flat = x.reshape(-1, 2)
-        out = jax.vmap(lambda xi: g(xi, self.film, half, half))(flat)
+        out = _integrand_rgb(self, x.reshape(-1, 2))
         return out.reshape(*x.shape[:-1], 3)
 
     def __call__(self, x: Float[Array, "... 2"]) -> Float[Array, "..."]:
         return jnp.tensordot(self.rgb(x), self.weights, axes=1)
+
+
+_BLOCK = 4096  # points per vmapped block: keeps the working set in cache (see image.render)
+
+
+@eqx.filter_jit
+def _integrand_rgb(f: PixelIntegrand, flat):
+    g = _sample_fn(f.scene, f.dimension, f.technique, False, f.square_aperture)
+    half = jnp.full(2, 0.5, jnp.float32)
+    one = jax.vmap(lambda xi: g(xi, f.film, half, half))
+    n = flat.shape[0]
+    if n <= _BLOCK:
+        return one(flat)
+    pad = (-n) % _BLOCK
+    xs = jnp.concatenate([flat, jnp.full((pad, 2), 0.5, jnp.float32)]).reshape(-1, _BLOCK, 2)
+    return jax.lax.map(one, xs).reshape(-1, 3)[:n]
 
 
 def pixel_integrand(
@@ -217,7 +230,7 @@ def pixel_integrand(
 def _render_chunk(
     scene: Scene, points, key, pixels, *, dimension, technique, mis, pixel_center, square_aperture
 ):
-    """Mean over the ``spp`` points of each pixel in ``pixels`` (flat indices): ``(chunk, 3)``.
+    """Mean over the ``spp`` points of each pixel in ``pixels`` (flat indices): ``(..., 3)``.
 
     Each pixel gets its own toroidal shift of the shared point set (W Sec. 5.4) and its own
     independent random numbers for the other dimensions, all from ``fold_in(key, pixel)``.
@@ -244,4 +257,7 @@ def _render_chunk(
         vals = jax.vmap(g)(x, film, other, bsdf_u)
         return jnp.mean(vals, axis=0)
 
-    return jax.vmap(one_pixel)(pixels)
+    if pixels.ndim == 1:
+        return jax.vmap(one_pixel)(pixels)
+    # (blocks, chunk): lax.map over cache-sized chunks keeps the working set small.
+    return jax.lax.map(jax.vmap(one_pixel), pixels)

@@ -67,6 +67,8 @@ def texture_lookup(textures: Textures, tex, uv) -> Float[Array, "3"]:
 def emitted(scene: Scene, prim, uv) -> Float[Array, "3"]:
     """Radiance of light primitive ``prim`` at surface coordinates ``uv`` (front side)."""
     lights = scene.lights
+    if not scene.has_textures:
+        return lights.radiance[prim]
     tex = lights.texture[prim]
     textured = texture_lookup(scene.textures, jnp.maximum(tex, 0), uv)
     return lights.radiance[prim] * jnp.where(tex >= 0, textured, 1.0)
@@ -175,9 +177,12 @@ def _solid_angle(scene, prim, x0, x1, ref, p_area, pdf_area):
     cos_l = jnp.abs(denom)
     d2 = t * t
     pdf = lights.prim_prob[prim] / lights.start.shape[0] * pdf_sa * cos_l / jnp.maximum(d2, 1e-30)
-    use = (kind == LIGHT_PARALLELOGRAM) | (kind == LIGHT_TRIANGLE)
+    valid = jnp.where(kind == LIGHT_PARALLELOGRAM, rect.valid, tri.valid)
+    use = ((kind == LIGHT_PARALLELOGRAM) | (kind == LIGHT_TRIANGLE)) & valid
+    # Where the warp declines (tiny or degenerate solid angle) fall back to area sampling,
+    # as pbrt-v4 does; light_pdf makes the same choice.
     ok = use & jnp.isfinite(pdf) & (pdf > 0) & (t > 0)
-    return jnp.where(ok, p, p_area), jnp.where(ok, pdf, jnp.where(use, 0.0, pdf_area))
+    return jnp.where(use, p, p_area), jnp.where(use, jnp.where(ok, pdf, 0.0), pdf_area)
 
 
 def light_pdf(scene: Scene, prim, p, ref, technique: str = "area") -> Float[Array, ""]:
@@ -197,6 +202,7 @@ def light_pdf(scene: Scene, prim, p, ref, technique: str = "area") -> Float[Arra
         pdf_sa = jnp.where(kind == LIGHT_PARALLELOGRAM, rect.pdf(w), tri.pdf(w))
         conv = pdf_sa * jnp.abs(dot(w, nl)) / jnp.maximum(d2, 1e-30)
         sa = lights.prim_prob[prim] / lights.start.shape[0] * conv
-        use = (kind == LIGHT_PARALLELOGRAM) | (kind == LIGHT_TRIANGLE)
+        valid = jnp.where(kind == LIGHT_PARALLELOGRAM, rect.valid, tri.valid)
+        use = ((kind == LIGHT_PARALLELOGRAM) | (kind == LIGHT_TRIANGLE)) & valid
         pdf = jnp.where(use, sa, pdf)
     return pdf

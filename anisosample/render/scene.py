@@ -55,6 +55,7 @@ class Materials(eqx.Module):
     eta: Float[Array, "m 3"]  # conductor: real IOR; plastic: relative IOR in channel 0
     k: Float[Array, "m 3"]  # conductor: imaginary IOR
     twosided: Int[Array, " m"]
+    has_glossy: bool = eqx.field(static=True, default=True)  # any GGX material (else skip it)
 
 
 class Textures(eqx.Module):
@@ -120,6 +121,8 @@ class Scene(eqx.Module):
     spp: int = eqx.field(static=True, default=64)
     emitter_samples: int = eqx.field(static=True, default=1)
     bsdf_samples: int = eqx.field(static=True, default=0)
+    has_spheres: bool = eqx.field(static=True, default=True)
+    has_textures: bool = eqx.field(static=True, default=True)
 
     @property
     def width(self) -> int:
@@ -454,6 +457,7 @@ class SceneBuilder:
             eta=f32([m.eta for m in mats]),
             k=f32([m.k for m in mats]),
             twosided=i32([int(m.twosided) for m in mats]),
+            has_glossy=any(m.kind != DIFFUSE for m in mats),
         )
 
         L = self._lights
@@ -528,6 +532,8 @@ class SceneBuilder:
             spp=int(self.spp),
             emitter_samples=int(self.emitter_samples),
             bsdf_samples=int(self.bsdf_samples),
+            has_spheres=bool(self._spheres),
+            has_textures=bool(self._textures),
         )
 
 
