@@ -140,9 +140,8 @@ def test_reverse_kl_vanishes_for_a_piecewise_constant_p_matched_by_q():
     assert abs(d) < 1e-12
     # and D >= 0 everywhere on a grid of parameters
     hist = jnp.asarray(_test_hist(), jnp.float32)
-    mus = jnp.linspace(0, 2 * math.pi, 40)
     for kappa in [0.1, 3.0, 30.0, 300.0]:
-        vals = jax.vmap(lambda m, kappa=kappa: vmf.reverse_kl(hist, m, kappa))(mus)
+        vals = vmf.reverse_kl_all_mu(hist, jnp.float32(kappa))
         assert bool(jnp.all(vals > -1e-5)) and bool(jnp.all(jnp.isfinite(vals)))
 
 
