@@ -1,0 +1,124 @@
+"""Bad input gives a clear error naming the location; nothing half-written is left behind."""
+
+import jax
+import numpy as np
+import pytest
+
+import anisosample.render as R
+from anisosample import cli
+
+from .helpers import SCENES
+
+MINIMAL = """<scene version="3.0.0">
+  <integrator type="direct"/>
+  <sensor type="perspective">
+    <float name="fov" value="40"/>
+    <film type="hdrfilm"><integer name="width" value="4"/><integer name="height" value="4"/>
+      <rfilter type="box"/></film>
+  </sensor>
+  {body}
+</scene>
+"""
+
+LIGHT = """<shape type="rectangle"><transform name="to_world"><translate z="-2"/></transform>
+    <emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>"""
+
+
+def _write(tmp_path, text, name="s.xml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_minimal_scene_loads(tmp_path):
+    scene = R.load_xml(_write(tmp_path, MINIMAL.format(body=LIGHT)))
+    assert (scene.width, scene.height) == (4, 4)
+
+
+def test_malformed_xml_names_the_line(tmp_path):
+    p = _write(tmp_path, MINIMAL.format(body=LIGHT + "\n<shape type='cube'>"))
+    with pytest.raises(R.SceneFormatError, match=r"s\.xml:\d+: malformed XML"):
+        R.load_xml(p)
+
+
+def test_missing_scene_file(tmp_path):
+    with pytest.raises(FileNotFoundError, match="no such scene file"):
+        R.load_xml(tmp_path / "nope.xml")
+
+
+def test_missing_obj_file_names_the_tag(tmp_path):
+    body = LIGHT + '\n  <shape type="obj"><string name="filename" value="gone.obj"/></shape>'
+    with pytest.raises(R.SceneFormatError, match=r":10: <shape type=\"obj\">: file not found"):
+        R.load_xml(_write(tmp_path, MINIMAL.format(body=body)))
+
+
+def test_unsupported_plugin_names_tag_and_line(tmp_path):
+    body = LIGHT + '\n  <shape type="ply"/>'
+    with pytest.raises(R.SceneFormatError, match=r":10: <shape type=\"ply\">: unsupported shape"):
+        R.load_xml(_write(tmp_path, MINIMAL.format(body=body)))
+
+
+def test_unsupported_property_and_beckmann(tmp_path):
+    body = LIGHT + """
+  <shape type="cube"><bsdf type="roughconductor"><float name="alpha" value="0.2"/></bsdf></shape>"""
+    with pytest.raises(R.SceneFormatError, match="ggx"):
+        R.load_xml(_write(tmp_path, MINIMAL.format(body=body)))
+    body = LIGHT + '\n  <shape type="cube"><float name="wobble" value="1"/></shape>'
+    with pytest.raises(R.SceneFormatError, match="unsupported property 'wobble'"):
+        R.load_xml(_write(tmp_path, MINIMAL.format(body=body)))
+
+
+def test_zero_area_light(tmp_path):
+    body = """<shape type="rectangle"><transform name="to_world"><scale x="0" y="1" z="1"/>
+    </transform><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>"""
+    with pytest.raises(R.SceneFormatError, match="singular|zero area"):
+        R.load_xml(_write(tmp_path, MINIMAL.format(body=body)))
+
+
+def test_undefined_parameter_and_defaults(tmp_path):
+    text = MINIMAL.format(body=LIGHT).replace('value="40"', 'value="$fov"')
+    with pytest.raises(R.SceneFormatError, match=r"undefined parameter \$fov"):
+        R.load_xml(_write(tmp_path, text))
+    assert R.load_xml(_write(tmp_path, text), fov=30).width == 4
+
+
+def test_gaussian_film_is_refused(tmp_path):
+    text = MINIMAL.format(body=LIGHT).replace('<rfilter type="box"/>', "")
+    with pytest.raises(R.SceneFormatError, match="box"):
+        R.load_xml(_write(tmp_path, text))
+
+
+def test_negative_spp_and_bad_options():
+    scene = R.load_xml(SCENES / "cornell.xml", width=4, height=4)
+    with pytest.raises(ValueError, match="spp must be >= 1"):
+        R.render(scene, jax.random.key(0), spp=-1)
+    with pytest.raises(ValueError, match="technique"):
+        R.render(scene, jax.random.key(0), spp=1, technique="magic")
+    with pytest.raises(ValueError, match="thinlens"):
+        R.pixel_integrand(scene, (0, 0), dimension="lens")
+    with pytest.raises(ValueError, match="pixel"):
+        R.pixel_integrand(scene, (4, 0))
+
+
+def test_cli_render_writes_outputs_and_refuses_overwrite(tmp_path, capsys):
+    out = tmp_path / "img.exr"
+    argv = ["render", str(SCENES / "cornell.xml"), "--spp", "4", "--realizations", "2",
+            "--set", "width=4", "--set", "height=4", "-o", str(out)]
+    assert cli.main(argv) == 0
+    assert out.exists() and (tmp_path / "img_variance.exr").exists()
+    assert (tmp_path / "img.png").exists()
+    from anisosample import io
+
+    img = io.read_exr(out)
+    assert img.shape == (4, 4, 3) and np.all(np.isfinite(img))
+    assert cli.main(argv) == 2
+    assert "exists" in capsys.readouterr().err
+
+
+def test_cli_render_errors_leave_nothing(tmp_path, capsys):
+    bad = _write(tmp_path, MINIMAL.format(body=LIGHT + '\n  <shape type="ply"/>'))
+    out = tmp_path / "img.exr"
+    assert cli.main(["render", str(bad), "--spp", "4", "-o", str(out)]) == 2
+    assert ":10:" in capsys.readouterr().err
+    assert cli.main(["render", str(SCENES / "cornell.xml"), "--spp", "-3", "-o", str(out)]) == 2
+    assert list(tmp_path.iterdir()) == [bad]
