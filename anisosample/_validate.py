@@ -73,9 +73,7 @@ def check_points(name: str, points, *, check_range: bool = True) -> np.ndarray |
         if not np.all(np.isfinite(p)):
             raise ValueError(f"{name} contains NaN or Inf")
         if p.min() < 0.0 or p.max() >= 1.0:
-            raise ValueError(
-                f"{name} must lie in [0, 1)^2, got values in [{p.min()}, {p.max()}]"
-            )
+            raise ValueError(f"{name} must lie in [0, 1)^2, got values in [{p.min()}, {p.max()}]")
     return points
 
 

@@ -22,25 +22,50 @@ def _plt():
 def new_figure(nrows: int = 1, ncols: int = 1, *, size: float = 3.2, squeeze: bool = False, **kw):
     """A figure with ``nrows x ncols`` panels of ``size`` inches each: ``(fig, axes)``."""
     plt = _plt()
-    fig, axes = plt.subplots(nrows, ncols, figsize=(size * ncols, size * nrows), squeeze=squeeze,
-                             layout="constrained", **kw)
+    fig, axes = plt.subplots(
+        nrows,
+        ncols,
+        figsize=(size * ncols, size * nrows),
+        squeeze=squeeze,
+        layout="constrained",
+        **kw,
+    )
     return fig, axes
 
 
-def spectrum_panel(ax, grid, *, n: int, title: str | None = None, vmax: float = 2.0,
-                   directions_deg: Sequence[float] = ()):
+def spectrum_panel(
+    ax,
+    grid,
+    *,
+    n: int,
+    title: str | None = None,
+    vmax: float = 2.0,
+    directions_deg: Sequence[float] = (),
+):
     """Show ``N P_S`` of a centred spectrum grid (rows ``v_y``) upright, white noise at 1.
 
     ``directions_deg`` draws the spectral directions a set was made for, as thin red lines.
     """
     g = np.asarray(grid)
     r = g.shape[0] // 2
-    im = ax.imshow(n * g, origin="lower", cmap="gray", vmin=0.0, vmax=vmax,
-                   extent=(-r - 0.5, r + 0.5, -r - 0.5, r + 0.5), interpolation="nearest")
+    im = ax.imshow(
+        n * g,
+        origin="lower",
+        cmap="gray",
+        vmin=0.0,
+        vmax=vmax,
+        extent=(-r - 0.5, r + 0.5, -r - 0.5, r + 0.5),
+        interpolation="nearest",
+    )
     for d in directions_deg:
         t = np.radians(d)
-        ax.plot([-r * np.cos(t), r * np.cos(t)], [-r * np.sin(t), r * np.sin(t)], color="tab:red",
-                lw=0.6, alpha=0.6)
+        ax.plot(
+            [-r * np.cos(t), r * np.cos(t)],
+            [-r * np.sin(t), r * np.sin(t)],
+            color="tab:red",
+            lw=0.6,
+            alpha=0.6,
+        )
     ax.set_xlim(-r - 0.5, r + 0.5)
     ax.set_ylim(-r - 0.5, r + 0.5)
     ax.set_xticks([])
@@ -50,9 +75,18 @@ def spectrum_panel(ax, grid, *, n: int, title: str | None = None, vmax: float = 
     return im
 
 
-def convergence_panel(ax, ns, variances, *, label: str, slope: float | None = None,
-                      slope_ci: tuple[float, float] | None = None, lower=None, upper=None,
-                      **line_kw):
+def convergence_panel(
+    ax,
+    ns,
+    variances,
+    *,
+    label: str,
+    slope: float | None = None,
+    slope_ci: tuple[float, float] | None = None,
+    lower=None,
+    upper=None,
+    **line_kw,
+):
     """Log-log variance against ``n`` with the fitted slope (and its interval) in the legend."""
     ns = np.asarray(ns, dtype=float)
     v = np.asarray(variances, dtype=float)

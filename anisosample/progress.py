@@ -13,6 +13,11 @@ def progress(iterable=None, *, total=None, desc=None, disable=None, **kwargs):
     if disable is None:
         disable = os.environ.get("ANISOSAMPLE_PROGRESS", "1") == "0"
     return tqdm(
-        iterable, total=total, desc=desc, disable=disable, file=sys.stderr, dynamic_ncols=True,
+        iterable,
+        total=total,
+        desc=desc,
+        disable=disable,
+        file=sys.stderr,
+        dynamic_ncols=True,
         **kwargs,
     )

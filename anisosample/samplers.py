@@ -174,8 +174,12 @@ def _cmj(key, n):
     x = (fine_x.astype(jnp.float32) + jitter[:, 0]) / n
     y = (fine_y.astype(jnp.float32) + jitter[:, 1]) / n
     # float32 rounding of (s + u) / n can reach the next stratum's lower edge; clamp inside.
-    x = jnp.clip(x, fine_x.astype(jnp.float32) / n, jnp.nextafter((fine_x + 1).astype(jnp.float32) / n, 0.0))
-    y = jnp.clip(y, fine_y.astype(jnp.float32) / n, jnp.nextafter((fine_y + 1).astype(jnp.float32) / n, 0.0))
+    x = jnp.clip(
+        x, fine_x.astype(jnp.float32) / n, jnp.nextafter((fine_x + 1).astype(jnp.float32) / n, 0.0)
+    )
+    y = jnp.clip(
+        y, fine_y.astype(jnp.float32) / n, jnp.nextafter((fine_y + 1).astype(jnp.float32) / n, 0.0)
+    )
     pts = jnp.stack([x, y], axis=-1)
     order = jax.random.permutation(k_order, n)  # decorrelate sample order (Kensler Sec. 4)
     return jnp.minimum(pts[order], ONE_MINUS_EPSILON)
@@ -269,10 +273,58 @@ def _sobol_owen(key, n):
 # of every power-of-two prefix, which is what they guarantee.
 _PMJ02_XORS = np.array(
     [
-        [0x0, 0x0, 0x2, 0x6, 0x6, 0xE, 0x36, 0x4E, 0x16, 0x2E, 0x276, 0x6CE, 0x716, 0xC2E,
-         0x3076, 0x40CE, 0x116, 0x22E, 0x20676, 0x60ECE, 0x61716, 0xE2C2E, 0x367076, 0x4EC0CE],
-        [0x0, 0x1, 0x3, 0x3, 0x7, 0x1B, 0x27, 0xB, 0x17, 0x13B, 0x367, 0x38B, 0x617, 0x183B,
-         0x2067, 0x8B, 0x117, 0x1033B, 0x30767, 0x30B8B, 0x71617, 0x1B383B, 0x276067, 0xB808B],
+        [
+            0x0,
+            0x0,
+            0x2,
+            0x6,
+            0x6,
+            0xE,
+            0x36,
+            0x4E,
+            0x16,
+            0x2E,
+            0x276,
+            0x6CE,
+            0x716,
+            0xC2E,
+            0x3076,
+            0x40CE,
+            0x116,
+            0x22E,
+            0x20676,
+            0x60ECE,
+            0x61716,
+            0xE2C2E,
+            0x367076,
+            0x4EC0CE,
+        ],
+        [
+            0x0,
+            0x1,
+            0x3,
+            0x3,
+            0x7,
+            0x1B,
+            0x27,
+            0xB,
+            0x17,
+            0x13B,
+            0x367,
+            0x38B,
+            0x617,
+            0x183B,
+            0x2067,
+            0x8B,
+            0x117,
+            0x1033B,
+            0x30767,
+            0x30B8B,
+            0x71617,
+            0x1B383B,
+            0x276067,
+            0xB808B,
+        ],
     ],
     dtype=np.int64,
 )
@@ -324,9 +376,7 @@ def _pmj02_cached(key_data: bytes, key_impl: str, log2_n: int, candidates: int) 
     key = jax.random.wrap_key_data(
         jnp.asarray(np.frombuffer(key_data, dtype=np.uint32)), impl=key_impl
     )
-    bits = np.asarray(
-        jax.random.bits(key, (1 << log2_n, candidates, 2), dtype=jnp.uint32)
-    )
+    bits = np.asarray(jax.random.bits(key, (1 << log2_n, candidates, 2), dtype=jnp.uint32))
     return _np_u32_to_unit_float32(_pmj02_fixed_point(bits, log2_n, candidates))
 
 
@@ -395,7 +445,7 @@ def _shear(points, theta_rad):
 
 
 def shear(points, direction_deg) -> jax.Array:
-    """Singh & Jarosz 2017: re-aim one low-energy axis of a 2-direction pattern at ``direction_deg``.
+    """Singh & Jarosz 2017: re-aim one low-energy axis of a 2-direction pattern at a direction.
 
     For spectral directions within 45 degrees of the x axis a horizontal shear
     ``x' = (x - tan(theta) y) mod 1`` moves the pattern's 0-degree low-energy axis to theta and
@@ -417,8 +467,9 @@ def _sheared_factory(*, base: str = "pmj02bn", direction_deg: float) -> Sampler:
     def fn(key, n):
         return shear(inner(key, n), direction_deg)
 
-    return Sampler(f"sheared-{base}@{direction_deg:g}", fn, jittable=False,
-                   power_of_two=inner.power_of_two)
+    return Sampler(
+        f"sheared-{base}@{direction_deg:g}", fn, jittable=False, power_of_two=inner.power_of_two
+    )
 
 
 register("sheared", _sheared_factory)

@@ -71,17 +71,18 @@ def _phase_fraction(points, v):
     """``v . x`` as an exact integer-part-free fraction plus a small remainder.
 
     ``x = x_hi + x_lo`` with ``x_hi`` a multiple of 2^-10: ``v * x_hi`` is exact in float32 for
-    ``|v| < 2^14`` and its fraction is taken exactly; ``|v * x_lo| < 16`` keeps ~1e-6 accuracy. The gradient flows
-    through ``x_lo`` (``x_hi`` is a truncation), which is exact: ``d(v . x)/dx = v``.
+    ``|v| < 2^14`` and its fraction is taken exactly; ``|v * x_lo| < 16`` keeps ~1e-6 accuracy.
+    The gradient flows through ``x_lo`` (``x_hi`` is a truncation), which is exact:
+    ``d(v . x)/dx = v``.
     """
     scale = jnp.asarray(1024.0, points.dtype)
     hi = jax.lax.stop_gradient(jnp.floor(points * scale) / scale)
     lo = points - hi
     prod_hi = v[:, None, :] * hi[None, :, :]  # (c, n, 2)
     frac_hi = prod_hi - jnp.floor(prod_hi)
-    return jnp.sum(frac_hi, axis=-1) + lo[None, :, 0] * v[:, None, 0] + lo[None, :, 1] * v[
-        :, None, 1
-    ]
+    return (
+        jnp.sum(frac_hi, axis=-1) + lo[None, :, 0] * v[:, None, 0] + lo[None, :, 1] * v[:, None, 1]
+    )
 
 
 def _direct_chunk(points, v):
@@ -106,7 +107,7 @@ def _power_spectrum_direct(points, freqs):
     return out.reshape(-1)[:m]
 
 
-# --- NUFFT paths ------------------------------------------------------------------------------------
+# --- NUFFT paths ----------------------------------------------------------------------------------
 
 
 def _nufft_eps(dtype) -> float:
@@ -115,7 +116,7 @@ def _nufft_eps(dtype) -> float:
 
 @functools.partial(jax.jit, static_argnames=("rx", "ry"))
 def _fourier_grid_nufft1(points, rx, ry):
-    """``F_S`` on the grid ``v_x in [-rx, rx], v_y in [-ry, ry]``, indexed ``[v_x + rx, v_y + ry]``."""
+    """``F_S`` on the grid ``|v_x| <= rx, |v_y| <= ry``, indexed ``[v_x + rx, v_y + ry]``."""
     import jax_finufft
 
     cdtype = jnp.complex128 if points.dtype == jnp.float64 else jnp.complex64
@@ -214,14 +215,18 @@ def power_spectrum_grid(points, radius: int, *, method: str = "auto"):
     check_choice("method", method, METHODS)
     points = check_points("points", points)
     pts = jnp.asarray(points)
-    if method in ("auto", "nufft") and (method == "nufft" or pts.shape[0] * (2 * r + 1) ** 2 > _DIRECT_MAX_WORK):
-        F = _fourier_grid_nufft1(pts.astype(pts.dtype if pts.dtype == jnp.float64 else jnp.float32), r, r)
+    if method in ("auto", "nufft") and (
+        method == "nufft" or pts.shape[0] * (2 * r + 1) ** 2 > _DIRECT_MAX_WORK
+    ):
+        F = _fourier_grid_nufft1(
+            pts.astype(pts.dtype if pts.dtype == jnp.float64 else jnp.float32), r, r
+        )
         return (jnp.real(F) ** 2 + jnp.imag(F) ** 2).T
     vals = power_spectrum(pts, frequency_grid(r), method="direct" if method == "auto" else method)
     return vals.reshape(2 * r + 1, 2 * r + 1)
 
 
-# --- expected spectra over realizations --------------------------------------------------------------
+# --- expected spectra over realizations -----------------------------------------------------------
 
 
 def _realizations(sampler, n, key, realizations, shift):
@@ -237,8 +242,17 @@ def _realizations(sampler, n, key, realizations, shift):
     return keys, one
 
 
-def expected_power_spectrum(sampler, n, key, freqs, *, realizations: int = 64, shift: bool = True,
-                            method: str = "auto", progress: bool = False):
+def expected_power_spectrum(
+    sampler,
+    n,
+    key,
+    freqs,
+    *,
+    realizations: int = 64,
+    shift: bool = True,
+    method: str = "auto",
+    progress: bool = False,
+):
     """``<P_S(v)>`` averaged over ``realizations`` independent point sets (shifted by default).
 
     ``sampler`` is a sampler name or a callable ``(key, n) -> (n, 2)``. Shifting homogenizes the
@@ -261,8 +275,9 @@ def expected_power_spectrum(sampler, n, key, freqs, *, realizations: int = 64, s
     return acc / realizations
 
 
-def expected_power_spectrum_grid(sampler, n, key, radius, *, realizations: int = 64,
-                                 shift: bool = True, progress: bool = False):
+def expected_power_spectrum_grid(
+    sampler, n, key, radius, *, realizations: int = 64, shift: bool = True, progress: bool = False
+):
     """``<P_S>`` on the centred grid of half-width ``radius`` (see :func:`power_spectrum_grid`)."""
     from . import samplers as _samplers
     from .progress import progress as _progress
@@ -279,7 +294,7 @@ def expected_power_spectrum_grid(sampler, n, key, radius, *, realizations: int =
     return acc / realizations
 
 
-# --- profiles ------------------------------------------------------------------------------------------
+# --- profiles -------------------------------------------------------------------------------------
 
 
 def _grid_coords(grid):
@@ -306,8 +321,9 @@ def radial_profile(grid) -> tuple[np.ndarray, np.ndarray]:
     return radii, sums[1:] / np.maximum(counts[1:], 1)
 
 
-def angular_profile(grid, *, r_min: float = 1.0, r_max: float | None = None,
-                    bins: int = 180) -> tuple[np.ndarray, np.ndarray]:
+def angular_profile(
+    grid, *, r_min: float = 1.0, r_max: float | None = None, bins: int = 180
+) -> tuple[np.ndarray, np.ndarray]:
     """Mean of a centred spectrum per spectral direction (axial, degrees in ``[0, 180)``).
 
     Only frequencies with ``r_min <= |v| <= r_max`` count. Returns ``(bin centres, means)``;
@@ -328,7 +344,7 @@ def angular_profile(grid, *, r_min: float = 1.0, r_max: float | None = None,
     return centres, sums / np.maximum(counts, 1)
 
 
-# --- pictures ----------------------------------------------------------------------------------------------
+# --- pictures -------------------------------------------------------------------------------------
 
 
 def save_spectrum_image(path, grid, *, n: int, vmax: float = 2.0, overwrite: bool = False) -> Path:
@@ -344,9 +360,19 @@ def save_spectrum_image(path, grid, *, n: int, vmax: float = 2.0, overwrite: boo
     n = check_int("n", n, minimum=1)
     upright = g[::-1]
     if path.suffix == ".exr":
-        return io.write_exr(path, upright.astype(np.float32),
-                            {"quantity": "P_S (white noise = 1/n)", "n": n}, overwrite=overwrite)
+        return io.write_exr(
+            path,
+            upright.astype(np.float32),
+            {"quantity": "P_S (white noise = 1/n)", "n": n},
+            overwrite=overwrite,
+        )
     if path.suffix == ".png":
-        return io.save_png(path, np.clip(n * upright, 0.0, vmax), cmap="gray", vmin=0.0,
-                           vmax=vmax, overwrite=overwrite)
+        return io.save_png(
+            path,
+            np.clip(n * upright, 0.0, vmax),
+            cmap="gray",
+            vmin=0.0,
+            vmax=vmax,
+            overwrite=overwrite,
+        )
     raise ValueError(f"path must end in .png or .exr, got {path.name}")

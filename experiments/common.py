@@ -18,13 +18,24 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def parser(name: str, doc: str | None) -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog=f"experiments/{name}.py", description=doc)
-    p.add_argument("--scale", choices=["small", "paper"], default="small",
-                   help="small: minutes on a 2-core laptop; paper: the papers' sizes (GPU)")
-    p.add_argument("--out", type=Path, default=ROOT / "results" / name,
-                   help=f"results folder (default results/{name}/)")
+    p.add_argument(
+        "--scale",
+        choices=["small", "paper"],
+        default="small",
+        help="small: minutes on a 2-core laptop; paper: the papers' sizes (GPU)",
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=ROOT / "results" / name,
+        help=f"results folder (default results/{name}/)",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of the experiment's JAX key")
-    p.add_argument("--fresh", action="store_true",
-                   help="recompute everything instead of reusing finished results")
+    p.add_argument(
+        "--fresh",
+        action="store_true",
+        help="recompute everything instead of reusing finished results",
+    )
     return p
 
 

@@ -11,13 +11,12 @@ from __future__ import annotations
 
 import time
 
+import common
 import jax
 import numpy as np
 
 import anisosample as asp
 from anisosample import plot
-
-import common
 
 NAME = "demo"
 EXTRA_DIRECTION = 30.0
@@ -39,19 +38,32 @@ def main(argv=None):
     for n in ns:
         print(f"synthesizing n = {n} for spectral directions {directions} ...", flush=True)
         pts, _ = asp.synthesis.load_or_synthesize(
-            out / "sets" / f"aligned_n{n}.npz", jax.random.fold_in(key, n), n, directions)
+            out / "sets" / f"aligned_n{n}.npz", jax.random.fold_in(key, n), n, directions
+        )
         sets[n] = np.asarray(pts)
 
     def aligned(_key, n):
         return sets[n]
 
-    samplers = {"aligned (ours, 0/90/30)": aligned, "pmj02bn": "pmj02bn",
-                "sobol-owen": "sobol-owen"}
+    samplers = {
+        "aligned (ours, 0/90/30)": aligned,
+        "pmj02bn": "pmj02bn",
+        "sobol-owen": "sobol-owen",
+    }
     result = asp.variance.convergence(
-        f, samplers, ns, jax.random.fold_in(key, 1), realizations, exact=f.integral,
-        randomization={"aligned (ours, 0/90/30)": "shift", "pmj02bn": "fresh+shift",
-                       "sobol-owen": "fresh+shift"},
-        progress=True)
+        f,
+        samplers,
+        ns,
+        jax.random.fold_in(key, 1),
+        realizations,
+        exact=f.integral,
+        randomization={
+            "aligned (ours, 0/90/30)": "shift",
+            "pmj02bn": "fresh+shift",
+            "sobol-owen": "fresh+shift",
+        },
+        progress=True,
+    )
 
     fig, axes = plot.new_figure(1, 2, size=4.0)
     ax = axes[0, 0]
@@ -62,23 +74,43 @@ def main(argv=None):
         v = np.array([e.variance for e in est])
         lo = np.array([e.ci_low for e in est])
         hi = np.array([e.ci_high for e in est])
-        plot.convergence_panel(ax, ns, v, label=label, slope=fit.slope,
-                               slope_ci=(fit.ci_low, fit.ci_high), lower=lo, upper=hi)
-        record[label] = {"variance": v.tolist(), "ci_low": lo.tolist(), "ci_high": hi.tolist(),
-                         "slope": fit.slope, "slope_ci": [fit.ci_low, fit.ci_high]}
+        plot.convergence_panel(
+            ax,
+            ns,
+            v,
+            label=label,
+            slope=fit.slope,
+            slope_ci=(fit.ci_low, fit.ci_high),
+            lower=lo,
+            upper=hi,
+        )
+        record[label] = {
+            "variance": v.tolist(),
+            "ci_low": lo.tolist(),
+            "ci_high": hi.tolist(),
+            "slope": fit.slope,
+            "slope_ci": [fit.ci_low, fit.ci_high],
+        }
     ax.set_title(f"edge at spectral direction {EXTRA_DIRECTION:g} deg", fontsize=9)
     ax.legend(fontsize=7)
     n_show = ns[-1]
     grid = asp.spectrum.power_spectrum_grid(sets[n_show], 2 * int(np.sqrt(n_show)))
-    plot.spectrum_panel(axes[0, 1], grid, n=n_show, title=f"our set, n = {n_show}",
-                        directions_deg=directions)
+    plot.spectrum_panel(
+        axes[0, 1], grid, n=n_show, title=f"our set, n = {n_show}", directions_deg=directions
+    )
     png = plot.save_figure(fig, out / NAME)[0]
-    js = common.write_record(out, NAME, {"ns": ns, "realizations": realizations,
-                                         "integrand": "edges([30])", "samplers": record},
-                             vars(args) | {"out": str(out)}, started)
+    js = common.write_record(
+        out,
+        NAME,
+        {"ns": ns, "realizations": realizations, "integrand": "edges([30])", "samplers": record},
+        vars(args) | {"out": str(out)},
+        started,
+    )
     print("\nvariance slopes (log Var vs log N, 95% interval):")
     for label, r in record.items():
-        print(f"  {label:26s} {r['slope']:+.2f}  [{r['slope_ci'][0]:+.2f}, {r['slope_ci'][1]:+.2f}]")
+        print(
+            f"  {label:26s} {r['slope']:+.2f}  [{r['slope_ci'][0]:+.2f}, {r['slope_ci'][1]:+.2f}]"
+        )
     print(f"\nfigure:  {png}\nnumbers: {js}")
 
 

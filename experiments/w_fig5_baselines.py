@@ -9,13 +9,12 @@ from __future__ import annotations
 
 import time
 
+import common
 import jax
 import numpy as np
 
 import anisosample as asp
 from anisosample import plot, spectrum
-
-import common
 
 NAME = "w_fig5_baselines"
 SHEAR_DEG = 30.0
@@ -29,8 +28,14 @@ def main(argv=None):
     radius = 2 * int(np.sqrt(n))
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
-    cases = [("random", {}), ("jittered", {}), ("cmj", {}), ("sobol-owen", {}), ("pmj02bn", {}),
-             ("sheared", {"base": "pmj02bn", "direction_deg": SHEAR_DEG})]
+    cases = [
+        ("random", {}),
+        ("jittered", {}),
+        ("cmj", {}),
+        ("sobol-owen", {}),
+        ("pmj02bn", {}),
+        ("sheared", {"base": "pmj02bn", "direction_deg": SHEAR_DEG}),
+    ]
     cache = out / "spectra.npz"
     grids = {}
     if cache.exists() and not args.fresh:
@@ -43,19 +48,26 @@ def main(argv=None):
         if label in grids:
             continue
         sampler = asp.samplers.get(name, **opts)
-        grids[label] = np.asarray(spectrum.expected_power_spectrum_grid(
-            sampler, n, jax.random.fold_in(key, i), radius, realizations=realizations,
-            progress=True))
-    asp.io.save_npz(cache, grids, {"realizations": realizations, "seed": args.seed, "n": n},
-                    overwrite=True)
+        grids[label] = np.asarray(
+            spectrum.expected_power_spectrum_grid(
+                sampler,
+                n,
+                jax.random.fold_in(key, i),
+                radius,
+                realizations=realizations,
+                progress=True,
+            )
+        )
+    asp.io.save_npz(
+        cache, grids, {"realizations": realizations, "seed": args.seed, "n": n}, overwrite=True
+    )
 
     fig, axes = plot.new_figure(3, len(grids), size=2.6)
     record = {}
     for j, (label, g) in enumerate(grids.items()):
         dirs = [0.0, 90.0] if "sheared" not in label else [SHEAR_DEG, 90.0]
         plot.spectrum_panel(axes[0, j], g, n=n, title=label, directions_deg=[])
-        spectrum.save_spectrum_image(out / f"{label.replace(' ', '_')}.exr", g, n=n,
-                                     overwrite=True)
+        spectrum.save_spectrum_image(out / f"{label.replace(' ', '_')}.exr", g, n=n, overwrite=True)
         radii, rad = spectrum.radial_profile(g)
         centres, ang = spectrum.angular_profile(g, r_min=8, r_max=radius, bins=90)
         axes[1, j].plot(radii, n * rad, lw=1)
@@ -66,8 +78,10 @@ def main(argv=None):
         axes[2, j].axhline(1.0, color="k", lw=0.5, ls=":")
         axes[2, j].set_xlabel("direction (deg)")
         axes[2, j].set_ylim(0, 2)
-        low = (np.hypot(*np.meshgrid(np.arange(-radius, radius + 1),
-                                     np.arange(-radius, radius + 1))) <= np.sqrt(n) / 2)
+        low = (
+            np.hypot(*np.meshgrid(np.arange(-radius, radius + 1), np.arange(-radius, radius + 1)))
+            <= np.sqrt(n) / 2
+        )
         low[radius, radius] = False
         record[label] = {
             "low_energy_directions_deg": dirs if label not in ("random", "jittered") else [],
@@ -79,14 +93,25 @@ def main(argv=None):
     axes[1, 0].set_ylabel("radial N<P>")
     axes[2, 0].set_ylabel("angular N<P> (|v| 8..128)")
     pngs = plot.save_figure(fig, out / NAME, formats=("png", "pdf"))
-    json_path = common.write_record(out, NAME, {
-        "n": n, "radius": radius, "realizations": realizations,
-        "radial_radii": list(range(1, radius + 1)),
-        "angular_centres_deg": centres.tolist(), "samplers": record,
-    }, vars(args) | {"out": str(args.out)}, started)
+    json_path = common.write_record(
+        out,
+        NAME,
+        {
+            "n": n,
+            "radius": radius,
+            "realizations": realizations,
+            "radial_radii": list(range(1, radius + 1)),
+            "angular_centres_deg": centres.tolist(),
+            "samplers": record,
+        },
+        vars(args) | {"out": str(args.out)},
+        started,
+    )
     print(f"figure: {pngs[0]}\nnumbers: {json_path}")
     for label, r in record.items():
-        print(f"  {label:24s} mean N<P> for |v| <= sqrt(n)/2: {r['mean_nP_within_sqrt_n_over_2']:.3f}")
+        print(
+            f"  {label:24s} mean N<P> for |v| <= sqrt(n)/2: {r['mean_nP_within_sqrt_n_over_2']:.3f}"
+        )
 
 
 if __name__ == "__main__":

@@ -10,8 +10,12 @@ from anisosample import cli, io
 
 
 def run(*args):
-    return subprocess.run([sys.executable, "-m", "anisosample.cli", *args], capture_output=True,
-                          text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "anisosample.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 def test_points_and_spectrum(tmp_path, capsys):
@@ -34,12 +38,15 @@ def test_points_and_spectrum(tmp_path, capsys):
     assert cli.main(["points", "random", "-n", "8", "-o", str(out), "--force"]) == 0
 
 
-@pytest.mark.parametrize("args,needle", [
-    (["points", "halton", "-n", "8", "-o", "x.npy"], "unknown sampler 'halton'"),
-    (["points", "random", "-n", "0", "-o", "x.npy"], "n must be >= 1"),
-    (["points", "random", "-n", "8", "-o", "x.txt"], "--output must end in .npy or .npz"),
-    (["spectrum", "missing.npy", "-o", "s.png"], "no such file"),
-])
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["points", "halton", "-n", "8", "-o", "x.npy"], "unknown sampler 'halton'"),
+        (["points", "random", "-n", "0", "-o", "x.npy"], "n must be >= 1"),
+        (["points", "random", "-n", "8", "-o", "x.txt"], "--output must end in .npy or .npz"),
+        (["spectrum", "missing.npy", "-o", "s.png"], "no such file"),
+    ],
+)
 def test_bad_input_is_one_line_and_exit_2(tmp_path, args, needle):
     args = [a if not a.endswith((".npy", ".txt", ".png")) else str(tmp_path / a) for a in args]
     r = run(*args)

@@ -53,8 +53,12 @@ def test_nets_for_several_keys(name):
 
 def test_sobol_unscrambled_values_and_scramble_hash():
     x, y = samplers.sobol_2d_bits(jnp.arange(8, dtype=jnp.uint32))
-    np.testing.assert_array_equal(np.asarray(x) / 2**32, [0, .5, .25, .75, .125, .625, .375, .875])
-    np.testing.assert_array_equal(np.asarray(y) / 2**32, [0, .5, .75, .25, .625, .125, .375, .875])
+    np.testing.assert_array_equal(
+        np.asarray(x) / 2**32, [0, 0.5, 0.25, 0.75, 0.125, 0.625, 0.375, 0.875]
+    )
+    np.testing.assert_array_equal(
+        np.asarray(y) / 2**32, [0, 0.5, 0.75, 0.25, 0.625, 0.125, 0.375, 0.875]
+    )
     # Burley 2020 with pbrt-v4's improved hash: value from shared/references/samplers.md
     v = samplers.nested_uniform_scramble(jnp.uint32(0x80000000), jnp.uint32(0x12345678))
     assert int(v) == 0x87E32B06
@@ -107,8 +111,7 @@ def test_random_expected_spectrum_is_white():
     n = 1024
     freqs = asp.spectrum.frequency_grid(12)
     freqs = freqs[np.any(freqs != 0, axis=1)]
-    p = asp.spectrum.expected_power_spectrum("random", n, jax.random.key(9), freqs,
-                                             realizations=16)
+    p = asp.spectrum.expected_power_spectrum("random", n, jax.random.key(9), freqs, realizations=16)
     assert abs(float(np.mean(p)) * n - 1.0) < 0.03
 
 
@@ -130,8 +133,9 @@ def test_toroidal_shift_keeps_spectrum_and_range(getkey):
     pts = samplers.get("pmj02bn")(getkey(), 256)
     shifted = samplers.toroidal_shift(getkey(), pts)
     freqs = np.array([[1, 0], [3, -2], [17, 5], [40, 40]])
-    np.testing.assert_allclose(brute_force_spectrum(shifted, freqs),
-                               brute_force_spectrum(pts, freqs), rtol=1e-3, atol=1e-9)
+    np.testing.assert_allclose(
+        brute_force_spectrum(shifted, freqs), brute_force_spectrum(pts, freqs), rtol=1e-3, atol=1e-9
+    )
     edge = jnp.full((4, 2), np.float32(1 - 2**-24))
     out = np.asarray(samplers.toroidal_shift(getkey(), edge))
     assert out.max() < 1.0 and out.min() >= 0.0
@@ -145,8 +149,9 @@ def test_shear_horizontal_identities():
     p = np.asarray(pts, dtype=np.float64)
     np.testing.assert_array_equal(sh[:, 1], p[:, 1])  # y kept
     back = np.mod(sh[:, 0] - s * sh[:, 1], 1.0)
-    np.testing.assert_allclose(np.minimum(np.abs(back - p[:, 0]), 1 - np.abs(back - p[:, 0])),
-                               0, atol=2e-6)
+    np.testing.assert_allclose(
+        np.minimum(np.abs(back - p[:, 0]), 1 - np.abs(back - p[:, 0])), 0, atol=2e-6
+    )
     # Fourier shear theorem: P'(a, b) = P(a, b + a s), at non-integer frequencies of P
     for a, b in [(1, 0), (3, 2), (10, -4)]:
         ph = 2 * np.pi * (a * p[:, 0] + (b + a * s) * p[:, 1])
@@ -180,11 +185,20 @@ def test_sheared_sampler_from_registry():
     assert pts.shape == (256, 2) and float(pts.max()) < 1.0
 
 
-# --- bad input --------------------------------------------------------------------------------------
+# --- bad input ------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("n,exc", [(0, ValueError), (-3, ValueError), (2.0, TypeError),
-                                   ("8", TypeError), (True, TypeError), (2**25, ValueError)])
+@pytest.mark.parametrize(
+    "n,exc",
+    [
+        (0, ValueError),
+        (-3, ValueError),
+        (2.0, TypeError),
+        ("8", TypeError),
+        (True, TypeError),
+        (2**25, ValueError),
+    ],
+)
 def test_bad_n(n, exc):
     with pytest.raises(exc, match="n must"):
         samplers.get("random")(jax.random.key(0), n)
@@ -200,8 +214,16 @@ def test_bad_key():
         samplers.get("random")(0, 8)
 
 
-@pytest.mark.parametrize("points", [np.zeros((5, 3)), np.zeros((5,)), np.full((4, 2), 1.0),
-                                    np.full((4, 2), -0.1), np.full((4, 2), np.nan)])
+@pytest.mark.parametrize(
+    "points",
+    [
+        np.zeros((5, 3)),
+        np.zeros((5,)),
+        np.full((4, 2), 1.0),
+        np.full((4, 2), -0.1),
+        np.full((4, 2), np.nan),
+    ],
+)
 def test_bad_points(points):
     with pytest.raises(ValueError, match="points"):
         samplers.toroidal_shift(jax.random.key(0), points.astype(np.float32))

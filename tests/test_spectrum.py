@@ -52,11 +52,16 @@ def test_gradients_agree_between_paths_and_with_finite_differences():
     pts = samplers.get("random")(jax.random.key(3), 256)
     f = spectrum.frequency_grid(6)
     # jax-finufft's own JVP rules mix dtypes and ranks: relax the strict test settings here only.
-    with (jax.enable_x64(True), jax.numpy_dtype_promotion("standard"),
-          jax.numpy_rank_promotion("allow")):
+    with (
+        jax.enable_x64(True),
+        jax.numpy_dtype_promotion("standard"),
+        jax.numpy_rank_promotion("allow"),
+    ):
         p = jnp.asarray(np.asarray(pts, np.float64))
         grads = {
-            m: np.asarray(jax.grad(lambda q, m=m: jnp.sum(spectrum.power_spectrum(q, f, method=m)))(p))
+            m: np.asarray(
+                jax.grad(lambda q, m=m: jnp.sum(spectrum.power_spectrum(q, f, method=m)))(p)
+            )
             for m in ["direct", "nufft", "nufft3"]
         }
         loss = lambda q: float(jnp.sum(spectrum.power_spectrum(q, f, method="direct")))
