@@ -190,3 +190,21 @@ def test_bad_input_raises_value_errors():
     with pytest.raises(ValueError, match="NaN"):
         directions.estimate_blocks(lambda i, x: jnp.log(x[..., 0] - 0.5), samples_per_block=32,
                                    blocks=(1, 2))
+
+
+def test_cli_directions_per_grid_and_per_block(tmp_path, capsys):
+    from anisosample import cli
+
+    g = grid(step(40.0), 32)
+    np.save(tmp_path / "g.npy", g)
+    np.save(tmp_path / "big.npy", np.concatenate([g, grid(step(130.0), 32)], axis=1))
+    assert cli.main(["directions", str(tmp_path / "g.npy")]) == 0
+    out = capsys.readouterr().out
+    got = float(out.split(" deg")[0])
+    assert float(directions.axial_distance_deg(got, 40.0)) <= 2.0
+    png = tmp_path / "maps.png"
+    assert cli.main(["directions", str(tmp_path / "big.npy"), "--block", "32", "-o",
+                     str(png)]) == 0
+    assert png.exists() and "[0, 2, 0]" in capsys.readouterr().out
+    assert cli.main(["directions", str(tmp_path / "g.npy"), "-k", "-1"]) == 2
+    assert "k must be >= 0" in capsys.readouterr().err
