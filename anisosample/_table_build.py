@@ -12,11 +12,14 @@ Determinism: set ``i`` of the canonical list uses the key ``fold_in(key(seed), i
 not depend on which sets were built before it, on which device or host built it, or on
 interruptions -- a resumed build writes exactly the sets an uninterrupted one writes.
 
-Parallelism. ``synthesize`` optimizes one set per call (its loop, checkpoints and per-direction
-frequency sets of different sizes are not batched), so the sets of a table are distributed, not
-vmapped: one worker thread per local device (``jax.local_devices()``), each running synthesize
-under ``jax.default_device(device)`` (XLA releases the GIL while it computes). On the CPU, test it
-with ``XLA_FLAGS=--xla_force_host_platform_device_count=2``. Several hosts: start the same
+Parallelism. With ``batch=1`` each set is one :func:`~anisosample.synthesize` call (with
+checkpoints inside the set); with ``batch=B`` groups of ``B`` sets of equal direction count run
+as one :func:`~anisosample.synthesis.synthesize_batch` loop (the loss vmapped over the padded
+frequency sets of the group: one compilation per group). Sets or groups are spread over the local
+devices (``jax.local_devices()``), one worker thread per device running under
+``jax.default_device(device)`` (XLA releases the GIL while it computes); on the CPU, test it with
+``XLA_FLAGS=--xla_force_host_platform_device_count=2``. (The sets are not sharded *within* one
+loop with ``jax.sharding``: synthesize owns its loop.) Several hosts: start the same
 command on every host after ``jax.distributed.initialize(...)`` (coordinator address, number of
 processes, process id; on SLURM/TPU pods it needs no arguments) with a shared ``--out``; host
 ``p`` of ``P`` builds the sets ``i`` with ``i % P == p`` and the last host to finish writes the
@@ -87,6 +90,7 @@ def _build_one(table: _t.Table, index: int, extra, device, checkpoint_every: int
 
     settings = table.settings
     opts = dict(settings["synthesis"])
+    opts.pop("batch", None)
     ckdir = table.path / ".ckpt"
     ckdir.mkdir(exist_ok=True)
     ckpt = ckdir / f"{_t.set_name(extra)}.npz"
@@ -106,6 +110,30 @@ def _build_one(table: _t.Table, index: int, extra, device, checkpoint_every: int
     }
     write_set(table, extra, pts, extra_meta)
     return extra_meta["seconds"]
+
+
+def _build_group(table: _t.Table, indices, group, device) -> list[float]:
+    """One :func:`synthesize_batch` call for a group of sets with equal direction counts."""
+    from . import synthesis
+
+    settings = table.settings
+    opts = dict(settings["synthesis"])
+    opts.pop("batch", None)
+    t0 = time.perf_counter()
+    with jax.default_device(device):
+        pts, info = synthesis.synthesize_batch(
+            _key_for(settings["seed"], indices[0]), table.n,
+            [_t.set_directions(e) for e in group], show_progress=False, return_info=True, **opts,
+        )
+    sec = (time.perf_counter() - t0) / len(group)
+    final = np.asarray(info.get("final_loss")).reshape(-1)
+    for b, (i, e) in enumerate(zip(indices, group, strict=True)):
+        write_set(table, e, np.asarray(pts[b]), {
+            "index": i, "group": [list(g) for g in group], "group_position": b,
+            "final_loss": float(final[b]) if final.size == len(group) else None,
+            "seconds": sec,
+        })
+    return [sec] * len(group)
 
 
 def write_set(table: _t.Table, extra, points, metadata: dict | None = None) -> Path:
@@ -162,7 +190,7 @@ def _finalize(table: _t.Table, all_sets) -> bool:
     return True
 
 
-def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None,
+def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: int = 1,
           devices=None, checkpoint_every: int = 25, show_progress: bool = True,
           **synthesis_options) -> dict:
     """Synthesize the canonical sets of the ``kind``-direction table for ``n`` points.
@@ -175,7 +203,14 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None,
             ``ValueError``; its finished sets are verified and kept, damaged ones rebuilt.
         seed: integer seed; set ``i`` uses ``fold_in(key(seed), i)``.
         sets: build only these canonical extra-direction tuples (default: all).
-        devices: the devices to spread sets over (default ``jax.local_devices()``).
+        batch: sets per optimizer loop. 1: :func:`anisosample.synthesize` per set (checkpoints
+            every ``checkpoint_every`` steps). ``B > 1``: :func:`anisosample.synthesis.
+            synthesize_batch` on fixed groups of ``B`` consecutive sets with the same number of
+            directions (one compilation per group; a group is the unit of resumption and is
+            redone whole if any of its sets is missing; set ``b`` of the group starting at
+            canonical index ``i`` uses ``split(fold_in(key(seed), i), B)[b]``). ``batch`` is
+            part of the table's settings (it changes the sets' keys).
+        devices: the devices to spread sets (or groups) over (default ``jax.local_devices()``).
         checkpoint_every: synthesis checkpoint interval in steps (resume granularity).
         synthesis_options: passed to :func:`anisosample.synthesize` (``recipe``, ``steps``, ...).
 
@@ -186,11 +221,18 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None,
     kind = _t._check_kind(kind)
     seed = check_int("seed", seed, minimum=0)
     checkpoint_every = check_int("checkpoint_every", checkpoint_every, minimum=1)
+    batch = check_int("batch", batch, minimum=1)
     for name in synthesis_options:
         if name not in _SYNTH_OPTIONS:
             raise TypeError(f"build() got an unexpected keyword argument {name!r}; synthesis "
                             f"options are {', '.join(_SYNTH_OPTIONS)}")
     synth = {k: v for k, v in synthesis_options.items() if v is not None}
+    if batch > 1:
+        bad = sorted(set(synth) & {"boundary", "frequency_options"})
+        if bad or synth.get("method", "nufft3") not in ("direct", "nufft3"):
+            raise ValueError(f"batch > 1 (synthesize_batch) does not take {bad or ['method']}; "
+                             "use batch=1")
+        synth["batch"] = batch
     all_sets = _t.canonical_sets(kind)
     index = {e: i for i, e in enumerate(all_sets)}
     if sets is None:
@@ -207,11 +249,20 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None,
     out = Path(out) if out is not None else _t.cache_dir() / _t.table_name(kind, n)
     table = create_table(out, n, kind, seed=seed, synthesis=synth)
 
-    # Hosts split the work (jax.distributed); each host spreads its share over its devices.
+    # Work units: one set (batch 1) or a fixed group of sets (batch B). Hosts split the units
+    # (jax.distributed); each host spreads its share over its local devices, one thread each.
+    todo = sorted(todo, key=index.__getitem__)
+    if batch == 1:
+        units = [[e] for e in todo]
+    else:
+        units = []
+        for count in sorted({len(_t.set_directions(e)) for e in todo}):
+            same = [e for e in todo if len(_t.set_directions(e)) == count]
+            units += [same[i:i + batch] for i in range(0, len(same), batch)]
     pid, pcount = jax.process_index(), jax.process_count()
-    mine = [e for e in todo if index[e] % pcount == pid]
-    skipped = [e for e in mine if _set_ok(table, e)]
-    remaining = [e for e in mine if e not in skipped]
+    mine = [u for i, u in enumerate(units) if i % pcount == pid]
+    done_units = [u for u in mine if all(_set_ok(table, e) for e in u)]
+    remaining = [u for u in mine if u not in done_units]
     devices = list(devices) if devices is not None else jax.local_devices()
     if not devices:
         raise ValueError("devices must hold at least one device")
@@ -219,9 +270,9 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None,
     seconds: dict[str, float] = {}
     errors: list[BaseException] = []
     work: queue.Queue = queue.Queue()
-    for e in remaining:
-        work.put(e)
-    bar = _progress(total=len(mine), initial=len(skipped),
+    for u in remaining:
+        work.put(u)
+    bar = _progress(total=sum(map(len, mine)), initial=sum(map(len, done_units)),
                     desc=f"table d{kind} n={n} ({len(devices)} device(s))",
                     disable=None if show_progress else True)
     lock = threading.Lock()
@@ -229,17 +280,21 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None,
     def worker(device):
         while not errors:
             try:
-                e = work.get_nowait()
+                u = work.get_nowait()
             except queue.Empty:
                 return
             try:
-                sec = _build_one(table, index[e], e, device, checkpoint_every)
+                if batch == 1:
+                    sec = [_build_one(table, index[u[0]], u[0], device, checkpoint_every)]
+                else:
+                    sec = _build_group(table, [index[e] for e in u], u, device)
             except BaseException as exc:  # noqa: BLE001 -- re-raised in the main thread
                 errors.append(exc)
                 return
             with lock:
-                seconds[_t.set_name(e)] = sec
-                bar.update(1)
+                for e, t in zip(u, sec, strict=True):
+                    seconds[_t.set_name(e)] = t
+                bar.update(len(u))
 
     try:
         if len(devices) == 1 or len(remaining) <= 1:
@@ -258,8 +313,8 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None,
     complete = _finalize(_t.open_table(out), all_sets)
     return {
         "path": str(out),
-        "built": [_t.set_name(e) for e in remaining],
-        "skipped": [_t.set_name(e) for e in skipped],
+        "built": [_t.set_name(e) for u in remaining for e in u],
+        "skipped": [_t.set_name(e) for u in done_units for e in u],
         "seconds": seconds,
         "devices": [str(d) for d in devices],
         "complete": complete,

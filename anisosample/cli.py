@@ -225,6 +225,8 @@ def _add_tables(sub):
     b.add_argument("--steps", type=int, default=None, help="optimizer steps (recipe default)")
     b.add_argument("--checkpoint-every", type=int, default=25,
                    help="synthesis checkpoint interval in steps")
+    b.add_argument("--batch", type=int, default=1,
+                   help="sets per optimizer loop (synthesize_batch; 1: synthesize per set)")
     b.add_argument("--distributed", action="store_true",
                    help="call jax.distributed.initialize() first (several hosts, shared --out)")
     i = tsub.add_parser("info", help="describe and verify a table directory")
@@ -261,9 +263,10 @@ def _run_tables(args):
     opts = {k: v for k, v in (("recipe", args.recipe), ("steps", args.steps)) if v is not None}
     summary = tables.build(args.n, args.directions, out=args.out, seed=args.seed,
                            sets=_parse_sets(args.sets), checkpoint_every=args.checkpoint_every,
-                           **opts)
-    print(f"table {summary['path']}: built {len(summary['built'])} set(s), kept "
-          f"{len(summary['skipped'])} finished one(s); complete={summary['complete']}")
+                           batch=args.batch, **opts)
+    print(f"table {summary['path']}: built {len(summary['built'])} set(s) on "
+          f"{len(summary['devices'])} device(s), kept {len(summary['skipped'])} finished one(s);"
+          f" complete={summary['complete']}")
 
 
 # --- variance ----------------------------------------------------------------------------------

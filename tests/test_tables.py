@@ -370,3 +370,24 @@ def test_shipped_table_is_dark_along_requested_directions():
             ratios.append(_line_mean(pts, d, tab.n))
     assert np.mean(ratios) < 0.1, ratios
     assert max(ratios) < 0.2, ratios
+
+
+@pytest.mark.slow  # two compilations of the batched loop: ~45 s on a busy 2-core machine
+def test_batched_build_redoes_a_group_identically(tmp_path):
+    # batch 2: one synthesize_batch loop for the group [(10,), (20,)]; a lost set redoes the group
+    out = tmp_path / "t"
+    first = tables.build(64, 3, out=out, sets=[(10,), (20,)], batch=2, steps=10,
+                         show_progress=False)
+    assert first["built"] == ["psi_010", "psi_020"]
+    tab = tables.open_table(out)
+    assert tab.settings["synthesis"]["batch"] == 2
+    a, b = tab.load((10,)), tab.load((20,))
+    assert not np.array_equal(a, b)
+    tab.set_path((20,)).unlink()
+    again = tables.build(64, 3, out=out, sets=[(10,), (20,)], batch=2, steps=10,
+                         show_progress=False)
+    assert again["built"] == ["psi_010", "psi_020"]
+    np.testing.assert_array_equal(tab.load((10,)), a)
+    np.testing.assert_array_equal(tab.load((20,)), b)
+    with pytest.raises(ValueError, match="other settings"):  # batch is part of the settings
+        tables.build(64, 3, out=out, sets=[(10,)], steps=10, show_progress=False)
