@@ -11,6 +11,16 @@ from ._base import compose as compose
 from ._base import inverse_batch as inverse_batch
 from ._base import pdf_batch as pdf_batch
 from ._base import sample_batch as sample_batch
+from .hemisphere import AngularHemisphere as AngularHemisphere
+from .hemisphere import ConcentricDisk as ConcentricDisk
+from .hemisphere import CosineHemisphere as CosineHemisphere
+from .hemisphere import HemiOctahedral as HemiOctahedral
+from .hemisphere import Octahedral as Octahedral
+from .hemisphere import UniformHemisphere as UniformHemisphere
+from .patch import BilinearPatch as BilinearPatch
+from .patch import Parallelogram as Parallelogram
+from .patch import TriangleArea as TriangleArea
+from .patch import patch_area_warp as patch_area_warp
 from .planar import Bilinear as Bilinear
 from .planar import Biquadratic as Biquadratic
 from .planar import invert_linear_sample as invert_linear_sample

@@ -37,7 +37,8 @@ class SphericalTriangle(AbstractWarp):
     ``vertices`` of shape ``(3, 3)`` (rows A, B, C), ``origin`` of shape ``(3,)``. PSS corners:
     ``u1 = 0 -> B``; ``(0, 1) -> A``; ``(1, 1) -> C``. Arvo 1995 Sec. 2: ``u0`` picks the
     sub-triangle ``A B C'`` of area ``u0 Omega`` (``C'`` on arc AC), ``u1`` the point on arc
-    ``B C'`` by ``1 - cos``. Inverse: ``C'`` is where the great circle through B and the point meets arc AC.
+    ``B C'`` by ``1 - cos``. Inverse: ``C'`` is where the great circle through B and the point
+    meets arc AC.
     """
 
     out_dim = 3

@@ -66,9 +66,61 @@ SPHERICAL = [
     ),
 ]
 
-SURFACE: list = []
+_EU, _EV = np.array([1.0, 0, 0]), np.array([0.3, 1, 0.2])
+_TRI = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.2], [0.3, 0.9, 0.1]])
+_TRAPEZOID = np.array([[[0, 0, 0], [0, 1, 0]], [[2, 0, 0], [1, 1, 0]]], float)  # [i, j] = p_ij
+_CURVED = np.array([[[0, 0, 0], [0.2, 1, 0.3]], [[1.5, 0, 0.5], [1, 1.2, -0.2]]], float)
+
+HEMISPHERE = [
+    ("uniform-hemisphere", W.UniformHemisphere),
+    ("angular-hemisphere", W.AngularHemisphere),
+    ("cosine-hemisphere", W.CosineHemisphere),
+    ("hemi-octahedral", W.HemiOctahedral),
+    ("octahedral", W.Octahedral),
+]
+
+SURFACE = [
+    ("triangle-area", lambda: W.TriangleArea(_TRI)),
+    ("parallelogram", lambda: W.Parallelogram([0, 0, 1], _EU, _EV)),
+    ("patch-uniform-trapezoid", lambda: W.BilinearPatch(_TRAPEZOID)),
+    ("patch-area-trapezoid", lambda: W.patch_area_warp(_TRAPEZOID)),
+    ("patch-uniform-curved", lambda: W.BilinearPatch(_CURVED)),
+    ("patch-area-curved", lambda: W.patch_area_warp(_CURVED)),
+]
+
+
+def _affine_chart(origin, e1, e2):
+    import jax.numpy as jnp
+
+    from anisosample.warps.patch import _solve2
+
+    o, a, b = (jnp.asarray(v, jnp.float32) for v in (origin, e1, e2))
+    return (lambda s: o + s[0] * a + s[1] * b), (lambda x: jnp.stack(_solve2(a, b, x - o)))
+
+
+def _patch_chart(corners):
+    p = W.BilinearPatch(corners)
+    return p.point, p.inverse
+
+
+CHARTS = {
+    "triangle-area": lambda: _affine_chart(_TRI[0], _TRI[1] - _TRI[0], _TRI[2] - _TRI[0]),
+    # A chart unrelated to the warp's own map: a rotated, larger bounding parallelogram.
+    "parallelogram": lambda: _affine_chart(
+        np.array([0, 0, 1.0]) - 0.1 * _EU - 0.15 * _EV,
+        1.3 * _EU + 0.2 * _EV,
+        -0.1 * _EU + 1.3 * _EV,
+    ),
+    "patch-uniform-trapezoid": lambda: _affine_chart([0, 0, 0], [2, 0, 0], [0, 1, 0]),
+    "patch-area-trapezoid": lambda: _affine_chart([0, 0, 0], [2, 0, 0], [0, 1, 0]),
+    "patch-uniform-curved": lambda: _patch_chart(_CURVED),
+    "patch-area-curved": lambda: _patch_chart(_CURVED),
+}
 
 ALL = [(i, f, "planar") for i, f in PLANAR] + [(i, f, "spherical") for i, f in SPHERICAL]
+ALL += [(i, f, "spherical") for i, f in HEMISPHERE] + [
+    ("concentric-disk", W.ConcentricDisk, "disk")
+]
 ALL += [(i, f, "surface") for i, f in SURFACE]
 
-ROUND_TRIP_TOL = {"planar": 1e-5, "spherical": 1e-3, "surface": 1e-3}
+ROUND_TRIP_TOL = {"planar": 1e-5, "disk": 1e-5, "spherical": 1e-3, "surface": 1e-3}
