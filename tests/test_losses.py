@@ -167,6 +167,7 @@ def test_sw_gradient_finite_differences(getkey):
                   [(5, 1)], 1e-7)
 
 
+@pytest.mark.slow
 def test_white_noise_scales(getkey):
     """Loss magnitudes do not depend on n: white noise gives ~1 (linear), ~2 (squared)."""
     for n in (256, 2048):

@@ -31,6 +31,7 @@ def test_contract_and_suppression(getkey):
     np.testing.assert_array_equal(np.asarray(pts), np.asarray(again))
 
 
+@pytest.mark.slow
 def test_paper_recipe_stratifies(getkey):
     n = 64
     key = getkey()
@@ -84,6 +85,7 @@ def test_save_and_load_result(getkey, tmp_path):
         synthesis.save_result(path, pts, info)
 
 
+@pytest.mark.slow
 def test_nufft_and_direct_paths_agree(getkey):
     key = getkey()
     a = asp.synthesize(key, 128, [0.0, 90.0, 30.0], steps=5, method="direct",
