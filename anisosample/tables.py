@@ -481,7 +481,9 @@ def aligned_sampler(*, integrand=None, values=None, directions_deg=None, k: int 
     rounded to integer degrees; none (smooth or only axis-aligned features) -> ``fallback``
     (``pmj02bn``, W Sec. 5.4). ``sampler(key, n)`` looks up the set for ``n`` points and applies a
     toroidal shift drawn from ``key`` (decorrelation across realizations / pixels; W uses one
-    precomputed set per direction combination). Attributes: ``directions_deg`` (the integer extra
+    precomputed set per direction combination). Two extra directions use the 4-direction table
+    for ``n``; where there is none (and ``build_missing`` is false) the 3-direction set of the
+    strongest direction is used. Attributes: ``directions_deg`` (the integer extra
     directions used) and ``estimated_deg`` (raw estimates).
     """
     given = [v is not None for v in (integrand, values, directions_deg)]
@@ -514,7 +516,13 @@ def aligned_sampler(*, integrand=None, values=None, directions_deg=None, k: int 
     canon = canonicalize(extra)
 
     def fn(key, n):
-        pts = lookup(extra, n, table=table, build_missing=build_missing, **build_options)
+        try:
+            pts = lookup(extra, n, table=table, build_missing=build_missing, **build_options)
+        except FileNotFoundError:
+            if len(extra) < 2 or build_missing:
+                raise
+            # no 4-direction table for n: the strongest direction's 3-direction set
+            pts = lookup(extra[:1], n, table=table)
         return _samplers.toroidal_shift(key, pts)
 
     return _AlignedSampler(f"aligned{list(extra)}", fn, False, False, extra, raw, canon)

@@ -245,6 +245,11 @@ def test_aligned_sampler_given_directions(tmp_path, getkey):
     assert np.allclose(np.sin(2 * np.pi * (d - d[0])), 0, atol=1e-5)
     assert not np.array_equal(pts, np.asarray(s(getkey(), 32)))  # decorrelated realizations
     np.testing.assert_array_equal(pts, np.asarray(s(key, 32)))  # same key, same bits
+    # two directions but no 4-direction table: the strongest one's 3-direction set
+    two = asp.samplers.get("aligned", directions_deg=[30, 100], table=tmp_path)
+    assert two.directions_deg == (30, 100) and two.canonical.kind == 4
+    d = (np.asarray(two(key, 32)) - tab.load((30,))) % 1.0
+    assert np.allclose(np.sin(2 * np.pi * (d - d[0])), 0, atol=1e-5)
 
 
 def test_aligned_sampler_estimates_and_falls_back(tmp_path, getkey):
