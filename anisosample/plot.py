@@ -44,7 +44,8 @@ def spectrum_panel(
 ):
     """Show ``N P_S`` of a centred spectrum grid (rows ``v_y``) upright, white noise at 1.
 
-    ``directions_deg`` draws the spectral directions a set was made for, as thin red lines.
+    ``directions_deg`` marks the spectral directions a set was made for with short red ticks at
+    the border, leaving the spectrum itself visible.
     """
     g = np.asarray(grid)
     r = g.shape[0] // 2
