@@ -60,13 +60,9 @@ def spectrum_panel(
     )
     for d in directions_deg:
         t = np.radians(d)
-        ax.plot(
-            [-r * np.cos(t), r * np.cos(t)],
-            [-r * np.sin(t), r * np.sin(t)],
-            color="tab:red",
-            lw=0.6,
-            alpha=0.6,
-        )
+        ends = np.array([0.86, 1.0]) * r
+        for sign in (-1.0, 1.0):
+            ax.plot(sign * ends * np.cos(t), sign * ends * np.sin(t), color="tab:red", lw=1.5)
     ax.set_xlim(-r - 0.5, r + 0.5)
     ax.set_ylim(-r - 0.5, r + 0.5)
     ax.set_xticks([])
