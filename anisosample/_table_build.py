@@ -184,10 +184,16 @@ def _finalize(table: _t.Table, all_sets) -> bool:
     settings = dict(table.settings, complete=True, checksums=sums,
                     anisosample_version=_io.package_version())
     _io.save_json(table.path / "table.json", settings, overwrite=True)
-    ck = table.path / ".ckpt"
-    if ck.exists() and not any(ck.iterdir()):
-        ck.rmdir()
     return True
+
+
+def _remove_empty_checkpoints(table: _t.Table) -> None:
+    ck = table.path / ".ckpt"
+    try:
+        if ck.exists() and not any(ck.iterdir()):
+            ck.rmdir()
+    except OSError:  # another host or thread is writing a checkpoint there
+        pass
 
 
 def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: int = 1,
@@ -308,6 +314,7 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
                 th.join()
     finally:
         bar.close()
+    _remove_empty_checkpoints(table)
     if errors:
         raise errors[0]
     complete = _finalize(_t.open_table(out), all_sets)
