@@ -19,7 +19,10 @@ Sec. 1) is done per direction group of a :class:`~anisosample.frequencies.Freque
               the phase ``v.x`` is invariant under rotating both ``v`` and ``x``, and in rotated
               coordinates a long thin wedge has a small bounding box, so the cost grows with the
               wedge's length, not with the square that contains it;
-``"auto"``    direct when ``n m <= 2^21``, else nufft3.
+``"nufft1"``  a type-1 NUFFT on the group's bounding grid (adjoint: type 2), for short wide
+              sets that fill their box;
+``"auto"``    per group: direct when ``n m <= 2^21``, nufft1 when the group fills at least a
+              quarter of its bounding grid, else nufft3.
 
 Both have a custom VJP with the closed-form gradient (``point_synthesis.md`` Sec. 2)
 ``dP(v)/dx_j = (4 pi / n) Im(conj(F(v)) exp(-2 pi i v.x_j)) v``, so the backward pass of any
@@ -40,7 +43,7 @@ import numpy as np
 from ._validate import check_choice, check_directions_deg, check_points, check_positive_float
 from .frequencies import FrequencySet, custom_set
 
-METHODS = ("auto", "direct", "nufft3")
+METHODS = ("auto", "direct", "nufft1", "nufft3")
 _DIRECT_LIMIT = 2**21
 _CHUNK = 2048
 
@@ -109,6 +112,37 @@ def _nufft_adjoint(x, v, a, r, eps):
     return nufft3(a, vr[:, 0], vr[:, 1], xr[:, 0], xr[:, 1], iflag=-1, eps=eps)
 
 
+def _box(v):
+    """Half-widths of the bounding grid of integer frequencies v (float array)."""
+    return int(np.abs(np.asarray(v)).max(axis=0)[0]), int(np.abs(np.asarray(v)).max(axis=0)[1])
+
+
+def _nufft1_forward(x, v, box):
+    """n F(v) by a type-1 NUFFT onto the bounding grid, then a gather."""
+    from jax_finufft import nufft1
+
+    rx, ry = box
+    xs = (x - 0.5) * (2.0 * jnp.pi)
+    c = jnp.ones(x.shape[0], dtype=_cdtype(x.dtype))
+    grid = nufft1((2 * rx + 1, 2 * ry + 1), c, xs[:, 0], xs[:, 1], iflag=-1,
+                  eps=1e-12 if x.dtype == jnp.float64 else 1e-6)
+    iv = v.astype(jnp.int32)
+    return grid[iv[:, 0] + rx, iv[:, 1] + ry]
+
+
+def _nufft1_adjoint(x, v, a, box):
+    """sum_v a_v exp(-2 pi i v.(x_j - 1/2)) by a scatter onto the grid and a type-2 NUFFT."""
+    from jax_finufft import nufft2
+
+    rx, ry = box
+    iv = v.astype(jnp.int32)
+    grid = jnp.zeros((a.shape[0], 2 * rx + 1, 2 * ry + 1), a.dtype)
+    grid = grid.at[:, iv[:, 0] + rx, iv[:, 1] + ry].add(a)
+    xs = (x - 0.5) * (2.0 * jnp.pi)
+    return nufft2(grid, xs[:, 0], xs[:, 1], iflag=-1,
+                  eps=1e-12 if x.dtype == jnp.float64 else 1e-6)
+
+
 @functools.partial(jax.custom_vjp, nondiff_argnums=(3, 4))
 def _power(x, v, r, method, eps):
     """P_S at frequencies v (float, integer-valued), rotation r (2, 2) for the NUFFT path."""
@@ -119,6 +153,8 @@ def _power_fwd(x, v, r, method, eps):
     n = x.shape[0]
     if method == "direct":
         fn = _direct_forward(x, v)
+    elif isinstance(method, tuple):  # ("nufft1", rx, ry)
+        fn = _nufft1_forward(x, v, method[1:])
     else:
         fn = _nufft_forward(x, v, r, eps)
     f = fn / n
@@ -132,6 +168,8 @@ def _power_bwd(method, eps, res, g):
     a = (g.astype(f.dtype) * jnp.conj(f))[None, :] * v.T.astype(f.dtype)  # (2, m)
     if method == "direct":
         s = _direct_adjoint(x, v, a)
+    elif isinstance(method, tuple):  # centring cancels as for type 3
+        s = _nufft1_adjoint(x, v, a, method[1:])
     else:
         s = _nufft_adjoint(x, v, a, r, eps)  # centring cancels in conj(F) e_j
     grad = (4.0 * jnp.pi / n) * jnp.imag(s).T.astype(x.dtype)
@@ -155,16 +193,29 @@ def _as_set(freqs) -> FrequencySet:
 
 
 def _resolve_method(method, n, m):
-    method = check_choice("method", method, METHODS)
-    if method == "auto":
-        method = "direct" if n * m <= _DIRECT_LIMIT else "nufft3"
-    return method
+    return check_choice("method", method, METHODS)
+
+
+def _group_method(method, n, fg):
+    """``auto``: the direct sum for small work; a type-1 NUFFT on the bounding grid when the
+    group fills it (short, wide sets such as a disk); else the rotated type-3 NUFFT."""
+    if method != "auto":
+        return method
+    m = fg.shape[0]
+    if n * m <= _DIRECT_LIMIT:
+        return "direct"
+    rx, ry = np.abs(fg).max(axis=0)
+    box = (2 * int(rx) + 1) * (2 * int(ry) + 1)
+    return "nufft1" if box <= 4 * m else "nufft3"
 
 
 def grouped_power_spectrum(points, fset: FrequencySet, *, method="auto", eps=None):
     """``P_S`` on every frequency of ``fset`` (its order), differentiable w.r.t. ``points``.
 
-    ``eps`` is the NUFFT tolerance (default 1e-9 in float64, 1e-6 in float32).
+    ``method``: ``"direct"``, ``"nufft1"`` (type 1 on the group's bounding grid),
+    ``"nufft3"`` (type 3 rotated to the group's
+    direction) or ``"auto"`` (chosen per group by :func:`_group_method`).  ``eps`` is the
+    type-3 tolerance (default 1e-9 in float64, 1e-6 in float32).
     """
     n = points.shape[0]
     method = _resolve_method(method, n, len(fset))
@@ -172,8 +223,11 @@ def grouped_power_spectrum(points, fset: FrequencySet, *, method="auto", eps=Non
         eps = 1e-9 if points.dtype == jnp.float64 else 1e-6
     out = []
     for theta, fg, _ in fset.groups():
+        how = _group_method(method, n, fg)
+        if how == "nufft1":
+            how = ("nufft1", *_box(fg))
         v = jnp.asarray(fg, dtype=points.dtype)
-        out.append(_power(points, v, _rot(theta, points.dtype), method, eps))
+        out.append(_power(points, v, _rot(theta, points.dtype), how, eps))
     return jnp.concatenate(out)
 
 

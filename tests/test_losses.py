@@ -102,7 +102,7 @@ def _brute(points, freqs):
     return np.abs(np.exp(-2j * np.pi * (v @ x.T)).mean(axis=1)) ** 2
 
 
-@pytest.mark.parametrize("method", ["direct", "nufft3"])
+@pytest.mark.parametrize("method", ["direct", "nufft1", "nufft3", "auto"])
 def test_grouped_spectrum_matches_brute_force(getkey, method):
     n = 300
     x = jax.random.uniform(getkey(), (n, 2), jnp.float32)
@@ -142,7 +142,7 @@ def _fd_check(f, x, coords, h):
                                    atol=1e-7 * float(jnp.max(jnp.abs(g))))
 
 
-@pytest.mark.parametrize("method", ["direct", "nufft3"])
+@pytest.mark.parametrize("method", ["direct", "nufft1", "nufft3"])
 def test_loss_gradients_finite_differences(getkey, method):
     with jax.enable_x64(True):
         n = 128
