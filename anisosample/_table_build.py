@@ -107,6 +107,7 @@ def _build_one(table: _t.Table, index: int, extra, device, checkpoint_every: int
         "initial_loss": (info.get("history") or [None])[0],
         "frequency_count": info.get("frequency_count"),
         "seconds": time.perf_counter() - t0,
+        "device": str(device),
     }
     write_set(table, extra, pts, extra_meta)
     return extra_meta["seconds"]
@@ -131,7 +132,7 @@ def _build_group(table: _t.Table, indices, group, device) -> list[float]:
         write_set(table, e, np.asarray(pts[b]), {
             "index": i, "group": [list(g) for g in group], "group_position": b,
             "final_loss": float(final[b]) if final.size == len(group) else None,
-            "seconds": sec,
+            "seconds": sec, "device": str(device),
         })
     return [sec] * len(group)
 

@@ -329,10 +329,12 @@ def test_build_kill_and_resume_on_two_devices(tmp_path):
     time.sleep(float(rng.uniform(0.5, 4.0)))
     proc.send_signal(signal.SIGKILL)
     proc.wait()
+    finished_before_kill = [e for e in sets if (run_dir / f"{tables.set_name(e)}.npz").exists()]
     cmd, env = _cli([*common, "--out", str(run_dir)], two)
     done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert "complete=False" in done.stdout  # a 2-set subset of the 46
+    assert "on 2 device(s)" in done.stdout
     # the uninterrupted reference, in this process on one device
     tables.build(64, 3, out=ref_dir, sets=sets, steps=10, checkpoint_every=5, seed=3,
                  show_progress=False)
@@ -340,6 +342,9 @@ def test_build_kill_and_resume_on_two_devices(tmp_path):
     assert a.settings["fingerprint"] == b.settings["fingerprint"]
     for e in sets:
         np.testing.assert_array_equal(a.load(e), b.load(e))
+    devices = {asp.io.load_npz(b.set_path(e))[1]["device"] for e in sets}
+    if not finished_before_kill:  # both sets built side by side by the resumed run
+        assert len(devices) == 2, devices
     # a rerun builds nothing
     again = tables.build(64, 3, out=run_dir, sets=sets, steps=10, checkpoint_every=5, seed=3,
                          show_progress=False)
