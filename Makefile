@@ -75,7 +75,7 @@ w-fig5: $(VENV)/.installed
 # The API reference from the docstrings, and the measured numbers quoted in the report.
 docs: $(VENV)/.installed
 	$(PY) docs/gen_api.py
-	$(PY) docs/numbers.py --write
+	$(PY) docs/fill_numbers.py --write
 
 w-directions-accuracy: $(VENV)/.installed
 	$(PY) experiments/w_directions_accuracy.py --scale $(SCALE)

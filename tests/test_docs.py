@@ -6,9 +6,9 @@
 * every number quoted in ``docs/reproduction.md`` after a ``<!-- json:PATH:KEY -->`` marker
   agrees with that JSON to the digits written, when the JSON exists (``results/`` is not
   versioned: a fresh clone skips these until ``make figures``);
-* ``docs/gen_api.py`` documents every public module, ``docs/numbers.py`` fills markers correctly.
+* ``docs/gen_api.py`` documents every public module; ``docs/fill_numbers.py`` fills markers.
 
-The number check here is written independently of ``docs/numbers.py`` (its own parser, its own
+The number check here is written independently of ``docs/fill_numbers.py`` (its own parser, its own
 key walk, a tolerance from the digits written), so the two cross-check each other.
 """
 
@@ -147,7 +147,7 @@ def _load(name):
 
 
 def test_numbers_fills_and_keeps_missing(tmp_path):
-    numbers = _load("numbers")
+    numbers = _load("fill_numbers")
     (tmp_path / "r").mkdir()
     (tmp_path / "r" / "x.json").write_text(json.dumps(
         {"fits": {"sheared pmj02bn 30.5deg": {"slope": -1.7449}}, "ns": [256, 1024, 4096],

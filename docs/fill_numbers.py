@@ -12,8 +12,8 @@ not exist. Nobody types these numbers: ``make docs`` (this script with ``--write
 value from the JSON files that exist, and ``tests/test_docs.py`` checks that each quoted number
 matches its JSON to the digits written.
 
-    python docs/numbers.py            # list every marker with its quoted and current value
-    python docs/numbers.py --write    # rewrite the values in place (only where a JSON exists)
+    python docs/fill_numbers.py            # list every marker with its quoted and current value
+    python docs/fill_numbers.py --write    # rewrite the values in place (only where a JSON exists)
 """
 
 from __future__ import annotations
