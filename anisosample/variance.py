@@ -59,8 +59,9 @@ RANDOMIZATIONS = ("auto", "shift", "fresh", "fresh+shift")
 _BLOCK = 256
 """Block length of the two-level float32 sum of deviations (pairwise-like error growth)."""
 
-DEFAULT_CHUNK_ELEMENTS = 2**20
-"""Integrand evaluations per chunk of realizations (about 20 MB of float32 temporaries)."""
+DEFAULT_CHUNK_ELEMENTS = 2**19
+"""Integrand evaluations per chunk of realizations (a few MB of float32 temporaries: the chunk
+stays in cache, which measured faster than larger chunks)."""
 
 
 # --- the jitted kernels ---------------------------------------------------------------------------
@@ -68,6 +69,13 @@ DEFAULT_CHUNK_ELEMENTS = 2**20
 
 def _wrap(x):
     return jnp.minimum(x - jnp.floor(x), ONE_MINUS_EPSILON)
+
+
+def _shifted_xy(x, y, tx, ty):
+    """``(x + t) mod 1`` per coordinate, stacked last: kept as two planes (structure of arrays)
+    until the integrand, which lets XLA fuse shift, wrap and integrand into one vectorized loop
+    (several times faster on the CPU than shifting interleaved ``(..., 2)`` points)."""
+    return jnp.stack([_wrap(x + tx), _wrap(y + ty)], axis=-1)
 
 
 def _block_mean(v, n: int):
@@ -93,9 +101,10 @@ def _evaluate(f, x, c):
 def _shifted_deviations(f, points, shifts, c, chunk: int):
     """``mean_j f((x_j + t_r) mod 1) - c`` for every shift ``t_r`` (``(R, 2)``, R % chunk = 0)."""
 
+    px, py = points[None, :, 0], points[None, :, 1]
+
     def body(t):  # t: (chunk, 2)
-        x = _wrap(points[None, :, :] + t[:, None, :])
-        return _evaluate(f, x, c)
+        return _evaluate(f, _shifted_xy(px, py, t[:, 0:1], t[:, 1:2]), c)
 
     out = jax.lax.map(body, shifts.reshape(-1, chunk, 2))
     return out.reshape(-1)
@@ -114,7 +123,8 @@ def _fresh_points(sampler, n: int, keys):
 @eqx.filter_jit
 def _stacked_deviations(f, points, shifts, c):
     """Deviations of a stack of point sets ``(C, n, 2)``, each shifted by its ``t``."""
-    return _evaluate(f, _wrap(points + shifts[:, None, :]), c)
+    x = _shifted_xy(points[..., 0], points[..., 1], shifts[:, 0:1], shifts[:, 1:2])
+    return _evaluate(f, x, c)
 
 
 # --- argument handling --------------------------------------------------------------------------
