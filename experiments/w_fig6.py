@@ -97,8 +97,22 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scale", choices=list(SCALES), default="small")
     ap.add_argument("--out", default="results/w_fig6")
+    ap.add_argument("--log2-ns", default=None, help="override, e.g. 8,9,10,11,12,13,14")
+    ap.add_argument("--seeds", type=int, default=None, help="override sets per n")
+    ap.add_argument("--one-edge", default=None, help="override one-edge angles, e.g. 30,67")
+    ap.add_argument("--only-one-edge", action="store_true",
+                    help="skip the two-/four-edge cases and the misalignment curve")
     args = ap.parse_args(argv)
-    cfg = SCALES[args.scale]
+    cfg = dict(SCALES[args.scale])
+    if args.log2_ns:
+        cfg["log2_ns"] = [int(t) for t in args.log2_ns.split(",")]
+    if args.seeds:
+        cfg["seeds"] = args.seeds
+    if args.one_edge:
+        cfg["one_edge"] = [float(t) for t in args.one_edge.split(",")]
+    if args.only_one_edge:
+        cfg["two_edges"], cfg["four_edges"] = [], []
+        cfg["misaligned"] = (cfg["one_edge"][0], [])
     out = Path(args.out)
     ns = [2**k for k in cfg["log2_ns"]]
     seeds, R = cfg["seeds"], cfg["realizations"]
@@ -114,6 +128,7 @@ def main(argv=None):
                       [0.0, 90.0, t]))
     t0, deltas = cfg["misaligned"]
 
+    tag = f"_n{min(ns)}-{max(ns)}_s{seeds}_R{R}"  # variance caches are per sweep
     set_dirs = {tuple(c[2]) for c in cases}
     bar = progress(total=len(set_dirs) * len(ns) * seeds, desc="w_fig6 sets")
     sets = {d: our_sets(out, list(d), ns, seeds, bar) for d in sorted(set_dirs)}
@@ -124,7 +139,7 @@ def main(argv=None):
                "provenance": io.provenance(), "cases": {}}
     for label, fdirs, sdirs in progress(cases, desc="w_fig6 variance"):
         f = integrands.edges(fdirs)
-        slug = label.replace(" ", "_").replace("/", "-").replace(",", "-")
+        slug = label.replace(" ", "_").replace("/", "-").replace(",", "-") + tag
         entry = {"integrand_directions_deg": fdirs, "set_directions_deg": sdirs}
         entry["ours"] = cached(out / "var" / f"{slug}_ours.json", lambda f=f, sdirs=sdirs: curve(
             variance_of_sets(f, sets[tuple(sdirs)], ns, seeds, R, key), ns))
@@ -140,7 +155,8 @@ def main(argv=None):
     rob = {}
     for dl in progress(deltas, desc="w_fig6 misalignment"):
         f = integrands.edges([t0 + dl])
-        rob[f"{dl:+g}"] = cached(out / "var" / f"misaligned_{t0:g}_{dl:+g}.json", lambda f=f: curve(
+        rob[f"{dl:+g}"] = cached(out / "var" / f"misaligned_{t0:g}_{dl:+g}{tag}.json",
+                                 lambda f=f: curve(
             variance_of_sets(f, sets[(0.0, 90.0, t0)], ns, seeds, R, key), ns))
     rob["+0"] = results["cases"][f"one edge {t0:g}"]["ours"]
     results["misalignment"] = {"set_direction_deg": t0,
