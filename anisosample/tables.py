@@ -40,6 +40,7 @@ toroidal shift drawn from the sampler's key: ``samplers.get("aligned", integrand
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import os
@@ -439,8 +440,20 @@ def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
 
         _build(n, canon.kind, out=out, sets=[canon.extra], show_progress=False, **build_options)
         path = out
-    tab = open_table(path, n=n, kind=canon.kind)
-    return jnp.asarray(_transform_np(tab.load(canon.extra), canon.transform))
+    set_file = Path(path) / f"{canon.name}.npz"
+    st = set_file.stat()
+    pts = _load_verified(str(path), n, canon.kind, canon.extra, st.st_mtime_ns, st.st_size,
+                         (Path(path) / "table.json").stat().st_mtime_ns)
+    return jnp.asarray(_transform_np(pts, canon.transform))
+
+
+@functools.lru_cache(maxsize=64)
+def _load_verified(path: str, n: int, kind: int, extra, mtime_ns: int, size: int,
+                   index_mtime_ns: int) -> np.ndarray:
+    """Verified canonical set, cached per file version (a renderer looks sets up per pixel)."""
+    pts = open_table(path, n=n, kind=kind).load(extra)
+    pts.setflags(write=False)
+    return pts
 
 
 def build(n: int, kind: int = 3, **options):
