@@ -87,6 +87,29 @@ def measure(f, sampler, mode, ns, key, cfg):
     }
 
 
+def integrand_figure(cases, out, radius=48, m=256):
+    """Each integrand on a grid and its exact power spectrum log10 P_f (closed form)."""
+    import jax.numpy as jnp
+
+    fig, axes = plot.new_figure(2, len(cases), size=2.2)
+    u = (jnp.arange(m, dtype=jnp.float32) + 0.5) / m
+    xy = jnp.stack(jnp.meshgrid(u, u, indexing="xy"), axis=-1)  # values[i, j] = f(x_j, y_i)
+    r = np.arange(-radius, radius + 1)
+    v = np.stack(np.meshgrid(r, r, indexing="xy"), axis=-1)  # rows = v_y
+    for j, (label, (f, dirs)) in enumerate(cases.items()):
+        axes[0, j].imshow(np.asarray(f(xy)), origin="lower", cmap="gray", extent=(0, 1, 0, 1))
+        axes[0, j].set_title(label, fontsize=8)
+        pf = f.power_spectrum(v)
+        pf[radius, radius] = np.nan  # the mean, I^2
+        axes[1, j].imshow(np.log10(pf + 1e-12), origin="lower", cmap="magma", vmin=-9, vmax=-2,
+                          extent=(-radius - 0.5, radius + 0.5, -radius - 0.5, radius + 0.5))
+        axes[1, j].set_title("log10 P_f, dirs " + ",".join(f"{d:g}" for d in dirs), fontsize=7)
+        for ax in axes[:, j]:
+            ax.set_xticks([])
+            ax.set_yticks([])
+    return plot.save_figure(fig, out / f"{NAME}_integrands", formats=("png",))
+
+
 def main(argv=None):
     args = common.parser(NAME, __doc__.splitlines()[0]).parse_args(argv)
     started = time.time()
@@ -132,6 +155,7 @@ def main(argv=None):
             ax.set_title(f"{label} ({dirs} deg)", fontsize=9)
             ax.legend(fontsize=5.5, loc="lower left")
     pngs = plot.save_figure(fig, out / NAME, formats=("png",))
+    pngs += integrand_figure(cases, out)
     json_path = common.write_record(out, NAME, {
         "ns": ns, "fit_min_n": cfg["fit_min_n"], "realizations": cfg["realizations"],
         "texture": {"freqs": integrands.smooth_texture().freqs,
