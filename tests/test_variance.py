@@ -59,6 +59,24 @@ def test_variance_at_2_16_matches_float64_reference():
     assert ref / f.integral**2 < 1e-6
 
 
+def test_shift_path_at_2_16_matches_float64_reference():
+    """The shift kernel (one fixed pmj02 set, 128 toroidal shifts) against float64 NumPy."""
+    n, r = 2**16, 128
+    shape = I.edges([20.0, 65.0, 115.0, 160.0])
+    key = jax.random.key(4)
+    pts = samplers.get("pmj02")(jax.random.key(9), n)
+    got = V.estimate_variance(shape, pts, n, key, r, shape.integral)
+    _, k_shift = jax.random.split(key)
+    shifts = np.asarray(jax.random.uniform(k_shift, (r, 2), dtype=jnp.float32), np.float64)
+    base = np.asarray(pts, np.float64)
+    est = np.empty(r)
+    for i in range(r):
+        x = base + shifts[i]
+        est[i] = np.mean(_halfplanes64(shape, x - np.floor(x)))
+    ref = np.mean((est - shape.integral) ** 2)
+    assert got.variance == pytest.approx(ref, rel=0.01)
+
+
 def test_results_do_not_depend_on_chunking(getkey):
     f = I.edges([20.0, 100.0, 150.0])
     key = getkey()
