@@ -12,7 +12,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from ._vec import cross, dot, norm
+from ._vec import dot, norm
 from .scene import Scene
 
 _INF = jnp.float32(jnp.inf)
@@ -32,16 +32,15 @@ class Hit(eqx.Module):
 
 def _triangle_t(scene: Scene, o, d):
     """Distances to every triangle (inf where missed) and barycentrics ``(b1, b2)``."""
-    e1, e2 = scene.tri_e1, scene.tri_e2
-    pvec = cross(d[None, :], e2)
-    det = dot(e1, pvec)
-    ok = jnp.abs(det) > 1e-20
-    inv = jnp.where(ok, 1.0 / jnp.where(ok, det, 1.0), 0.0)
-    tvec = o[None, :] - scene.tri_p0
-    b1 = dot(tvec, pvec) * inv
-    qvec = cross(tvec, e1)
-    b2 = dot(d[None, :], qvec) * inv
-    t = dot(e2, qvec) * inv
+    # Plane-based test on precomputed rows (scene._plane_rows), structure of arrays so that
+    # every line below is a vectorised op over all triangles.
+    r = scene.tri_soa
+    denom = d[0] * r[0] + d[1] * r[1] + d[2] * r[2]
+    ok = denom != 0
+    t = (r[3] - (o[0] * r[0] + o[1] * r[1] + o[2] * r[2])) / jnp.where(ok, denom, 1.0)
+    qx, qy, qz = o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]
+    b1 = qx * r[4] + qy * r[5] + qz * r[6] - r[7]
+    b2 = qx * r[8] + qy * r[9] + qz * r[10] - r[11]
     hit = ok & (b1 >= 0) & (b2 >= 0) & (b1 + b2 <= 1)
     return jnp.where(hit, t, _INF), b1, b2
 

@@ -252,8 +252,12 @@ def _render_chunk(
         else:
             jit_ = jax.random.uniform(k_film, (spp, 2), jnp.float32)
         film = jnp.stack([(col + jit_[:, 0]) / w, (row + jit_[:, 1]) / h], axis=-1)
-        other = jax.random.uniform(k_other, (spp, 2), jnp.float32)
-        bsdf_u = jax.random.uniform(k_bsdf, (spp, 2), jnp.float32)
+        # Draw only the random numbers this configuration uses (threefry is not free).
+        half = jnp.full((spp, 2), 0.5, jnp.float32)
+        # (dimension "lens" implies point lights only: no light sample is needed.)
+        need_other = dimension == "light" and scene.camera.kind == THINLENS
+        other = jax.random.uniform(k_other, (spp, 2), jnp.float32) if need_other else half
+        bsdf_u = jax.random.uniform(k_bsdf, (spp, 2), jnp.float32) if mis else half
         vals = jax.vmap(g)(x, film, other, bsdf_u)
         return jnp.mean(vals, axis=0)
 

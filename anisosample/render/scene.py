@@ -108,6 +108,7 @@ class Scene(eqx.Module):
     tri_uv2: Float[Array, "t 2"]
     tri_material: Int[Array, " t"]
     tri_light: Int[Array, " t"]  # index into lights (light primitive), -1 if not emissive
+    tri_soa: Float[Array, "12 t"]  # plane-based test rows: n, n.p0, r1, p0.r1, r2, p0.r2
     # Spheres.
     sph_center: Float[Array, "s 3"]
     sph_radius: Float[Array, " s"]
@@ -520,6 +521,7 @@ class SceneBuilder:
             tri_uv2=f32([t[6] for t in tris]),
             tri_material=i32([t[7] for t in tris]),
             tri_light=i32([t[8] for t in tris]),
+            tri_soa=f32(_plane_rows(p0, e1, e2)),
             sph_center=f32([s[0] for s in sph]),
             sph_radius=f32(sph_r),
             sph_material=i32([s[2] for s in sph]),
@@ -535,6 +537,29 @@ class SceneBuilder:
             has_spheres=bool(self._spheres),
             has_textures=bool(self._textures),
         )
+
+
+def _plane_rows(p0, e1, e2) -> np.ndarray:
+    """Per-triangle rows for the plane-based ray/triangle test, structure of arrays (12, t).
+
+    With ``n = e1 x e2`` and the dual edge vectors ``r1 = (e2 x n) / |n|^2``,
+    ``r2 = (n x e1) / |n|^2`` (``r_i . e_j = delta_ij``), a ray meets the plane at
+    ``t = (n.p0 - n.o) / (n.d)`` and the hit ``q`` has barycentrics ``b1 = q.r1 - p0.r1``,
+    ``b2 = q.r2 - p0.r2`` (the precomputed-transform idea of Baldwin & Weber 2016).
+    Degenerate triangles get rows that never report a hit.
+    """
+    n = np.cross(e1, e2)
+    nn = np.sum(n * n, axis=-1)
+    good = nn > 0
+    inv = np.where(good, 1.0 / np.where(good, nn, 1.0), 0.0)[:, None]
+    r1 = np.cross(e2, n) * inv
+    r2 = np.cross(n, e1) * inv
+    rows = np.concatenate([n, np.sum(n * p0, -1, keepdims=True), r1,
+                           np.sum(r1 * p0, -1, keepdims=True), r2,
+                           np.sum(r2 * p0, -1, keepdims=True)], axis=1)
+    rows[~good] = 0.0
+    rows[~good, 7] = 1.0  # b1 = -1: never inside
+    return rows.T
 
 
 def _rgb(v) -> np.ndarray:

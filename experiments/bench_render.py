@@ -1,0 +1,78 @@
+"""Benchmark: the Cornell scene at 128x128, 64 spp, light sampling (``direct`` with one
+emitter sample, no BSDF sample), rendered by this package and by Mitsuba 3 from the same XML
+in the same run. Prints samples per second for both and their ratio (issue 7 target: >= 1.0).
+
+Our time excludes compilation (reported separately); Mitsuba's excludes scene loading. Both
+report the best of ``--repeats`` runs. Mitsuba runs ``scalar_rgb`` (its multi-threaded CPU
+variant that needs nothing but the wheel), and also ``llvm_ad_rgb`` when ``DRJIT_LIBLLVM_PATH``
+points at a usable LLVM (Debian's libllvm19).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from anisosample import render
+
+SCENE = Path(__file__).resolve().parent / "scenes" / "cornell.xml"
+
+
+def _best(fn, repeats):
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t)
+    return min(times)
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__)
+    p.add_argument("--size", type=int, default=128, help="image width and height")
+    p.add_argument("--spp", type=int, default=64)
+    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--scale", default="small", choices=["small", "paper"],
+                   help="accepted for uniformity; the benchmark size is fixed by --size/--spp")
+    args = p.parse_args(argv)
+    size = dict(width=args.size, height=args.size)
+    n = args.size * args.size * args.spp
+    print(f"scene {SCENE.name}, {args.size}x{args.size}, {args.spp} spp = {n} samples; "
+          f"{os.cpu_count()} CPUs, jax {jax.__version__} on {jax.default_backend()}")
+
+    scene = render.load_xml(SCENE, **size)
+    key = jax.random.key(0)
+    t0 = time.perf_counter()
+    render.render(scene, key, spp=args.spp, progress=False)
+    first = time.perf_counter() - t0
+    ours = _best(lambda: render.render(scene, key, spp=args.spp, progress=False), args.repeats)
+    print(f"anisosample: first call {first:.2f} s (with compilation), best {ours:.3f} s "
+          f"-> {n / ours / 1e6:.3f} M samples/s")
+
+    try:
+        import mitsuba as mi
+    except ImportError:
+        print("mitsuba not installed: no comparison")
+        return 0
+    variants = ["scalar_rgb"]
+    if os.environ.get("DRJIT_LIBLLVM_PATH") and Path(os.environ["DRJIT_LIBLLVM_PATH"]).exists():
+        variants.append("llvm_ad_rgb")
+    else:
+        print("llvm_ad_rgb skipped (set DRJIT_LIBLLVM_PATH to Debian's libLLVM-19.so)")
+    for variant in variants:
+        mi.set_variant(variant)
+        ms = mi.load_file(str(SCENE), **size)
+        mi.render(ms, spp=args.spp)  # warm-up (JIT for llvm)
+        t = _best(lambda ms=ms: np.asarray(mi.render(ms, spp=args.spp)), args.repeats)
+        print(f"mitsuba {mi.__version__} {variant}: best {t:.3f} s -> {n / t / 1e6:.3f} M "
+              f"samples/s; ratio anisosample/mitsuba = {t / ours:.3f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
