@@ -365,3 +365,9 @@ def test_from_spec_builds_each_kind():
     for bad in ("", "edges", "edges:1,2,3,4,5", "polygon:0,0,1", "wave:3", "halfplane:x,y"):
         with pytest.raises(ValueError, match="spec|directions"):
             I.from_spec(bad)
+
+
+def test_directions_never_list_the_axes():
+    assert I.edges([0.0]).directions_deg == ()
+    assert I.edges([0.0, 30.0, 90.0]).directions_deg == (30.0,)
+    assert I.Polygon([(0.2, 0.2), (0.8, 0.2), (0.8, 0.8), (0.2, 0.8)]).directions_deg == ()

@@ -176,7 +176,8 @@ def edges(directions_deg, *, center=(0.5, 0.5), radius=0.25, value=1.0) -> Polyg
     normals, the normals' signs chosen so that the polygon is as round as possible (smallest
     largest angular gap between consecutive normals). Every edge touches that circle, so each
     direction is a visible edge inside the square. The result's ``directions_deg`` are the ones
-    asked for; the square's border adds 0 and 90 degrees on the torus.
+    asked for apart from 0 and 90 (like every integrand's); the square's border adds 0 and 90
+    degrees on the torus.
     """
     dirs = check_directions_deg("directions_deg", directions_deg)
     if len(dirs) > 4:
@@ -204,4 +205,5 @@ def edges(directions_deg, *, center=(0.5, 0.5), radius=0.25, value=1.0) -> Polyg
         poly = _clip_halfplane(poly, n, float(n @ np.array([cx, cy])) + radius)
     # drop vertices repeated by the clipping (a line through a square corner)
     keep = np.any(np.abs(poly - np.roll(poly, 1, axis=0)) > 1e-15, axis=1)
-    return Polygon(poly[keep], value=value, directions_deg=dirs)
+    extra = tuple(d for d in dirs if d not in (0.0, 90.0))  # the axes are implied (W Sec. 5)
+    return Polygon(poly[keep], value=value, directions_deg=extra)
