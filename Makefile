@@ -11,7 +11,8 @@ JOBS   ?= 2
         w-fig5-baselines \
         docs w-fig3 w-fig4 w-fig6 w-fig5 \
         w-fig6-baselines w-fig11 \
-        tables w-aligned-end-to-end
+        tables w-aligned-end-to-end \
+        render-scenes
 
 help:
 	@echo "make demo      set up .venv and run the headline experiment at small scale"
@@ -56,7 +57,8 @@ w-fig11: $(VENV)/.installed
 figures: w-directions-accuracy w-fig5-baselines \
          w-fig3 w-fig4 w-fig6 w-fig5 \
          w-fig6-baselines w-fig11 \
-         w-aligned-end-to-end
+         w-aligned-end-to-end \
+         render-scenes
 	@echo "figures done: run 'make docs' to refresh docs/api.md and the numbers in docs/reproduction.md"
 
 # Figure targets for experiment scripts (one each; SCALE=small|paper).
@@ -93,3 +95,6 @@ w-aligned-end-to-end: $(VENV)/.installed
 
 clean-venv:
 	rm -rf $(VENV)
+
+render-scenes: $(VENV)/.installed
+	$(PY) experiments/render_scenes.py --scale $(SCALE)

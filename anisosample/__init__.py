@@ -19,6 +19,7 @@ from . import warps as warps
 from . import directions as directions
 from . import vmf as vmf
 from . import tables as tables
+from . import render as render
 from .synthesis import synthesize as synthesize
 
 try:
