@@ -5,7 +5,9 @@ set is its own spectrum; with several seeds we average them.  Shown as ``n P_S``
 grid ``|v_x|, |v_y| <= 512`` (the paper's "1024 frequencies"), white noise at 1, with the
 directions drawn.  The JSON holds, per set and direction, the mean of ``n P_S`` in octave bins
 of ``|v|`` along the direction's wedge (how deep and how far the dark lines go) and the same for
-the rest of the grid.
+the rest of the grid.  ``w_fig5_diagnostic.png``: W Eq. 5 term by term (``anisosample.diagnostics``)
+for a set made with the default (rate) recipe and one made with the paper's recipe, on a
+30-degree edge: which line and which radii carry the variance.
 
     python experiments/w_fig5.py --scale small|paper [--out DIR]
 """
@@ -19,13 +21,15 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from anisosample import io, plot, spectrum, synthesis
+from anisosample import diagnostics, integrands, io, plot, spectrum, synthesis
 from anisosample.progress import progress
 
 SCALES = {
-    "small": dict(log2_ns=[10, 11, 12], seeds=1, direction_sets=[[0.0, 90.0, 30.0]]),
+    "small": dict(log2_ns=[10, 11, 12], seeds=1, direction_sets=[[0.0, 90.0, 30.0]],
+                  diagnostic_n=1024),
     "paper": dict(log2_ns=[12, 13, 14, 15, 16], seeds=1,
-                  direction_sets=[[0.0, 90.0, 30.0], [0.0, 90.0, 30.0, 120.0]]),
+                  direction_sets=[[0.0, 90.0, 30.0], [0.0, 90.0, 30.0, 120.0]],
+                  diagnostic_n=4096),
 }
 RADIUS = 512
 
@@ -85,8 +89,27 @@ def main(argv=None):
         print(label, {k: [None if v is None else round(v, 4) for v in vals[:8]]
                       for k, vals in prof.items()}, flush=True)
     paths = plot.save_figure(fig, out / "w_fig5")
+
+    # W Eq. 5 decomposition: the rate design against the paper's recipe on a 30-degree edge
+    nd = cfg["diagnostic_n"]
+    f = integrands.edges([30.0])
+    fig2, axes2 = plot.new_figure(1, 2, size=4.0)
+    res["diagnostic"] = {"n": nd, "integrand": "edges([30])"}
+    for ax, recipe in zip(axes2[0], ("rate", "paper"), strict=True):
+        pts, _ = synthesis.load_or_synthesize(out / "sets" / f"diag_{recipe}_n{nd}.npz",
+                                              jax.random.key(77), nd, [0.0, 90.0, 30.0],
+                                              recipe=recipe, show_progress=True)
+        d = diagnostics.variance_decomposition(pts, f)
+        res["diagnostic"][recipe] = diagnostics.summary(d)
+        diagnostics.plot_decomposition(ax, d, title=f"{recipe} recipe, n={nd}: "
+                                                    f"Var {d['predicted']:.3g}")
+        print(f"diagnostic {recipe}: predicted variance {d['predicted']:.4g} (tail "
+              f"{d['tail']:.2g}); by region " + ", ".join(
+                  f"{k} {v['variance']:.3g} (white {v['white']:.3g})"
+                  for k, v in d["regions"].items()), flush=True)
+    paths += plot.save_figure(fig2, out / "w_fig5_diagnostic")
     io.save_json(out / "w_fig5.json", res, overwrite=True)
-    print(f"wrote {paths[0]} and {out / 'w_fig5.json'}")
+    print(f"wrote {', '.join(str(p) for p in paths)} and {out / 'w_fig5.json'}")
 
 
 if __name__ == "__main__":
