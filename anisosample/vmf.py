@@ -342,6 +342,7 @@ def fit_reverse_kl(
     floor: float = DEFAULT_FLOOR,
     nodes: int = DEFAULT_NODES,
     kappa_max: float = 1e3,
+    kappa_min: float = 1e-3,
     mask=None,
     rtol: float = 1e-6,
     atol: float = 1e-6,
@@ -351,7 +352,8 @@ def fit_reverse_kl(
 
     W Sec. 5.2 / Fig. 4c: the gradient fit, mode-seeking, converging to the local minimum near
     its start (start at histogram maxima). Optimistix BFGS over ``(mu, log kappa)`` (``log``
-    keeps kappa > 0; ``kappa`` is clipped to ``[1e-3, kappa_max]`` where quadrature is exact).
+    keeps kappa > 0; ``kappa`` is clipped to ``[kappa_min, kappa_max]``, the upper bound keeping
+    the bin quadrature exact).
     Pure and jit/vmap-able: batch over starts or histograms with ``jax.vmap``. ``mask``: as in
     :func:`reverse_kl`.
     """
@@ -359,15 +361,18 @@ def fit_reverse_kl(
     floor = check_positive_float("floor", floor)
     nodes = check_int("nodes", nodes, minimum=1)
     kappa_max = check_positive_float("kappa_max", kappa_max)
+    kappa_min = check_positive_float("kappa_min", kappa_min)
+    if kappa_min >= kappa_max:
+        raise ValueError(f"kappa_min must be < kappa_max, got {kappa_min} >= {kappa_max}")
     _check_kappa(kappa0)
     return _fit_reverse_kl(hist, mu0, kappa0, floor, nodes, kappa_max, rtol, atol, max_steps,
-                           mask)
+                           mask, kappa_min)
 
 
 def _fit_reverse_kl(hist, mu0, kappa0, floor, nodes, kappa_max, rtol, atol, max_steps,
-                    mask=None):
+                    mask=None, kappa_min=1e-3):
     dtype = hist.dtype
-    lo, hi = math.log(1e-3), math.log(kappa_max)
+    lo, hi = math.log(kappa_min), math.log(kappa_max)
 
     def objective(y, _):
         kappa = jnp.exp(jnp.clip(y[1], lo, hi))
