@@ -30,7 +30,7 @@ NOT_YET = "not yet measured"
 # <!-- json:PATH:KEY[ FORMAT] -->VALUE
 MARKER = re.compile(
     r"<!-- json:(?P<path>[^:\s]+):(?P<key>[^>]+?)(?:\s+(?P<fmt>[-+ #0-9,._]*[a-zA-Z%]))?\s*-->"
-    r"(?P<value>not yet measured|true|false|[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?)"
+    r"(?P<value>not yet measured|true|false|[-+]?(?:\d+(?:\.\d+)?|\.\d+)(?:[eE][-+]?\d+)?)"
 )
 
 

@@ -63,7 +63,7 @@ def test_guide_has_examples():
 
 _QUOTE = re.compile(
     r"<!--\s*json:(?P<body>[^>]*?)\s*-->"
-    r"(?P<value>not yet measured|true|false|[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?)"
+    r"(?P<value>not yet measured|true|false|[-+]?(?:\d+(?:\.\d+)?|\.\d+)(?:[eE][-+]?\d+)?)"
 )
 _FORMAT_SPEC = re.compile(r"[-+ #0-9,._]*[a-zA-Z%]")
 
