@@ -93,3 +93,25 @@ def test_large_batches_match_small_ones():
     big = np.asarray(f(x))  # one vmapped block of 4096 under jit
     small = np.concatenate([np.asarray(f(x[i:i + 256])) for i in range(0, 4096, 256)])
     np.testing.assert_allclose(big, small, rtol=1e-4, atol=1e-6)
+
+
+def test_pixel_integrand_plugs_into_the_variance_engine():
+    # The image estimator of a pixel is the variance engine's estimator: a fresh point set per
+    # realization, toroidally shifted (W Sec. 5.4). Both ways of measuring agree.
+    from anisosample import variance
+
+    scene = R.load_xml(SCENES / "cornell.xml", width=32, height=32)
+    f = R.pixel_integrand(scene, (9, 28))
+    sampler = samplers.get("jittered")
+    reps = 512
+    engine = variance.estimate_variance(f, sampler, 64, jax.random.key(0), reps,
+                                        randomization="fresh+shift")
+    pts = []
+    for k in jax.random.split(jax.random.key(1), reps):
+        k1, k2 = jax.random.split(k)
+        pts.append(samplers.toroidal_shift(k2, sampler(k1, 64)))
+    ests = np.asarray(jnp.mean(f(jnp.stack(pts)), axis=1), np.float64)
+    direct = ests.var(ddof=1)
+    # Two independent estimates, each with a relative standard error of about 6-7% here.
+    assert engine.variance == pytest.approx(direct, rel=0.3)
+    assert engine.mean == pytest.approx(ests.mean(), rel=0.01)
