@@ -171,6 +171,8 @@ def chi2_test(
     # Cells cut by the support's boundary (some midpoints in, some out), or holding samples
     # where no midpoint saw the support: integrate again with 8x finer midpoints.
     mixed = (vals.min(axis=1) == 0) & ((vals.max(axis=1) > 0) | (observed.reshape(-1) > 0))
+    # ... and cells where the pdf jumps (piecewise-constant tables, kinks): same treatment.
+    mixed |= (vals.max(axis=1) - vals.min(axis=1)) > 0.1 * np.maximum(mean, 1e-300)
     if np.any(mixed):
         mean[mixed] = integrate(idx[mixed], 8 * subdivisions).mean(axis=1)
     box_area = float(np.prod(hi - lo))

@@ -11,12 +11,19 @@ from ._base import compose as compose
 from ._base import inverse_batch as inverse_batch
 from ._base import pdf_batch as pdf_batch
 from ._base import sample_batch as sample_batch
+from .arvo import CosineSphericalTriangle as CosineSphericalTriangle
+from .arvo import projected_solid_angle as projected_solid_angle
+from .fit import fit_least_squares as fit_least_squares
+from .fit import fit_pointwise as fit_pointwise
+from .fit import fit_tabulated as fit_tabulated
 from .hemisphere import AngularHemisphere as AngularHemisphere
 from .hemisphere import ConcentricDisk as ConcentricDisk
 from .hemisphere import CosineHemisphere as CosineHemisphere
 from .hemisphere import HemiOctahedral as HemiOctahedral
 from .hemisphere import Octahedral as Octahedral
 from .hemisphere import UniformHemisphere as UniformHemisphere
+from .mis import balance_heuristic as balance_heuristic
+from .mis import power_heuristic as power_heuristic
 from .patch import BilinearPatch as BilinearPatch
 from .patch import Parallelogram as Parallelogram
 from .patch import TriangleArea as TriangleArea
@@ -28,3 +35,4 @@ from .planar import linear_pdf as linear_pdf
 from .planar import sample_linear as sample_linear
 from .spherical import SphericalRectangle as SphericalRectangle
 from .spherical import SphericalTriangle as SphericalTriangle
+from .tabulated import Tabulated as Tabulated

@@ -17,6 +17,9 @@ def _n(v):
 
 _GENERAL_TRI = np.stack([_n([0.3, 0.1, 1]), _n([-0.5, 0.6, 0.8]), _n([0.2, -0.7, 0.9])])
 _V3 = np.array([[1, 2, 0.5], [3, 1, 2], [0.2, 4, 1]])
+_TABLE = np.abs(np.random.default_rng(0).normal(size=(8, 5)))
+_TABLE[2] = 0.0
+_TABLE[5, 3] = 0.0
 
 PLANAR = [
     ("bilinear", lambda: W.Bilinear([[1.0, 3.0], [2.0, 4.0]])),
@@ -26,6 +29,7 @@ PLANAR = [
     ("biquadratic", lambda: W.Biquadratic(_V3)),
     ("biquadratic-tiny", lambda: W.Biquadratic([[1e-6, 1, 1e-6], [1, 1e-6, 1], [1e-6, 1, 2]])),
     ("biquadratic-equal", lambda: W.Biquadratic(np.ones((3, 3)))),
+    ("tabulated", lambda: W.Tabulated(_TABLE)),
     (
         "compose-bilinear-biquadratic",
         lambda: W.compose(W.Bilinear([[1.0, 3.0], [2.0, 4.0]]), W.Biquadratic(_V3)),
@@ -40,6 +44,14 @@ SPHERICAL = [
         lambda: W.SphericalTriangle(
             [[0.0, 0.0, 2.0], [1.0, 0.0, 2.5], [0.0, 1.5, 1.8]], [0.2, 0.1, 0.3]
         ),
+    ),
+    (
+        "arvo2001-octant",
+        lambda: W.CosineSphericalTriangle(np.eye(3), np.zeros(3), [0.0, 0.0, 1.0]),
+    ),
+    (
+        "arvo2001-general",
+        lambda: W.CosineSphericalTriangle(_GENERAL_TRI, np.zeros(3), _n([0.5, 0.2, 1.0])),
     ),
     (
         "rectangle-square",

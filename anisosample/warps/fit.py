@@ -1,0 +1,151 @@
+"""Fitting PSS warps to a factor of the integrand: point-wise (H Eq. 9) and least squares.
+
+* :func:`fit_pointwise` (H Sec. 3.3, Eq. 9): each control value ``v`` of a ``Bilinear`` or
+  ``Biquadratic`` warp is the factor evaluated at its PSS point pushed through all *later* warps,
+  ``v <- f((w_m o ... o w_(i+1))(u_v))``. Control points: the corners for the bilinear warp, the
+  3x3 grid ``{0, 1/2, 1}^2`` for the biquadratic (H leaves this choice open; a Bezier surface
+  interpolates only its corners, so this is an approximation there).
+* :func:`fit_least_squares` (beyond the paper): choose the control values that minimise the
+  second moment -- hence the variance -- of the estimator ``f / p`` over a ``probes x probes``
+  midpoint grid, with **optimistix**' Levenberg-Marquardt. With the fitted warp first in the
+  chain and ``y`` the PSS point entering the later warps (pdf ``p_rest``),
+  ``E[(f/p)^2] = int f(x(y))^2 / (J(y) p_rest(x(y))^2) dy``, so the residuals are
+  ``r_k = f(x_k) / (p_rest(x_k) sqrt(K J_theta(y_k)))`` at fixed probes: only the fitted warp's
+  closed-form pdf depends on the parameters ``theta = log(values)`` (no differentiation through
+  sampling).
+* :func:`fit_tabulated`: the 32x32 tabulated product reference of H Sec. 4.3.
+
+All three are pure JAX functions of the later warps' parameters: ``jit`` them and ``vmap`` them
+over shading points. Factors are callables on one output point ``x`` returning a scalar.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from ._base import AbstractWarp, Compose
+from .planar import Bilinear, Biquadratic
+from .tabulated import Tabulated
+
+_KINDS = (Bilinear, Biquadratic)
+
+
+def _check_kind(kind):
+    if kind not in _KINDS:
+        raise ValueError(f"kind must be Bilinear or Biquadratic, got {kind!r}")
+
+
+def _rest(later) -> AbstractWarp | None:
+    if isinstance(later, AbstractWarp):
+        return later
+    later = tuple(later)
+    return Compose(*later) if later else None
+
+
+def _clean(v, floor):
+    v = jnp.where(jnp.isfinite(v), v, 0.0)
+    v = jnp.maximum(v, 0.0)
+    vmax = jnp.max(v)
+    v = jnp.maximum(v, floor * vmax)
+    return jnp.where(vmax > 0, v, 1.0)
+
+
+def fit_pointwise(
+    kind,
+    factor: Callable,
+    later: Sequence[AbstractWarp] | AbstractWarp = (),
+    *,
+    floor: float = 0.01,
+):
+    """H Eq. 9: a ``kind`` warp whose control values are ``factor`` at the later warps' images.
+
+    Values are clamped below at ``floor`` times their maximum (pbrt-v4 clamps cosines at 0.01) so
+    that the density stays positive wherever the factor might not vanish; a factor that is 0 at
+    every control point gives the uniform warp.
+    """
+    _check_kind(kind)
+    pts = jnp.asarray(kind.control_points())
+    rest = _rest(later)
+    x = pts if rest is None else jax.vmap(jax.vmap(rest.sample))(pts)
+    v = jax.vmap(jax.vmap(factor))(x)
+    return kind(_clean(v.astype(jnp.float32), floor))
+
+
+def _probes(probes: int):
+    g = (np.arange(probes, dtype=np.float32) + 0.5) / probes
+    return jnp.asarray(np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2))
+
+
+def fit_least_squares(
+    kind,
+    f: Callable,
+    later: Sequence[AbstractWarp] | AbstractWarp,
+    *,
+    probes: int = 8,
+    init: AbstractWarp | None = None,
+    max_steps: int = 32,
+    rtol: float = 1e-4,
+    atol: float = 1e-6,
+):
+    """Variance-minimising control values for a ``kind`` warp placed before ``later``.
+
+    ``f`` is the whole integrand (one output point -> scalar); ``init`` (e.g. the point-wise fit)
+    is the starting point, else the uniform warp. Levenberg-Marquardt from optimistix on the
+    residuals of the module docstring; ``throw=False`` so that it ``vmap``s over shading points
+    (a run that hits ``max_steps`` returns its last iterate).
+    """
+    _check_kind(kind)
+    rest = _rest(later)
+    if rest is None:
+        raise ValueError("later must hold at least the base warp")
+    y = _probes(int(probes))
+    x, p_rest = jax.vmap(rest.sample_and_pdf)(y)
+    fx = jax.vmap(f)(x)
+    target = jnp.where(p_rest > 0, fx / jnp.where(p_rest > 0, p_rest, 1.0), 0.0)
+    target = jnp.where(jnp.isfinite(target), jnp.abs(target), 0.0).astype(jnp.float32)
+    scale = jnp.maximum(jnp.sqrt(jnp.mean(target**2)), 1e-30)
+    target = target / scale  # residuals of order 1
+    k = target.shape[0]
+    n_side = 2 if kind is Bilinear else 3
+    theta0 = (
+        jnp.zeros((n_side, n_side), jnp.float32)
+        if init is None
+        else jnp.log(jnp.maximum(init.values / jnp.max(init.values), 1e-6))
+    )
+
+    def residuals(theta, _):
+        warp = kind(jnp.exp(jnp.clip(theta, -14.0, 14.0)))
+        j = jax.vmap(warp.pdf)(y)
+        return target / jnp.sqrt(k * jnp.maximum(j, 1e-12))
+
+    sol = optx.least_squares(
+        residuals,
+        optx.LevenbergMarquardt(rtol=rtol, atol=atol),
+        theta0,
+        max_steps=max_steps,
+        throw=False,
+    )
+    theta = sol.value
+    # Keep the start if the solver did not improve the probe objective (e.g. hit max_steps early).
+    better = jnp.sum(residuals(theta, None) ** 2) <= jnp.sum(residuals(theta0, None) ** 2)
+    theta = jnp.where(better, theta, theta0)
+    return kind(jnp.exp(jnp.clip(theta - jnp.max(theta), -14.0, 0.0)))
+
+
+def fit_tabulated(f: Callable, later: Sequence[AbstractWarp] | AbstractWarp, *, res: int = 32):
+    """H Sec. 4.3's reference: a ``res x res`` table of ``f / p_rest`` at the PSS cell centres."""
+    rest = _rest(later)
+    if rest is None:
+        raise ValueError("later must hold at least the base warp")
+    g = (np.arange(res, dtype=np.float32) + 0.5) / res
+    # DESIGN grid convention: values[i, j] at x = (j + .5)/res, y = (i + .5)/res.
+    pts = jnp.asarray(np.stack(np.meshgrid(g, g, indexing="xy"), -1))
+    x, p = jax.vmap(jax.vmap(rest.sample_and_pdf))(pts)
+    fx = jax.vmap(jax.vmap(f))(x)
+    v = jnp.where(p > 0, fx / jnp.where(p > 0, p, 1.0), 0.0)
+    return Tabulated(_clean(v.astype(jnp.float32), 1e-3))
