@@ -82,13 +82,15 @@ docs: $(VENV)/.installed
 w-directions-accuracy: $(VENV)/.installed
 	$(PY) experiments/w_directions_accuracy.py --scale $(SCALE)
 
-# The shipped aligned-set table (W Sec. 5.4; resumable: rerun after an interruption).
-# The paper's n = 4096: `make tables TABLE_N=4096` (or `anisosample tables build --n 4096`
-# to build it into the user cache); 4-direction tables: `anisosample tables build --directions 4`.
-TABLE_N ?= 1024
+# The shipped aligned-set table (W Sec. 5.4; resumable: rerun after an interruption; a finished
+# table is verified and left alone). The paper's n = 4096: `make tables TABLE_N=4096` (about an
+# hour on a busy 2-core machine, see experiments/bench_tables.py), or
+# `anisosample tables build --n 4096` into the user cache; 4-direction: `--directions 4`.
+TABLE_N ?= 256
+TABLE_BATCH ?= 8
 tables: $(VENV)/.installed
 	nice -n 10 $(PY) -m anisosample.cli tables build --n $(TABLE_N) --directions 3 \
-		--out anisosample/data/tables/d3_n$(TABLE_N)
+		--batch $(TABLE_BATCH) --out anisosample/data/tables/d3_n$(TABLE_N)
 
 w-aligned-end-to-end: $(VENV)/.installed
 	$(PY) experiments/w_aligned_end_to_end.py --scale $(SCALE)
