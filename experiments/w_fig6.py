@@ -102,6 +102,8 @@ def main(argv=None):
     ap.add_argument("--one-edge", default=None, help="override one-edge angles, e.g. 30,67")
     ap.add_argument("--only-one-edge", action="store_true",
                     help="skip the two-/four-edge cases and the misalignment curve")
+    ap.add_argument("--two-edges", default=None,
+                    help="override two-edge pairs and run only them, e.g. 30:120,67:150")
     args = ap.parse_args(argv)
     cfg = dict(SCALES[args.scale])
     if args.log2_ns:
@@ -110,6 +112,10 @@ def main(argv=None):
         cfg["seeds"] = args.seeds
     if args.one_edge:
         cfg["one_edge"] = [float(t) for t in args.one_edge.split(",")]
+    if args.two_edges:
+        cfg["two_edges"] = [tuple(float(x) for x in p.split(":")) for p in
+                            args.two_edges.split(",")]
+        cfg["one_edge"], cfg["four_edges"], cfg["misaligned"] = [], [], (None, [])
     if args.only_one_edge:
         cfg["two_edges"], cfg["four_edges"] = [], []
         cfg["misaligned"] = (cfg["one_edge"][0], [])
@@ -153,24 +159,25 @@ def main(argv=None):
 
     # robustness: the set made for t0 on edges at t0 + delta
     rob = {}
-    for dl in progress(deltas, desc="w_fig6 misalignment"):
-        f = integrands.edges([t0 + dl])
-        rob[f"{dl:+g}"] = cached(out / "var" / f"misaligned_{t0:g}_{dl:+g}{tag}.json",
-                                 lambda f=f: curve(
-            variance_of_sets(f, sets[(0.0, 90.0, t0)], ns, seeds, R, key), ns))
-    rob["+0"] = results["cases"][f"one edge {t0:g}"]["ours"]
-    results["misalignment"] = {"set_direction_deg": t0,
-                               "slope_by_delta": {k: v["fit"] for k, v in sorted(
-                                   rob.items(), key=lambda kv: float(kv[0]))}}
-    for k, v in sorted(rob.items(), key=lambda kv: float(kv[0])):
-        print(f"misaligned {k} deg: slope {v['fit']['slope']:.3f}")
+    if t0 is not None:
+        for dl in progress(deltas, desc="w_fig6 misalignment"):
+            f = integrands.edges([t0 + dl])
+            rob[f"{dl:+g}"] = cached(out / "var" / f"misaligned_{t0:g}_{dl:+g}{tag}.json",
+                                     lambda f=f: curve(
+                variance_of_sets(f, sets[(0.0, 90.0, t0)], ns, seeds, R, key), ns))
+        rob["+0"] = results["cases"][f"one edge {t0:g}"]["ours"]
+        results["misalignment"] = {"set_direction_deg": t0,
+                                   "slope_by_delta": {k: v["fit"] for k, v in sorted(
+                                       rob.items(), key=lambda kv: float(kv[0]))}}
+        for k, v in sorted(rob.items(), key=lambda kv: float(kv[0])):
+            print(f"misaligned {k} deg: slope {v['fit']['slope']:.3f}")
 
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    k = len(results["cases"]) + 1
+    k = len(results["cases"]) + (1 if rob else 0)
     fig, axes = plt.subplots(1, k, figsize=(3.4 * k, 3.2), squeeze=False)
     for ax, (label, e) in zip(axes[0], results["cases"].items(), strict=False):
         for name, style in (("ours", "-o"), ("pmj02bn", "--s"), ("sobol-owen", ":^")):
@@ -180,17 +187,18 @@ def main(argv=None):
         ax.set_xlabel("n")
         ax.legend(fontsize=7)
     axes[0][0].set_ylabel("variance")
-    ax = axes[0][-1]
-    d = sorted(float(x) for x in rob)
-    s = [results["misalignment"]["slope_by_delta"][f"{x:+g}"]["slope"] for x in d]
-    lo = [results["misalignment"]["slope_by_delta"][f"{x:+g}"]["ci_low"] for x in d]
-    hi = [results["misalignment"]["slope_by_delta"][f"{x:+g}"]["ci_high"] for x in d]
-    ax.errorbar(d, s, yerr=[np.subtract(s, lo), np.subtract(hi, s)], fmt="-o", ms=3)
-    ax.axhline(-1.70, color="gray", lw=0.5)
-    ax.axhline(-1.5, color="gray", lw=0.5, ls=":")
-    ax.set_xlabel("edge misalignment (deg)")
-    ax.set_ylabel("slope")
-    ax.set_title(f"set for {t0:g} deg on edges at {t0:g}+delta", fontsize=8)
+    if rob:
+        ax = axes[0][-1]
+        d = sorted(float(x) for x in rob)
+        s = [results["misalignment"]["slope_by_delta"][f"{x:+g}"]["slope"] for x in d]
+        lo = [results["misalignment"]["slope_by_delta"][f"{x:+g}"]["ci_low"] for x in d]
+        hi = [results["misalignment"]["slope_by_delta"][f"{x:+g}"]["ci_high"] for x in d]
+        ax.errorbar(d, s, yerr=[np.subtract(s, lo), np.subtract(hi, s)], fmt="-o", ms=3)
+        ax.axhline(-1.70, color="gray", lw=0.5)
+        ax.axhline(-1.5, color="gray", lw=0.5, ls=":")
+        ax.set_xlabel("edge misalignment (deg)")
+        ax.set_ylabel("slope")
+        ax.set_title(f"set for {t0:g} deg on edges at {t0:g}+delta", fontsize=8)
     fig.tight_layout()
     out.mkdir(parents=True, exist_ok=True)
     fig.savefig(out / "w_fig6.png", dpi=130)
