@@ -138,6 +138,19 @@ def test_eq5_prediction_matches_measurement(sampler, getkey):
         assert predicted == pytest.approx(var_f / n, rel=0.01)
 
 
+def test_eq5_is_a_finite_sum_for_a_trigonometric_texture(getkey):
+    """A texture has six Fourier coefficients: W Eq. 5 with the closed-form jitter spectrum is an
+    exact finite sum (fourier_variance.md Sec. 6 recipe, step 1)."""
+    n, side = 64, 8
+    tex = I.smooth_texture()
+    v = np.array([k for k, _ in tex._terms() if k != (0, 0)])
+    ps = (1 - (np.sinc(v[:, 0] / side) * np.sinc(v[:, 1] / side)) ** 2) / n
+    predicted = V.predicted_variance(ps, tex.power_spectrum(v))
+    est = V.estimate_variance(tex, "jittered", n, getkey(), 4096, tex.integral,
+                              randomization="fresh+shift")
+    assert abs(est.variance - predicted) < 4 * est.std_error, (est.variance, predicted)
+
+
 def test_predicted_variance_drops_zero_frequency():
     v = np.array([[0, 0], [1, 0], [0, 2]])
     assert V.predicted_variance([1.0, 0.5, 0.25], [9.0, 2.0, 4.0], freqs=v) == 2.0
