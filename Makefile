@@ -12,7 +12,8 @@ JOBS   ?= 2
         docs w-fig3 w-fig4 w-fig6 w-fig5 \
         w-fig6-baselines w-fig11 \
         tables w-aligned-end-to-end \
-        render-scenes
+        render-scenes \
+        w-fig7 w-fig8 w-fig9 w-fig10 w-fig12
 
 help:
 	@echo "make demo      set up .venv and run the headline experiment at small scale"
@@ -58,7 +59,8 @@ figures: w-directions-accuracy w-fig5-baselines \
          w-fig3 w-fig4 w-fig6 w-fig5 \
          w-fig6-baselines w-fig11 \
          w-aligned-end-to-end \
-         render-scenes
+         render-scenes \
+         w-fig7 w-fig8 w-fig9 w-fig10 w-fig12
 	@echo "figures done: run 'make docs' to refresh docs/api.md and the numbers in docs/reproduction.md"
 
 # Figure targets for experiment scripts (one each; SCALE=small|paper).
@@ -100,3 +102,19 @@ clean-venv:
 
 render-scenes: $(VENV)/.installed
 	$(PY) experiments/render_scenes.py --scale $(SCALE)
+
+# W render figures (W Sec. 6.2-6.3) on the JAX ray caster; w-fig10 reuses w-fig9's curves.
+w-fig7: $(VENV)/.installed
+	$(PY) experiments/w_fig7.py --scale $(SCALE)
+
+w-fig8: $(VENV)/.installed
+	$(PY) experiments/w_fig8.py --scale $(SCALE)
+
+w-fig9: $(VENV)/.installed
+	$(PY) experiments/w_fig9.py --scale $(SCALE)
+
+w-fig10: $(VENV)/.installed
+	$(PY) experiments/w_fig10.py --scale $(SCALE)
+
+w-fig12: $(VENV)/.installed
+	$(PY) experiments/w_fig12.py --scale $(SCALE)

@@ -1,0 +1,124 @@
+"""W Fig. 10: equal-time comparison -- the aligned curves shifted by the direction-estimation cost.
+
+W Sec. 6.2: estimating the block directions costs a constant time per pixel that the unaligned
+samplers can spend on extra samples (W: at most 64 spp). Here that shift is *measured* on this
+machine, per scene, with bench-like timing (warm-up, best of ``repeats``):
+
+* ``t_est``: ``experiments/_w_render.estimate_blocks`` over the whole image (the 96^2 integrand
+  samples per block plus histogram and vMF fit, ``anisosample.directions.estimate_blocks``),
+  per pixel;
+* ``t_spp``: one sample of one pixel in the renderer (``anisosample.render.render`` with the
+  fixed primary hit, pmj02bn points, ``spp`` samples, whole image), per pixel and sample.
+
+``shift = t_est / t_spp`` samples per pixel. The aligned curves of ``w_fig9`` (reused, or
+computed first with the same scale) are drawn at ``N + shift``; the unaligned ones at ``N``. The
+JSON also gives, at the aligned curve's smallest N, the unaligned variances interpolated
+(log-log) at ``N + shift`` and the ratio. Timings depend on the machine and its load.
+
+    python experiments/w_fig10.py --scale small|paper [--out DIR] [--fig9-out DIR]
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import _w_render as W
+import common
+import jax
+import numpy as np
+import w_fig9
+
+import anisosample as asp
+from anisosample import plot, render
+
+NAME = "w_fig10"
+SCALES = {"small": dict(repeats=3, spp=64), "paper": dict(repeats=5, spp=256)}
+
+
+def measure(name, cfg9, cfg, key):
+    scene = W.load_scene(name, cfg9["size"], cfg9["size"])
+    base = W.base_integrand(scene, name)
+    bp = cfg9["block_px"]
+    W.estimate_blocks(scene, base, bp)  # warm-up (compilation)
+    t_est = min(W.estimate_blocks(scene, base, bp)[1] for _ in range(cfg["repeats"]))
+    opts = dict(spp=cfg["spp"], sampler="pmj02bn", pixel_center=True, progress=False,
+                square_aperture=W.SCENES[name]["square_aperture"])
+    render.render(scene, key, **opts)  # warm-up
+    times = []
+    for r in range(cfg["repeats"]):
+        t0 = time.perf_counter()
+        render.render(scene, jax.random.fold_in(key, r), **opts)
+        times.append(time.perf_counter() - t0)
+    px = scene.width * scene.height
+    t_spp = min(times) / (px * cfg["spp"])
+    return {"t_est_s": t_est, "t_est_per_pixel_s": t_est / px, "t_render_s": min(times),
+            "t_per_sample_s": t_spp, "shift_spp": t_est / px / t_spp,
+            "integrand_samples_per_pixel_for_estimation": 96**2 / bp**2}
+
+
+def interp_loglog(ns, var, x):
+    return float(np.exp(np.interp(np.log(x), np.log(ns), np.log(var))))
+
+
+def main(argv=None):
+    p = common.parser(NAME, __doc__.splitlines()[0])
+    p.add_argument("--fig9-out", type=Path, default=common.ROOT / "results" / "w_fig9",
+                   help="w_fig9's results folder (reused; computed there if missing)")
+    args = p.parse_args(argv)
+    started = time.time()
+    cfg = SCALES[args.scale]
+    args.out.mkdir(parents=True, exist_ok=True)
+    fig9 = w_fig9.main(["--scale", args.scale, "--out", str(args.fig9_out), "--seed",
+                        str(args.seed)])
+    cfg9 = w_fig9.SCALES[args.scale]
+    key = jax.random.key(args.seed)
+    settings = {**cfg, "scale": args.scale, "seed": args.seed, "fig9": cfg9}
+    cached = common.cached_json(args.out / "timings.json", args.fresh)
+    scenes = [s for s, r in fig9["scenes"].items() if "curves" in r]
+    if cached is not None and cached.get("settings") == settings:
+        timings = cached["timings"]
+    else:
+        timings = {s: measure(s, cfg9, cfg, jax.random.fold_in(key, i))
+                   for i, s in enumerate(scenes)}
+        asp.io.save_json(args.out / "timings.json",
+                                {"settings": settings, "timings": timings}, overwrite=True)
+    fig, axes = plot.new_figure(1, max(1, len(scenes)), size=3.4)
+    rows = {}
+    for col, s in enumerate(scenes):
+        r, t = fig9["scenes"][s], timings[s]
+        ns = np.asarray(r["ns"], float)
+        shift = t["shift_spp"]
+        ax = axes[0, col]
+        cmp = {}
+        for m, c in r["curves"].items():
+            aligned = m.startswith("aligned")
+            x = ns + shift if aligned else ns
+            plot.convergence_panel(ax, x, c["variance"], label=m + (" (+est.)" if aligned else ""))
+        for m, c in r["curves"].items():
+            if not m.startswith("aligned"):
+                at = interp_loglog(ns, c["variance"], ns[0] + shift)
+                cmp[m] = {"variance_at_N0_plus_shift": at,
+                          "aligned_over_this": r["curves"]["aligned 3-dir"]["variance"][0] / at}
+        rows[s] = {"ns": r["ns"], "shift_spp": shift, "aligned_ns_shifted": (ns + shift).tolist(),
+                   "curves": {m: c["variance"] for m, c in r["curves"].items()},
+                   "at_smallest_n": cmp, **t}
+        ax.set_title(f"{s}: equal time, aligned +{shift:.1f} spp", fontsize=8)
+        ax.set_xlabel("N (samples per pixel of equal time)")
+        ax.legend(fontsize=6, loc="lower left")
+    pngs = plot.save_figure(fig, args.out / NAME, formats=("png",))
+    json_path = common.write_record(args.out, NAME, {"scenes": rows}, settings, started)
+    print(f"figure: {pngs[0]}\nnumbers: {json_path}")
+    for s, r in rows.items():
+        print(f"  {s}: estimation {1e3 * r['t_est_s']:.1f} ms for the image "
+              f"({1e6 * r['t_est_per_pixel_s']:.2f} us/pixel), {1e9 * r['t_per_sample_s']:.1f} "
+              f"ns/sample -> shift {r['shift_spp']:.1f} spp")
+        for m, c in r["at_smallest_n"].items():
+            print(f"    aligned@{r['ns'][0]} / {m}@{r['ns'][0]}+shift = "
+                  f"{c['aligned_over_this']:.3f}")
+    return json.loads(json_path.read_text())
+
+
+if __name__ == "__main__":
+    main()

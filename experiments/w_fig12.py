@@ -1,0 +1,184 @@
+"""W Fig. 12 (Sec. 6.3): hemisphere sampling with the angular vs the octahedral mapping.
+
+A spherical integrand with a straight spherical edge: the indicator of the half-space
+``n . w > 0`` on the upper hemisphere (a great-circle edge, as cast by a planar occluder through
+the shading point), integral ``2 (pi - beta)`` sr where ``beta`` is the angle between ``n`` and
+``+z``. In primary sample space it is ``g(u) = f(w(u)) / pdf(w(u))`` with ``w`` the warp's
+``sample``:
+
+* ``angular``: ``anisosample.warps.AngularHemisphere`` (``z = u0``, ``phi = 2 pi u1``): great
+  circles become curves, the edge's energy spreads over a range of spectral directions;
+* ``octahedral``: ``anisosample.warps.HemiOctahedral`` (Engelhardt & Dachsbacher 2008): great
+  circles become straight segments in each octant face, the energy sits in a few discrete
+  directions.
+
+Measured: (1) the spread of ``P_g`` (FFT of a grid of ``g``): the share of the non-axis spectral
+energy within +-3 degrees of its strongest direction (``anisosample.spectrum.angular_profile``,
+radii 2..r_max, the +-2 degree windows around 0 and 90 excluded); (2) the directions
+``anisosample.directions.estimate`` finds on a 96^2 grid; (3) the variance convergence of
+pmj02bn and of the aligned 3-direction set for the estimated strongest direction (sets missing
+from the installed tables are synthesized into ``results/w_render_tables``), under both maps,
+as the mean squared error about the exact integral over toroidal shifts, with slopes.
+
+Writes ``results/w_fig12/w_fig12.png`` and ``w_fig12.json``; reuses finished curves on rerun.
+
+    python experiments/w_fig12.py --scale small|paper [--out DIR] [--beta DEG] [--alpha DEG]
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+
+import _w_render as W
+import common
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import anisosample as asp
+from anisosample import directions, plot, spectrum, warps
+from anisosample import variance as V
+from anisosample.progress import progress
+
+NAME = "w_fig12"
+SCALES = {
+    "small": dict(log2_ns=[8, 9, 10], realizations=256, patterns=4, grid=256),
+    "paper": dict(log2_ns=[8, 9, 10, 11, 12], realizations=2048, patterns=16, grid=512),
+}
+MAPS = {"angular": warps.AngularHemisphere, "octahedral": warps.HemiOctahedral}
+
+
+class HemisphereEdge(eqx.Module):
+    """``g(u) = 1[n . w(u) > 0] / pdf(w(u))`` on ``[0,1)^2`` for a hemisphere warp."""
+
+    warp: eqx.Module
+    normal: jax.Array
+    integral: float = eqx.field(static=True)
+
+    def __call__(self, x):
+        x = jnp.asarray(x, jnp.float32)
+
+        def one(u):
+            w = self.warp.sample(u)
+            return jnp.where(jnp.dot(self.normal, w) > 0, 1.0 / self.warp.pdf(w), 0.0)
+
+        return jax.vmap(one)(x.reshape(-1, 2)).reshape(x.shape[:-1])
+
+
+def grid_of(f, size: int) -> np.ndarray:
+    c = (np.arange(size) + 0.5) / size
+    xy = np.stack(np.meshgrid(c, c, indexing="xy"), -1).astype(np.float32)
+    return np.asarray(jax.jit(f)(jnp.asarray(xy)))  # values[i, j] = f((j+.5)/w, (i+.5)/h)
+
+
+def spread(values: np.ndarray, window_deg: float = 3.0) -> dict:
+    """Angular distribution of the grid's spectral energy (axes excluded) and its spread."""
+    g = values - values.mean()
+    P = np.abs(np.fft.fftshift(np.fft.fft2(g))) ** 2  # rows v_y, columns v_x, centred
+    P = P[1:, 1:]  # even size N: drop the -N/2 row/column -> centred, half-width r
+    r = P.shape[0] // 2
+    centres, prof = spectrum.angular_profile(P, r_min=2.0, r_max=r - 2, bins=180)
+    axial = np.minimum(np.abs(centres % 90.0), 90.0 - np.abs(centres % 90.0))
+    prof = np.where(axial <= 2.0, 0.0, prof)
+    total = float(prof.sum())
+    top = float(centres[int(np.argmax(prof))])
+    dist = np.minimum(np.abs(centres - top) % 180.0, 180.0 - np.abs(centres - top) % 180.0)
+    share = float(prof[dist <= window_deg].sum() / total) if total > 0 else 0.0
+    return {"profile_deg": centres.tolist(), "profile": prof.tolist(), "top_deg": top,
+            "share_within_deg": window_deg, "share": share}
+
+
+def main(argv=None):
+    p = common.parser(NAME, __doc__.splitlines()[0])
+    p.add_argument("--beta", type=float, default=55.0, help="angle of n from +z (degrees)")
+    p.add_argument("--alpha", type=float, default=20.0, help="azimuth of n (degrees)")
+    args = p.parse_args(argv)
+    started = time.time()
+    cfg = SCALES[args.scale]
+    out = args.out
+    (out / "curves").mkdir(parents=True, exist_ok=True)
+    a, b = math.radians(args.alpha), math.radians(args.beta)
+    normal = jnp.asarray([math.cos(a) * math.sin(b), math.sin(a) * math.sin(b), math.cos(b)],
+                         jnp.float32)
+    exact = 2.0 * (math.pi - b)
+    ns = [2**k for k in cfg["log2_ns"]]
+    key = jax.random.key(args.seed)
+    settings = {**cfg, "scale": args.scale, "seed": args.seed, "alpha_deg": args.alpha,
+                "beta_deg": args.beta}
+    results = {}
+    for mi, (mname, cls) in enumerate(progress(list(MAPS.items()), desc=NAME)):
+        f = HemisphereEdge(cls(), normal, exact)
+        values = grid_of(f, cfg["grid"])
+        sp = spread(values)
+        est = directions.estimate(grid_of(f, 96), k=2)
+        rounded = [W.aligned_usable(d) for d in est]
+        d0 = next((d for d in rounded if d is not None), None)
+        path = out / "curves" / f"{mname}.json"
+        cached = common.cached_json(path, args.fresh)
+        if cached is not None and cached.get("settings") == settings:
+            curves = cached["curves"]
+        else:
+            k = jax.random.fold_in(key, mi)
+            aligned = (lambda kk, n, d=d0: W.aligned_set(d, n, kk)) if d0 is not None else "pmj02bn"
+            table = {"pmj02bn": ("pmj02bn", cfg["patterns"]),
+                     f"aligned 3-dir {d0}": (aligned, 1)}
+            curves = {}
+            for label, (smp, pats) in table.items():
+                rows = [V.estimate_variance(f, smp, n, k, cfg["realizations"], exact,
+                                            randomization="shift", patterns=pats)
+                        for n in progress(ns, desc=f"{mname} {label}", leave=False)]
+                var = [r.variance for r in rows]
+                se = [r.std_error for r in rows]
+                curves[label] = {"variance": var, "std_error": se,
+                                 "ci_low": [r.ci_low for r in rows],
+                                 "ci_high": [r.ci_high for r in rows],
+                                 "fit": V.fit_slope(ns, var, se).as_dict()}
+            asp.io.save_json(path, {"settings": settings, "curves": curves}, overwrite=True)
+        results[mname] = {"estimated_deg": list(est), "table_direction_deg": d0,
+                          "spectrum_spread": sp, "curves": curves,
+                          "grid_min": float(values.min()), "grid_max": float(values.max())}
+        np.save(out / f"{mname}_grid.npy", values)
+
+    fig, axes = plot.new_figure(2, 3, size=3.0)
+    for row, (mname, r) in enumerate(results.items()):
+        vals = np.load(out / f"{mname}_grid.npy")
+        axes[row, 0].imshow(vals, origin="lower", extent=(0, 1, 0, 1), cmap="gray")
+        axes[row, 0].set_title(f"{mname}: g(u)", fontsize=8)
+        sp = r["spectrum_spread"]
+        axes[row, 1].plot(sp["profile_deg"], sp["profile"], lw=0.8)
+        axes[row, 1].set_yscale("log")
+        axes[row, 1].set_title(f"angular P_g (axes cut); {100 * sp['share']:.0f}% within "
+                               f"+-{sp['share_within_deg']:g} deg of {sp['top_deg']:.0f}",
+                               fontsize=7)
+        for d in r["estimated_deg"]:
+            axes[row, 1].axvline(d, color="r", lw=0.8)
+        ax = axes[row, 2]
+        for label, c in r["curves"].items():
+            fit = c["fit"]
+            plot.convergence_panel(ax, ns, c["variance"], label=label, slope=fit["slope"],
+                                   slope_ci=(fit["ci_low"], fit["ci_high"]),
+                                   lower=c["ci_low"], upper=c["ci_high"])
+        ax.legend(fontsize=6, loc="lower left")
+        ax.set_title(f"{mname} mapping", fontsize=8)
+    pngs = plot.save_figure(fig, out / NAME, formats=("png",))
+    json_path = common.write_record(out, NAME, {"ns": ns, "exact": exact,
+                                                "normal": np.asarray(normal).tolist(),
+                                                "maps": results}, settings, started)
+    print(f"figure: {pngs[0]}\nnumbers: {json_path}")
+    for mname, r in results.items():
+        sp = r["spectrum_spread"]
+        print(f"  {mname}: estimated {[round(d, 1) for d in r['estimated_deg']]}, spectral energy "
+              f"share within +-{sp['share_within_deg']:g} deg of {sp['top_deg']:.0f}: "
+              f"{sp['share']:.3f}")
+        for label, c in r["curves"].items():
+            fit = c["fit"]
+            print(f"    {label:22s} slope {fit['slope']:+.3f} [{fit['ci_low']:+.3f}, "
+                  f"{fit['ci_high']:+.3f}]  Var@{ns[-1]} {c['variance'][-1]:.3e}")
+    return json.loads(json_path.read_text())
+
+
+if __name__ == "__main__":
+    main()

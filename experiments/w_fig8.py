@@ -1,0 +1,150 @@
+"""W Fig. 8: per-pixel variance images after many samples per pixel.
+
+Per scene, the principal directions are estimated per block (W Sec. 5.3, as in ``w_fig7``), and
+every pixel's estimator (fixed primary hit, light or lens sample; W Sec. 6.2) is measured with
+``spp`` points from one set per block and method, decorrelated by toroidal shifts per pixel and
+realization (W Sec. 5.4; the variance engine's ``"shift"`` randomization):
+
+* ``pmj02bn`` (unaligned: 0 and 90 degrees),
+* ``sheared pmj02bn`` (Singh & Jarosz 2017, sheared to the block's strongest direction),
+* ``aligned 3-dir`` (the table set for 0, 90 and the block's strongest direction).
+
+Blocks without an extra direction use pmj02bn for every method. W's 4-direction sets are not
+measured (no 4141-set table). The variance of a pixel is the sample variance over
+``realizations`` shifts; the image number is its mean over all pixels (W: "variance calculated
+over the entire image").
+
+Writes per scene and method ``<scene>_<method>_variance.exr`` (one channel, row 0 on top) and a
+PNG panel ``w_fig8.png`` (log10 variance, one colour scale per scene), and ``w_fig8.json`` (image
+means, per-block means, ratios to pmj02bn, the block directions). Reuses finished scenes on rerun.
+
+Scale: small = 32^2 pixels in 8-pixel blocks (96^2 estimation samples per block), 256 spp;
+paper = 128^2 pixels in W's 16-pixel blocks, W's 4096 spp (W renders 1280^2: too many per-pixel
+variance runs for this script's pixel loop).
+
+    python experiments/w_fig8.py --scale small|paper [--out DIR] [--scenes cornell,blinds]
+"""
+
+from __future__ import annotations
+
+import json
+import time
+
+import _w_render as W
+import common
+import jax
+import numpy as np
+
+import anisosample as asp
+from anisosample import plot
+from anisosample.progress import progress
+
+NAME = "w_fig8"
+SCALES = {
+    "small": dict(size=32, block_px=8, spp=256, realizations=16),
+    "paper": dict(size=128, block_px=16, spp=4096, realizations=32),
+}
+ALL_SCENES = ("cornell", "blinds", "attic", "dof")
+
+
+def _slug(m: str) -> str:
+    return m.replace(" ", "_").replace("-", "")
+
+
+def run_scene(name, cfg, key, out, fresh):
+    settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist())}
+    path = out / "scenes" / f"{name}.json"
+    cached = common.cached_json(path, fresh)
+    exrs = [out / f"{name}_{_slug(m)}_variance.exr" for m in W.METHODS]
+    if cached is not None and cached.get("settings") == settings and all(p.exists() for p in exrs):
+        return cached
+    size, bp, n, R = cfg["size"], cfg["block_px"], cfg["spp"], cfg["realizations"]
+    scene = W.load_scene(name, size, size)
+    base = W.base_integrand(scene, name)
+    est, _ = W.estimate_blocks(scene, base, bp)
+    nb = size // bp
+    var = {m: np.zeros((size, size)) for m in W.METHODS}
+    k_sets, k_pix = jax.random.split(key)
+    block_dirs = {}
+    for a, b in progress([(a, b) for a in range(nb) for b in range(nb)], desc=f"{name} blocks",
+                         leave=False):
+        d = W.strongest(est, (a, b))
+        block_dirs[f"{a},{b}"] = d
+        sets = W.block_sets(d, n, jax.random.fold_in(k_sets, a * nb + b))
+        for i in range(bp):
+            for j in range(bp):
+                row, col = a * bp + i, b * bp + j
+                f = W.pixel_f(base, scene, (col, row))
+                kq = jax.random.fold_in(k_pix, row * size + col)
+                for m in W.METHODS:
+                    if m != "pmj02bn" and d is None:
+                        continue
+                    var[m][row, col] = W.pixel_variance(f, sets[m], n, kq, R)[0]
+                if d is None:  # no extra direction: every method falls back to pmj02bn
+                    for m in W.METHODS[1:]:
+                        var[m][row, col] = var["pmj02bn"][row, col]
+    meta = {**asp.io.provenance(), "scene": name, "spp": str(n), "realizations": str(R)}
+    for m, p in zip(W.METHODS, exrs, strict=True):
+        asp.io.write_exr(p, var[m].astype(np.float32), {**meta, "method": m}, overwrite=True)
+    means = {m: float(v.mean()) for m, v in var.items()}
+    per_block = {m: v.reshape(nb, bp, nb, bp).mean(axis=(1, 3)).tolist() for m, v in var.items()}
+    rec = {
+        "settings": settings,
+        "image_mean_variance": means,
+        "ratio_to_pmj02bn": {m: means[m] / means["pmj02bn"] for m in W.METHODS},
+        "block_mean_variance": per_block,
+        "block_direction_deg": block_dirs,
+        "blocks_with_direction": int(sum(d is not None for d in block_dirs.values())),
+        "exr": [p.name for p in exrs],
+    }
+    asp.io.save_json(path, rec, overwrite=True)
+    return rec
+
+
+def figure(results, out):
+    names = list(results)
+    fig, axes = plot.new_figure(max(1, len(names)), len(W.METHODS), size=2.8)
+    for row, s in enumerate(names):
+        imgs = [asp.io.read_exr(out / f"{s}_{_slug(m)}_variance.exr") for m in W.METHODS]
+        logs = [np.log10(np.maximum(im, 1e-30)) for im in imgs]
+        pos = np.concatenate([lg[im > 0] for lg, im in zip(logs, imgs, strict=True)])
+        lo, hi = (np.percentile(pos, 2), np.percentile(pos, 99.5)) if pos.size else (-12, 0)
+        for col, (m, lg) in enumerate(zip(W.METHODS, logs, strict=True)):
+            ax = axes[row, col]
+            im = ax.imshow(lg, vmin=lo, vmax=hi, cmap="inferno")
+            mean = results[s]["image_mean_variance"][m]
+            ax.set_title(f"{s} {m}\nmean Var {mean:.3e}", fontsize=7)
+            ax.set_xticks([])
+            ax.set_yticks([])
+        fig.colorbar(im, ax=axes[row, :].tolist(), label="log10 Var", shrink=0.8)
+    return plot.save_figure(fig, out / NAME, formats=("png",))
+
+
+def main(argv=None):
+    p = common.parser(NAME, __doc__.splitlines()[0])
+    p.add_argument("--scenes", default=",".join(ALL_SCENES),
+                   help="comma-separated scenes (default: all shipped)")
+    args = p.parse_args(argv)
+    started = time.time()
+    cfg = SCALES[args.scale]
+    present, missing = W.available_scenes(args.scenes.split(","))
+    for s in missing:
+        print(f"{s}: experiments/scenes/{W.SCENES[s]['xml']} is not shipped; skipped")
+    (args.out / "scenes").mkdir(parents=True, exist_ok=True)
+    key = jax.random.key(args.seed)
+    results = {s: run_scene(s, cfg, jax.random.fold_in(key, i), args.out, args.fresh)
+               for i, s in enumerate(progress(present, desc=NAME))}
+    pngs = figure(results, args.out)
+    json_path = common.write_record(args.out, NAME, {"scenes": results, "missing_scenes": missing},
+                                    {**cfg, "scale": args.scale, "seed": args.seed,
+                                     "methods": list(W.METHODS)}, started)
+    print(f"figure: {pngs[0]}\nnumbers: {json_path}")
+    for s, r in results.items():
+        print(f"  {s} ({r['blocks_with_direction']} blocks with an extra direction): " + ", ".join(
+            f"{m} {v:.3e} (x{r['ratio_to_pmj02bn'][m]:.3f})"
+            for m, v in r["image_mean_variance"].items()))
+    return json.loads(json_path.read_text())
+
+
+if __name__ == "__main__":
+    main()
