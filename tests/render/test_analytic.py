@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import anisosample.render as R
+import anisosample.render.integrator  # noqa: F401  (R.integrator.LUMINANCE)
 from anisosample import samplers
 
 from .helpers import SCENES, form_factor_parallel, midpoint_grid, plane_under_light
@@ -115,3 +116,30 @@ def test_pixel_integrand_plugs_into_the_variance_engine():
     # Two independent estimates, each with a relative standard error of about 6-7% here.
     assert engine.variance == pytest.approx(direct, rel=0.3)
     assert engine.mean == pytest.approx(ests.mean(), rel=0.01)
+
+
+def test_depth_of_field_lens_integrand_matches_the_render():
+    scene = R.load_xml(SCENES / "dof.xml", width=16, height=16)
+    f = R.pixel_integrand(scene, (12, 14))  # "auto": the lens sample (point light only)
+    assert f.dimension == "lens"
+    grid = np.asarray(f(jnp.asarray(midpoint_grid(128))))
+    ref = float(grid.mean())
+    res = R.render(scene, jax.random.key(2), spp=64, sampler="jittered", pixel_center=True,
+                   realizations=32, progress=False)
+    lum = np.tensordot(res.mean, np.asarray(R.integrator.LUMINANCE), axes=1)
+    var = np.tensordot(res.variance, np.asarray(R.integrator.LUMINANCE) ** 2, axes=1)
+    se = float(np.sqrt(var[14, 12] / 32))
+    assert abs(lum[14, 12] - ref) < 4.5 * se + 2e-3 * ref
+
+
+def test_mis_and_light_sampling_estimate_the_same_image():
+    # Two estimators of one integral on glossy GGX surfaces (H Sec. 4.3): light sampling alone
+    # and light + BSDF sampling with the power heuristic.
+    scene = R.load_xml(SCENES / "glossy.xml", width=8, height=8)
+    kw = dict(spp=128, realizations=16, pixel_center=True, progress=False)
+    a = R.render(scene, jax.random.key(0), mis=False, **kw)
+    b = R.render(scene, jax.random.key(1), mis=True, **kw)
+    se = np.sqrt((a.variance + b.variance) / 16)
+    z = (a.mean - b.mean) / np.maximum(se, 1e-6)
+    assert np.mean(z**2) < 2.0, np.mean(z**2)  # ~1 for agreeing estimators (chi^2 / dof)
+    assert np.max(np.abs(z)) < 5.5
