@@ -156,6 +156,11 @@ class PixelIntegrand(eqx.Module):
     exactly :func:`anisosample.variance.estimator_variance`'s estimator. Everything except ``x``
     is fixed: the film position at the pixel centre (or at ``film`` if given), the lens at its
     centre, no BSDF sample (``mis`` is off: a 2D integrand has one sampling technique).
+
+    ``warp`` (optional): a primary-sample-space warp ``w`` from :mod:`anisosample.warps`
+    (``[0,1)^2 -> [0,1)^2``, e.g. a fitted ``Bilinear`` or a ``compose`` of them) applied before
+    the base technique, H Eqs. 2-6: the integrand becomes ``f_q(w(x)) / J_w(w(x))``, whose mean
+    is the same pixel value.
     """
 
     scene: Scene
@@ -164,6 +169,7 @@ class PixelIntegrand(eqx.Module):
     dimension: str = eqx.field(static=True)
     technique: str = eqx.field(static=True)
     square_aperture: bool = eqx.field(static=True)
+    warp: eqx.Module | None = None
 
     def rgb(self, x: Float[Array, "... 2"]) -> Float[Array, "... 3"]:
         x = jnp.asarray(x, jnp.float32)
@@ -181,7 +187,16 @@ _BLOCK = 4096  # points per vmapped block: keeps the working set in cache (see i
 def _integrand_rgb(f: PixelIntegrand, flat):
     g = _sample_fn(f.scene, f.dimension, f.technique, False, f.square_aperture)
     half = jnp.full(2, 0.5, jnp.float32)
-    one = jax.vmap(lambda xi: g(xi, f.film, half, half))
+
+    def point(xi):
+        if f.warp is None:
+            return g(xi, f.film, half, half)
+        y = f.warp.sample(xi)
+        jac = f.warp.pdf(y)
+        val = g(y, f.film, half, half)
+        return jnp.where(jac > 0, val / jnp.where(jac > 0, jac, 1.0), 0.0)
+
+    one = jax.vmap(point)
     n = flat.shape[0]
     if n <= _BLOCK:
         return one(flat)
@@ -199,11 +214,14 @@ def pixel_integrand(
     channel: str = "luminance",
     film: tuple[float, float] | None = None,
     square_aperture: bool = False,
+    warp=None,
 ) -> PixelIntegrand:
     """The 2D integrand ``f_q`` of pixel ``pixel = (column, row)`` (row 0 at the image top).
 
     ``channel``: ``"luminance"`` (Rec. 709 weights), ``"r"``, ``"g"`` or ``"b"``. ``film``
-    overrides the film position inside ``[0, 1]^2`` (default: the pixel centre).
+    overrides the film position inside ``[0, 1]^2`` (default: the pixel centre). ``warp``: a
+    primary-sample-space warp composed in front of the light/lens technique (see
+    :class:`PixelIntegrand`).
     """
     from .._validate import check_choice, check_int
 
@@ -221,6 +239,7 @@ def pixel_integrand(
         dimension=dimension,
         technique=technique,
         square_aperture=square_aperture,
+        warp=warp,
     )
 
 
