@@ -371,3 +371,21 @@ def test_directions_never_list_the_axes():
     assert I.edges([0.0]).directions_deg == ()
     assert I.edges([0.0, 30.0, 90.0]).directions_deg == (30.0,)
     assert I.Polygon([(0.2, 0.2), (0.8, 0.2), (0.8, 0.8), (0.2, 0.8)]).directions_deg == ()
+
+
+def test_gaussian_bump_fourier_against_quadrature():
+    g = I.GaussianBump((0.4, 0.55), 0.12, 2.0)
+
+    def axis(c, k):
+        def part(fn):
+            return scipy.integrate.quad(
+                lambda t: fn(np.exp(-(t - c) ** 2 / (2 * 0.12**2)) * np.exp(-2j * np.pi * k * t)),
+                0, 1, epsabs=1e-14, limit=200)[0]
+        return part(np.real) + 1j * part(np.imag)
+
+    for v in [(0, 0), (1, 0), (0, 2), (3, -1), (5, 4), (40, 30)]:
+        ref = 2.0 * axis(0.4, v[0]) * axis(0.55, v[1])
+        assert abs(complex(g.fourier_coefficients(np.array(v))) - ref) < 1e-13
+    # far out the coefficients underflow to zero instead of overflowing
+    far = I.GaussianBump(sigma=0.01).fourier_coefficients(np.array([[1000, 1000]]))
+    assert np.all(np.isfinite(far))

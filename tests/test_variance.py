@@ -118,12 +118,13 @@ def _grid(radius):
     return v[np.any(v != 0, axis=-1)]
 
 
-@pytest.mark.parametrize("sampler", ["random", "jittered"])
-def test_eq5_prediction_matches_measurement(sampler, getkey):
+@pytest.mark.parametrize("sampler,shape", [("random", "polygon"), ("jittered", "polygon"),
+                                           ("jittered", "bump")])
+def test_eq5_prediction_matches_measurement(sampler, shape, getkey):
     """W Eq. 5 with closed-form <P_S> (random: 1/N; n x n jitter: (1 - sinc^2 sinc^2)/N) and the
-    polygon's exact P_f, against the measured variance of the homogenized pattern (10 %)."""
+    integrand's exact P_f, against the measured variance of the homogenized pattern (10 %)."""
     n, side = 256, 16
-    f = I.edges([25.0, 80.0, 140.0])
+    f = I.edges([25.0, 80.0, 140.0]) if shape == "polygon" else I.GaussianBump()
     v = _grid(128)
     pf = f.power_spectrum(v)
     if sampler == "random":
