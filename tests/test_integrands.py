@@ -349,7 +349,7 @@ def test_textured_integral_against_quadrature():
     assert float(jnp.min(tex(x))) > 0.0
     np.testing.assert_allclose(np.asarray(tex(x)), tex64(*np.asarray(x, np.float64).T), atol=2e-6)
     with pytest.raises(ValueError, match="closed-form"):
-        I.Textured(tex, I.GaussianBump())
+        I.Textured(tex, I.SmoothedEdge(30.0, 0.5, 0.01))
     with pytest.raises(ValueError, match="zero frequency"):
         I.Texture([(0, 0)], [0.1])
 

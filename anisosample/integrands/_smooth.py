@@ -298,8 +298,8 @@ class Textured(Integrand):
             shape.fourier_coefficients(np.zeros((1, 2), dtype=np.int64))
         except NotImplementedError:
             raise ValueError(
-                f"shape must have closed-form Fourier coefficients (HalfPlane, Polygon, Disk), "
-                f"got {type(shape).__name__}"
+                "shape must have closed-form Fourier coefficients (HalfPlane, Polygon, Disk, "
+                f"GaussianBump), got {type(shape).__name__}"
             ) from None
         self.texture = texture
         self.shape = shape
