@@ -462,6 +462,11 @@ def _estimate_blocks_fn(f, blocks, s, k, params):
 
     def one(i):
         v = jnp.asarray(f(i, x), jnp.float32)
+        if v.shape != (s, s):
+            raise ValueError(
+                f"the per-block callable must return shape ({s}, {s}) for x of shape "
+                f"({s}, {s}, 2), got {v.shape}"
+            )
         return _estimate_hist(_histogram(v, params), k, params), jnp.all(jnp.isfinite(v))
 
     est, finite = jax.lax.map(one, idx, batch_size=min(_BATCH, by * bx))

@@ -190,6 +190,8 @@ def test_bad_input_raises_value_errors():
     with pytest.raises(ValueError, match="NaN"):
         directions.estimate_blocks(lambda i, x: jnp.log(x[..., 0] - 0.5), samples_per_block=32,
                                    blocks=(1, 2))
+    with pytest.raises(ValueError, match="must return shape"):
+        directions.estimate_blocks(lambda i, x: x, samples_per_block=32, blocks=(1, 1))
 
 
 def test_cli_directions_per_grid_and_per_block(tmp_path, capsys):
