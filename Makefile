@@ -13,7 +13,8 @@ JOBS   ?= 2
         w-fig6-baselines w-fig11 \
         tables w-aligned-end-to-end \
         render-scenes \
-        w-fig7 w-fig8 w-fig9 w-fig10 w-fig12
+        w-fig7 w-fig8 w-fig9 w-fig10 w-fig12 \
+        h-shading-points
 
 help:
 	@echo "make demo      set up .venv and run the headline experiment at small scale"
@@ -60,10 +61,14 @@ figures: w-directions-accuracy w-fig5-baselines \
          w-fig6-baselines w-fig11 \
          w-aligned-end-to-end \
          render-scenes \
-         w-fig7 w-fig8 w-fig9 w-fig10 w-fig12
+         w-fig7 w-fig8 w-fig9 w-fig10 w-fig12 \
+         h-shading-points
 	@echo "figures done: run 'make docs' to refresh docs/api.md and the numbers in docs/reproduction.md"
 
 # Figure targets for experiment scripts (one each; SCALE=small|paper).
+h-shading-points: $(VENV)/.installed
+	$(PY) experiments/h_shading_points.py --scale $(SCALE)
+
 w-fig3: $(VENV)/.installed
 	$(PY) experiments/w_fig3.py --scale $(SCALE)
 
