@@ -2,8 +2,9 @@
 cores: <= 17 s for n = 2^12 and <= 10 min for n = 2^16, 3 directions).
 
 Prints, per n: frequency count, one gradient's time (rotated type-3 NUFFT, after compilation),
-the compile time, and the wall time of ``synthesize`` with the default recipe (compilation
-included) and the final loss.  Not a test: nothing is asserted.
+the compile time, and the wall and CPU time of ``synthesize`` with the default recipe
+(compilation included), the load average (other work on the machine inflates wall time) and the
+final loss.  Not a test: nothing is asserted.
 
     python experiments/bench_synthesis.py [--log2-n 12 16] [--directions 0,90,30]
 """
@@ -49,12 +50,16 @@ def main(argv=None):
                 g(x).block_until_ready()
             grad_s = (time.perf_counter() - t) / reps
         t = time.perf_counter()
+        c0 = time.process_time()
         _, info = synthesis.synthesize(jax.random.key(0), n, dirs, steps=args.steps,
                                        return_info=True, show_progress=True)
         wall = time.perf_counter() - t
+        cpu = time.process_time() - c0
+        load = os.getloadavg()[0]
         print(f"n=2^{k}: {len(fset)} frequencies; gradient {grad_s:.3f} s (first call incl. "
               f"compile {compile_s:.1f} s); synthesize {len(info['history']) - 1} steps: "
-              f"{wall:.1f} s wall; loss {info['history'][0]:.3g} -> {info['final_loss']:.3g}",
+              f"{wall:.1f} s wall, {cpu:.1f} s CPU (load average {load:.1f}); "
+              f"loss {info['history'][0]:.3g} -> {info['final_loss']:.3g}",
               flush=True)
 
 
