@@ -71,29 +71,33 @@ def intersect(
     """Closest hit with ``tmin < t < tmax``; ``d`` must be a unit vector."""
     tt, b1, b2 = _triangle_t(scene, o, d)
     tt = jnp.where((tt > tmin) & (tt < tmax), tt, _INF)
-    if scene.has_spheres:
-        s0, s1 = _sphere_t(scene, o, d)
-    else:
-        s0 = s1 = jnp.full(scene.sph_radius.shape, _INF)
-    s0 = jnp.where((s0 > tmin) & (s0 < tmax), s0, _INF)
-    s1 = jnp.where((s1 > tmin) & (s1 < tmax), s1, _INF)
-    ts = jnp.minimum(s0, s1)
     it = jnp.argmin(tt)
-    is_ = jnp.argmin(ts)
-    t_tri, t_sph = tt[it], ts[is_]
-    use_sph = t_sph < t_tri
-    t = jnp.minimum(t_tri, t_sph)
-    valid = jnp.isfinite(t)
-    t_safe = jnp.where(valid, t, 0.0)
-    p = o + t_safe * d
-    ns = p - scene.sph_center[is_]
-    ns = ns / jnp.maximum(norm(ns), 1e-30)
-    n = jnp.where(use_sph, ns, scene.tri_n[it])
+    t_tri = tt[it]
+    attr = scene.tri_attr[it]  # n, uv0, uv1, uv2: one gather
+    ids = scene.tri_ids[it]  # material, light
     w1, w2 = b1[it], b2[it]
-    uv_tri = (1 - w1 - w2) * scene.tri_uv0[it] + w1 * scene.tri_uv1[it] + w2 * scene.tri_uv2[it]
-    uv = jnp.where(use_sph, jnp.zeros(2, jnp.float32), uv_tri)
-    material = jnp.where(use_sph, scene.sph_material[is_], scene.tri_material[it])
-    light = jnp.where(use_sph, scene.sph_light[is_], scene.tri_light[it])
+    uv_tri = (1 - w1 - w2) * attr[3:5] + w1 * attr[5:7] + w2 * attr[7:9]
+    if not scene.has_spheres:
+        t, n, uv, material, light = t_tri, attr[0:3], uv_tri, ids[0], ids[1]
+        valid = jnp.isfinite(t)
+        p = o + jnp.where(valid, t, 0.0) * d
+    else:
+        s0, s1 = _sphere_t(scene, o, d)
+        s0 = jnp.where((s0 > tmin) & (s0 < tmax), s0, _INF)
+        s1 = jnp.where((s1 > tmin) & (s1 < tmax), s1, _INF)
+        ts = jnp.minimum(s0, s1)
+        is_ = jnp.argmin(ts)
+        t_sph = ts[is_]
+        use_sph = t_sph < t_tri
+        t = jnp.minimum(t_tri, t_sph)
+        valid = jnp.isfinite(t)
+        p = o + jnp.where(valid, t, 0.0) * d
+        ns = p - scene.sph_center[is_]
+        ns = ns / jnp.maximum(norm(ns), 1e-30)
+        n = jnp.where(use_sph, ns, attr[0:3])
+        uv = jnp.where(use_sph, jnp.zeros(2, jnp.float32), uv_tri)
+        material = jnp.where(use_sph, scene.sph_material[is_], ids[0])
+        light = jnp.where(use_sph, scene.sph_light[is_], ids[1])
     light = jnp.where(valid, light, -1)
     return Hit(valid=valid, t=t, p=p, n=n, uv=uv, material=material, light=light)
 

@@ -84,6 +84,8 @@ def area_pdf(scene: Scene, prim) -> Float[Array, ""]:
 def select(scene: Scene, x0):
     """Pick an emitter and a primitive from ``x0``; returns ``(prim, remapped x0)``."""
     lights = scene.lights
+    if lights.n_prims == 1:  # one emitter, one primitive: static index, no gathers
+        return 0, x0
     n_em = lights.start.shape[0]
     xe = x0 * n_em
     e = jnp.clip(jnp.floor(xe).astype(jnp.int32), 0, n_em - 1)

@@ -93,6 +93,7 @@ class Lights(eqx.Module):
     start: Int[Array, " e"]
     count: Int[Array, " e"]
     delta: Int[Array, " e"]  # 1 for point emitters
+    n_prims: int = eqx.field(static=True, default=0)  # static: 1 lets kernels skip selection
 
 
 class Scene(eqx.Module):
@@ -109,6 +110,8 @@ class Scene(eqx.Module):
     tri_material: Int[Array, " t"]
     tri_light: Int[Array, " t"]  # index into lights (light primitive), -1 if not emissive
     tri_soa: Float[Array, "12 t"]  # plane-based test rows: n, n.p0, r1, p0.r1, r2, p0.r2
+    tri_attr: Float[Array, "t 9"]  # n, uv0, uv1, uv2 packed: one gather per hit
+    tri_ids: Int[Array, "t 2"]  # material, light packed
     # Spheres.
     sph_center: Float[Array, "s 3"]
     sph_radius: Float[Array, " s"]
@@ -480,6 +483,7 @@ class SceneBuilder:
             start=i32([e[0] for e in self._emitters]),
             count=i32([e[1] for e in self._emitters]),
             delta=i32([e[2] for e in self._emitters]),
+            n_prims=len(L),
         )
 
         if self._textures:
@@ -522,6 +526,9 @@ class SceneBuilder:
             tri_material=i32([t[7] for t in tris]),
             tri_light=i32([t[8] for t in tris]),
             tri_soa=f32(_plane_rows(p0, e1, e2)),
+            tri_attr=f32(np.concatenate([np.array([t[k] for t in tris], np.float64).reshape(
+                len(tris), -1) for k in (3, 4, 5, 6)], axis=1)),
+            tri_ids=i32([(t[7], t[8]) for t in tris]),
             sph_center=f32([s[0] for s in sph]),
             sph_radius=f32(sph_r),
             sph_material=i32([s[2] for s in sph]),
