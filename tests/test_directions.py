@@ -210,3 +210,14 @@ def test_cli_directions_per_grid_and_per_block(tmp_path, capsys):
     assert png.exists() and "[0, 2, 0]" in capsys.readouterr().out
     assert cli.main(["directions", str(tmp_path / "g.npy"), "-k", "-1"]) == 2
     assert "k must be >= 0" in capsys.readouterr().err
+
+
+def test_zeroed_windows_are_filled_from_kept_neighbours_for_the_objective():
+    params = directions._params(zero_window_deg=2.0)
+    a, b = directions._fill_sources(params)
+    keep = directions._keep_mask(params)
+    idx = np.arange(180)
+    assert np.all(a[keep] == idx[keep]) and np.all(b[keep] == idx[keep])
+    assert (a[1], b[1]) == (3, 3) and (a[179], b[179]) == (177, 177)
+    assert {int(a[0]), int(b[0])} == {3, 177} and {int(a[90]), int(b[90])} == {87, 93}
+    assert np.all(keep[a]) and np.all(keep[b])
