@@ -1,7 +1,8 @@
 """The documentation runs and says what the results say.
 
-* every ```python block of ``docs/guide.md`` and ``README.md`` runs, each in a fresh namespace and
-  a scratch working directory (blocks may write files); a block preceded by the line
+* every ```python block of ``docs/guide.md`` and ``README.md`` runs, each in a fresh namespace;
+  guide blocks in a scratch working directory (they may write files), README blocks from the
+  repository root (they name repository paths and must not write); a block preceded by the line
   ``<!-- doctest: slow -->`` compiles bigger programs and is marked slow (``make test-all``);
 * every number quoted in ``docs/reproduction.md`` after a ``<!-- json:PATH:KEY -->`` marker
   agrees with that JSON to the digits written, when the JSON exists (``results/`` is not
@@ -41,13 +42,15 @@ def _python_blocks():
             line = text.count("\n", 0, m.start()) + 2  # first line of code
             before = text[: m.start()].rstrip().rsplit("\n", 1)[-1].strip()
             marks = [pytest.mark.slow] if before == SLOW else []
-            cases.append(pytest.param(m.group(1), id=f"{doc.name}:{line}:block{i}", marks=marks))
+            cases.append(pytest.param(m.group(1), doc.name == "README.md",
+                                      id=f"{doc.name}:{line}:block{i}", marks=marks))
     return cases
 
 
-@pytest.mark.parametrize("code", _python_blocks())
-def test_doc_example_runs(code, tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)
+@pytest.mark.parametrize("code, from_root", _python_blocks())
+def test_doc_example_runs(code, from_root, tmp_path, monkeypatch):
+    # README examples name repository paths (experiments/scenes/...): they run from the root
+    monkeypatch.chdir(ROOT if from_root else tmp_path)
     # a real module, so that classes defined in an example (equinox Modules are dataclasses,
     # which look their module up in sys.modules) behave as in a user's script
     module = types.ModuleType("__doc_example__")
