@@ -105,8 +105,14 @@ def block_grid_values(scene, base, block, block_px: int, samples: int = 96) -> n
     films = np.stack([(col + 0.5) / w, (row + 0.5) / h], -1).reshape(-1, 2).astype(np.float32)
     c = (np.arange(samples) + 0.5) / samples
     x = np.stack(np.meshgrid(c, c, indexing="xy"), -1).reshape(-1, 2).astype(np.float32)
-    fn = jax.jit(jax.vmap(lambda film, xy: eqx.tree_at(lambda g: g.film, base, film)(xy)))
-    return np.asarray(fn(jnp.asarray(films), jnp.asarray(x))).reshape(samples, samples)
+    return np.asarray(_films_eval(base, jnp.asarray(films), jnp.asarray(x))).reshape(
+        samples, samples)
+
+
+@eqx.filter_jit
+def _films_eval(base, films, x):
+    """``f_q(x_i)`` with pixel ``q``'s film position ``films[i]`` (vmapped)."""
+    return jax.vmap(lambda film, xy: eqx.tree_at(lambda g: g.film, base, film)(xy))(films, x)
 
 
 def strongest(est, block) -> float | None:
@@ -162,23 +168,34 @@ def region_pixels(block, block_px: int, region_px: int) -> list[tuple[int, int]]
     return [(c0 + j, r0 + i) for i in range(region_px) for j in range(region_px)]
 
 
-def pick_block(est, *, exclude=(), min_axis_deg: float = 10.0) -> tuple[int, int] | None:
-    """The block with the most confident first direction that the aligned table can match,
-    preferring directions at least ``min_axis_deg`` from both axes (where alignment matters)."""
+def pick_block(est, *, strength=None, exclude=(), min_axis_deg: float = 10.0):
+    """The block for W Fig. 9's region: among blocks whose first direction the aligned table can
+    match, prefer directions at least ``min_axis_deg`` from both axes (where alignment matters),
+    then the largest ``strength`` (e.g. the spread of the block's samples; default: the
+    direction's confidence). None if no block has a matchable direction."""
     d = np.asarray(est.directions_deg)[..., 0]
     v = np.asarray(est.valid)[..., 0]
-    c = np.where(v, np.asarray(est.confidence)[..., 0], -1.0)
+    c = np.asarray(est.confidence)[..., 0] if strength is None else np.asarray(strength)
     off = np.minimum(np.abs(d % 90.0), 90.0 - np.abs(d % 90.0))
     for need in (min_axis_deg, 0.0):
-        for idx in np.argsort(-c, axis=None):
-            a, b = np.unravel_index(idx, c.shape)
-            if c[a, b] < 0:
-                break
-            if off[a, b] < need or (int(a), int(b)) in exclude:
-                continue
-            if aligned_usable(float(d[a, b])) is not None:
-                return int(a), int(b)
+        ok = [(float(c[a, b]), (a, b)) for a in range(d.shape[0]) for b in range(d.shape[1])
+              if v[a, b] and off[a, b] >= need and (a, b) not in exclude
+              and aligned_usable(float(d[a, b])) is not None]
+        if ok:
+            return max(ok)[1]
     return None
+
+
+def block_strength(scene, base, est, block_px: int, samples: int = 96) -> np.ndarray:
+    """Standard deviation of each block's estimation samples (NaN where no direction)."""
+    v = np.asarray(est.valid)[..., 0]
+    out = np.full(v.shape, np.nan)
+    for a in range(v.shape[0]):
+        for b in range(v.shape[1]):
+            if v[a, b]:
+                out[a, b] = float(np.std(block_grid_values(scene, base, (a, b), block_px,
+                                                           samples)))
+    return out
 
 
 def direction_rgb(directions_deg, valid) -> np.ndarray:
@@ -200,5 +217,6 @@ def finite_json(x):
 __all__ = [
     "METHODS", "SCENES", "TABLES", "available_scenes", "load_scene", "base_integrand", "pixel_f",
     "estimate_blocks", "block_grid_values", "strongest", "aligned_usable", "aligned_set",
-    "block_sets", "pixel_variance", "region_pixels", "pick_block", "direction_rgb", "asp",
+    "block_sets", "pixel_variance", "region_pixels", "pick_block", "block_strength",
+    "direction_rgb", "asp",
 ]

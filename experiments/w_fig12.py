@@ -45,7 +45,7 @@ from anisosample.progress import progress
 
 NAME = "w_fig12"
 SCALES = {
-    "small": dict(log2_ns=[8, 9, 10], realizations=256, patterns=4, grid=256),
+    "small": dict(log2_ns=[8, 9, 10], realizations=1024, patterns=8, grid=256),
     "paper": dict(log2_ns=[8, 9, 10, 11, 12], realizations=2048, patterns=16, grid=512),
 }
 MAPS = {"angular": warps.AngularHemisphere, "octahedral": warps.HemiOctahedral}
@@ -71,7 +71,8 @@ class HemisphereEdge(eqx.Module):
 def grid_of(f, size: int) -> np.ndarray:
     c = (np.arange(size) + 0.5) / size
     xy = np.stack(np.meshgrid(c, c, indexing="xy"), -1).astype(np.float32)
-    return np.asarray(jax.jit(f)(jnp.asarray(xy)))  # values[i, j] = f((j+.5)/w, (i+.5)/h)
+    # values[i, j] = f((j+.5)/w, (i+.5)/h)
+    return np.asarray(eqx.filter_jit(lambda g, x: g(x))(f, jnp.asarray(xy)))
 
 
 def spread(values: np.ndarray, window_deg: float = 3.0) -> dict:

@@ -6,7 +6,8 @@ lens-sample) integrands (W Sec. 5.3; samples interleaved over the block's pixels
 ``experiments/_w_render.py``), with ``anisosample.directions.estimate_blocks``. The picture shows
 the rendered image and, per block, the angle of the first and of the second direction as a colour
 (hue = angle / 180 degrees, a cyclic map for axial angles); grey blocks have no such direction.
-The block that W Fig. 9's region comes from (``w_fig9``'s choice rule) is outlined.
+The block that W Fig. 9's region comes from (``w_fig9``'s rule, ``_w_render.pick_block``) is
+outlined (at the same scale the two scripts see the same image size and blocks).
 
 Writes ``results/w_fig7/w_fig7.png``, the renders as ``<scene>.exr``/``.png`` and ``w_fig7.json``
 (every block's directions, validity and confidence, the counts of blocks with 0/1/2 directions,
@@ -53,7 +54,7 @@ def run_scene(name, cfg, key, out, fresh):
     asp.io.save_png(out / f"{name}.png", render.tonemap(img.mean), overwrite=True)
     v = np.asarray(est.valid)
     counts = np.bincount(v.sum(-1).reshape(-1), minlength=3).tolist()
-    block = W.pick_block(est)
+    block = W.pick_block(est, strength=W.block_strength(scene, base, est, cfg["block_px"]))
     rec = {
         "settings": settings,
         "blocks": list(v.shape[:2]),

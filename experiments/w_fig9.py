@@ -3,11 +3,12 @@
 For each scene (W Sec. 6.2: CORNELL-BOX, BREAKFAST-ROOM = our blinds, ATTIC, DEPTH-OF-FIELD;
 the shipped look-alikes under experiments/scenes/, attic only if its XML exists) the principal
 directions are estimated per block of pixels (W Sec. 5.3, 96^2 samples per block, interleaved
-over the block's pixels; see ``experiments/_w_render.py``), one block is picked (the most
-confident first direction that a 3-direction table can match; marked in W Fig. 7), and in a
-region of pixels at its centre the variance of each pixel's estimator (fixed primary hit, W's
-setting) is measured over toroidal shifts of one point set per method and averaged over the
-region:
+over the block's pixels; see ``experiments/_w_render.py``), one block is picked
+(``_w_render.pick_block``: a first direction that a 3-direction table can match, at least 10
+degrees from both axes if any block has one, then the largest spread of the block's samples;
+outlined in ``w_fig7``'s maps), and in a region of pixels at its centre the variance of each
+pixel's estimator (fixed primary hit, W's setting) is measured over toroidal shifts of one point
+set per method (fresh per n) and averaged over the region:
 
 * ``pmj02bn`` (matches 0 and 90 degrees only),
 * ``sheared pmj02bn`` (Singh & Jarosz 2017: one axis re-aimed at the block's direction),
@@ -42,7 +43,7 @@ from anisosample.progress import progress
 NAME = "w_fig9"
 SCALES = {
     # small: a 64^2 image, 16-pixel blocks, the 4x4 pixels at the block centre, up to 2^10 spp
-    "small": dict(size=64, block_px=16, region_px=4, log2_ns=[8, 9, 10], realizations=32),
+    "small": dict(size=64, block_px=16, region_px=4, log2_ns=[8, 9, 10], realizations=64),
     # paper: W's 1280^2 image, 16x16-pixel blocks, the whole block, 2^8..2^12 spp (GPU)
     "paper": dict(size=1280, block_px=16, region_px=16, log2_ns=[8, 9, 10, 11, 12],
                   realizations=128),
@@ -51,7 +52,8 @@ ALL_SCENES = ("cornell", "blinds", "attic", "dof")
 
 
 def run_scene(name, cfg, key, out, fresh):
-    settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist())}
+    settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist()),
+                "block_rule": "off-axis >= 10 deg, then largest sample spread"}
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
     if cached is not None and cached.get("settings") == settings:
@@ -59,7 +61,7 @@ def run_scene(name, cfg, key, out, fresh):
     scene = W.load_scene(name, cfg["size"], cfg["size"])
     base = W.base_integrand(scene, name)
     est, est_seconds = W.estimate_blocks(scene, base, cfg["block_px"])
-    block = W.pick_block(est)
+    block = W.pick_block(est, strength=W.block_strength(scene, base, est, cfg["block_px"]))
     if block is None:
         print(f"{name}: no block with a matchable extra direction; skipped")
         rec = {"settings": settings, "skipped": "no block with a matchable extra direction"}
