@@ -173,7 +173,17 @@ class PixelIntegrand(eqx.Module):
 
     def rgb(self, x: Float[Array, "... 2"]) -> Float[Array, "... 3"]:
         x = jnp.asarray(x, jnp.float32)
-        out = _integrand_rgb(self, x.reshape(-1, 2))
+        flat = x.reshape(-1, 2)
+        n = flat.shape[0]
+        if isinstance(x, jax.core.Tracer) or n == 0:
+            out = _integrand_rgb(self, flat)
+        else:
+            # Concrete input: fixed-size blocks so that one compilation serves every size.
+            size = _BLOCK if n > 256 else 256
+            pad = (-n) % size
+            xs = jnp.concatenate([flat, jnp.full((pad, 2), 0.5, jnp.float32)])
+            out = jnp.concatenate([_integrand_rgb(self, xs[i:i + size])
+                                   for i in range(0, n + pad, size)])[:n]
         return out.reshape(*x.shape[:-1], 3)
 
     def __call__(self, x: Float[Array, "... 2"]) -> Float[Array, "..."]:
