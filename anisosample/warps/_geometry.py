@@ -49,4 +49,6 @@ def check_vectors(name: str, value, shape: tuple[int, ...]) -> jax.Array:
 
 
 def is_concrete(*arrays) -> bool:
+    """True when no argument is being traced (pass derived values too: inside ``jit`` values
+    computed from constants are tracers, and value checks must then be skipped)."""
     return not any(isinstance(a, jax.core.Tracer) for a in arrays)

@@ -57,7 +57,7 @@ class CosineSphericalTriangle(AbstractWarp):
         n = safe_normalize(check_vectors("normal", normal, (3,)))
         t = self.triangle
         cosines = jnp.stack([jnp.dot(n, t.a), jnp.dot(n, t.b), jnp.dot(n, t.c)])
-        if is_concrete(n, t.a) and float(jnp.min(cosines)) < 0:
+        if is_concrete(n, t.a, cosines) and float(jnp.min(cosines)) < 0:
             raise ValueError(
                 "the triangle must lie above the horizon of normal (clipping is not implemented),"
                 f" got vertex cosines {[round(float(c), 4) for c in cosines]}"

@@ -71,7 +71,10 @@ def fit_pointwise(
     _check_kind(kind)
     pts = jnp.asarray(kind.control_points())
     rest = _rest(later)
-    x = pts if rest is None else jax.vmap(jax.vmap(rest.sample))(pts)
+    if kind is Bilinear and hasattr(rest, "corner_images"):
+        x = rest.corner_images()  # the base warp knows its corners' images: no sampling
+    else:
+        x = pts if rest is None else jax.vmap(jax.vmap(rest.sample))(pts)
     v = jax.vmap(jax.vmap(factor))(x)
     return kind(_clean(v.astype(jnp.float32), floor))
 

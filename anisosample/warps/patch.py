@@ -49,7 +49,7 @@ class TriangleArea(AbstractWarp):
     def __init__(self, vertices):
         v = check_vectors("vertices", vertices, (3, 3))
         area = 0.5 * norm(jnp.cross(v[1] - v[0], v[2] - v[0]))
-        if is_concrete(v) and not float(area) > 0:
+        if is_concrete(v, area) and not float(area) > 0:
             raise ValueError("vertices must form a triangle of positive area")
         self.vertices = v
         self.area = jnp.where(area > 0, area, 1.0)
@@ -97,7 +97,7 @@ class Parallelogram(AbstractWarp):
         self.edge_u = check_vectors("edge_u", edge_u, (3,))
         self.edge_v = check_vectors("edge_v", edge_v, (3,))
         area = norm(jnp.cross(self.edge_u, self.edge_v))
-        if is_concrete(self.edge_u, self.edge_v) and not float(area) > 0:
+        if is_concrete(self.edge_u, self.edge_v, area) and not float(area) > 0:
             raise ValueError("edge_u and edge_v must span a parallelogram of positive area")
         self.area = jnp.where(area > 0, area, 1.0)
 
@@ -134,9 +134,16 @@ class BilinearPatch(AbstractWarp):
 
     def __init__(self, corners, *, newton_steps: int = 8):
         c = check_vectors("corners", corners, (2, 2, 3))
-        if is_concrete(c):
-            e = [norm(c[1, 0] - c[0, 0]), norm(c[0, 1] - c[0, 0]), norm(c[1, 1] - c[0, 1])]
-            if min(float(x) for x in e) <= 0 or float(norm(c[1, 1] - c[1, 0])) <= 0:
+        e = jnp.stack(
+            [
+                norm(c[1, 0] - c[0, 0]),
+                norm(c[0, 1] - c[0, 0]),
+                norm(c[1, 1] - c[0, 1]),
+                norm(c[1, 1] - c[1, 0]),
+            ]
+        )
+        if is_concrete(c, e):
+            if float(jnp.min(e)) <= 0:
                 raise ValueError("corners must be four distinct points (no zero-length edge)")
         self.corners = c
         self.newton_steps = int(newton_steps)

@@ -69,7 +69,7 @@ class SphericalTriangle(AbstractWarp):
         triple = jnp.abs(jnp.dot(a, jnp.cross(b, c)))  # 0: origin in the triangle's plane
         valid = jnp.all(lens > 0) & jnp.all(norm(d) > 0) & (omega > _MIN_SOLID_ANGLE)
         valid = valid & (triple > 1e-8) & (omega < 2.0 * jnp.pi - 1e-3)
-        if is_concrete(vertices, origin) and not bool(valid):
+        if is_concrete(vertices, origin, valid) and not bool(valid):
             raise ValueError(
                 "vertices must form a triangle of positive solid angle seen from origin"
                 f" (got solid angle {float(omega):.3g} sr; collinear vertices, a vertex at the"
@@ -82,6 +82,11 @@ class SphericalTriangle(AbstractWarp):
         self.alpha = angle_between(n_ab, -n_ca)
         self.solid_angle = jnp.where(valid, omega, 1.0)
         self.valid = valid
+
+    def corner_images(self):
+        """``sample`` at the PSS corners (``[i, j]`` at ``u = (i, j)``) without sampling."""
+        b = self.b
+        return jnp.stack([jnp.stack([b, self.a]), jnp.stack([b, self.c])])
 
     def _c_prime(self, u0):
         # Arvo 1995's cos(b') = ((q t - p s) cos(alpha) - q) / ((q s + p t) sin(alpha)) loses
@@ -164,7 +169,7 @@ class SphericalRectangle(AbstractWarp):
         self.corner, self.edge_u, self.edge_v, self.origin = corner, edge_u, edge_v, origin
         lx, ly = norm(edge_u), norm(edge_v)
         ex, ey = safe_normalize(edge_u), safe_normalize(edge_v)
-        if is_concrete(edge_u, edge_v):
+        if is_concrete(edge_u, edge_v, lx, ly, ex, ey):
             if float(lx) <= 0 or float(ly) <= 0:
                 raise ValueError("edge_u and edge_v must be non-zero vectors")
             if abs(float(jnp.dot(ex, ey))) > 1e-4:
@@ -193,7 +198,7 @@ class SphericalRectangle(AbstractWarp):
         # The solid angle from the closed form (more accurate than g0+g1+g2+g3-2pi in float32).
         s_closed = _rect_solid_angle(x0, x1, y0, y1, z0)
         valid = (z0 < 0) & (s_closed > _MIN_SOLID_ANGLE) & (lx > 0) & (ly > 0)
-        if is_concrete(corner, edge_u, edge_v, origin) and not bool(valid):
+        if is_concrete(corner, edge_u, edge_v, origin, valid) and not bool(valid):
             raise ValueError(
                 "the rectangle must subtend a positive solid angle from origin (origin in the"
                 f" rectangle's plane?), got {float(s_closed):.3g} sr"
@@ -223,6 +228,17 @@ class SphericalRectangle(AbstractWarp):
             hv2 < 1 - 1e-6, hv * jnp.sqrt(dd2) / jnp.sqrt(jnp.maximum(1 - hv2, 1e-12)), y1
         )
         return jnp.stack([xu, jnp.clip(yv, y0, y1), z0])
+
+    def corner_images(self):
+        """``sample`` at the PSS corners, ``[i, j]`` at ``u = (i, j)``: the corner directions."""
+        x0, x1, y0, y1, z0 = self.bounds
+        c = jnp.stack(
+            [
+                jnp.stack([jnp.stack([x0, y0, z0]), jnp.stack([x0, y1, z0])]),
+                jnp.stack([jnp.stack([x1, y0, z0]), jnp.stack([x1, y1, z0])]),
+            ]
+        )
+        return safe_normalize(c) @ self.frame
 
     def sample_point(self, u):
         """The point on the rectangle (world space) that ``sample(u)`` points at."""

@@ -143,3 +143,39 @@ def test_small_triangle_round_trip():
     x, _ = W.sample_batch(t, u)
     err = np.abs(np.asarray(W.inverse_batch(t, x) - u)).max()
     assert err < 1e-4, err
+
+
+def test_construct_inside_jit_from_constants():
+    """Values derived from constants are tracers inside jit: checks must not concretize them."""
+    corner = jnp.asarray([-0.5, -0.4, 1.0], jnp.float32)
+
+    @jax.jit
+    def run(o):
+        r = W.SphericalRectangle(corner, jnp.asarray([1.0, 0, 0]), jnp.asarray([0, 1.0, 0]), o)
+        t = W.SphericalTriangle(jnp.eye(3), o)
+        c = W.CosineSphericalTriangle(jnp.eye(3), o, jnp.asarray([0.0, 0.0, 1.0]))
+        p = W.BilinearPatch(jnp.asarray(np.arange(12.0).reshape(2, 2, 3) ** 1.5))
+        a = W.TriangleArea(jnp.eye(3))
+        g = W.Parallelogram(corner, jnp.asarray([1.0, 0, 0]), jnp.asarray([0, 1.0, 0]))
+        u = jnp.asarray([0.3, 0.6])
+        return [w.pdf(w.sample(u)) for w in (r, t, c, p, a, g)]
+
+    assert all(np.isfinite(float(v)) and float(v) > 0 for v in run(jnp.zeros(3)))
+
+
+@pytest.mark.parametrize(
+    "warp",
+    [
+        W.SphericalTriangle(
+            np.array([[0.3, 0.1, 1], [-0.5, 0.6, 0.8], [0.2, -0.7, 0.9]]), np.zeros(3)
+        ),
+        W.SphericalRectangle([0.3, -0.2, 0.7], [0.8, 0.6, 0.0], [-0.3, 0.4, 0.5], [0, 0, 0]),
+    ],
+)
+def test_corner_images_equal_sampling_at_the_corners(warp):
+    """fit_pointwise's shortcut: the images of the PSS corners without sampling."""
+    got = np.asarray(warp.corner_images())
+    for i in range(2):
+        for j in range(2):
+            x = warp.sample(jnp.asarray([i, j], jnp.float32))
+            np.testing.assert_allclose(got[i, j], np.asarray(x), atol=2e-6)

@@ -1,0 +1,84 @@
+"""Benchmark: cost of a bilinear / biquadratic PSS warp on top of spherical-rectangle sampling.
+
+Two workloads, each per million samples (H Sec. 4.1 reports +1% / +6% run time inside pbrt):
+
+* ``sample``: one fixed light and shading point; ``sample_and_pdf`` (H Alg. 1) of the spherical
+  rectangle alone, and composed after a bilinear / biquadratic warp with fixed values.
+* ``fit+sample``: a different shading point per sample (as in a renderer): build the spherical
+  rectangle, fit the PSS warp to the cosine at the point (H Eq. 9), sample, pdf.
+
+Prints the best of ``--repeats`` runs after a warm-up (compilation) run. Not a test: nothing is
+asserted.
+
+    python experiments/bench_warps.py [--n 1000000] [--repeats 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import jax
+import jax.numpy as jnp
+
+import anisosample.warps as W
+
+CORNER = jnp.asarray([-0.5, -0.4, 1.0], jnp.float32)
+EU = jnp.asarray([1.2, 0.0, 0.1], jnp.float32)
+EV = jnp.asarray([0.0, 0.9, 0.0], jnp.float32)
+NORMAL = jnp.asarray([0.0, 0.0, 1.0], jnp.float32)
+
+
+def best_time(fn, args, repeats):
+    jax.block_until_ready(fn(*args))
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        jax.block_until_ready(fn(*args))
+        times.append(time.perf_counter() - t)
+    return min(times)
+
+
+def _cos(w):
+    return jnp.maximum(jnp.dot(w, NORMAL), 0.0)
+
+
+def chain(kind, origin):
+    rect = W.SphericalRectangle(CORNER, EU, EV, origin)
+    if kind is None:
+        return rect
+    return W.compose(W.fit_pointwise(kind, _cos, [rect]), rect)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=1_000_000)
+    ap.add_argument("--repeats", type=int, default=5)
+    args = ap.parse_args(argv)
+    key_u, key_p = jax.random.split(jax.random.key(0))
+    u = jax.random.uniform(key_u, (args.n, 2), dtype=jnp.float32)
+    origins = jax.random.uniform(key_p, (args.n, 3), minval=-1.0, maxval=1.0) * jnp.asarray(
+        [1.0, 1.0, 0.0]
+    )
+    fixed_origin = jnp.asarray([0.1, -0.2, 0.0], jnp.float32)
+    kinds = {"rectangle": None, "+ bilinear": W.Bilinear, "+ biquadratic": W.Biquadratic}
+    print(f"device: {jax.devices()[0]}, {os.cpu_count()} CPUs; n = {args.n}")
+    for workload in ("sample", "fit+sample"):
+        base = None
+        for name, kind in kinds.items():
+            if workload == "sample":
+                warp = chain(kind, fixed_origin)
+                fn = jax.jit(lambda w, uu: jax.vmap(w.sample_and_pdf)(uu))
+                t = best_time(fn, (warp, u), args.repeats)
+            else:
+                fn = jax.jit(jax.vmap(lambda o, uu, k=kind: chain(k, o).sample_and_pdf(uu)))
+                t = best_time(fn, (origins, u), args.repeats)
+            per_m = t / args.n * 1e6
+            base = per_m if base is None else base
+            extra = "" if kind is None else f"  (+{100 * (per_m / base - 1):.1f}%)"
+            print(f"{workload:11s} {name:14s} {per_m * 1e3:9.2f} ms per million samples{extra}")
+
+
+if __name__ == "__main__":
+    main()
