@@ -457,7 +457,17 @@ def _load_verified(path: str, n: int, kind: int, extra, mtime_ns: int, size: int
 
 
 def build(n: int, kind: int = 3, **options):
-    """Build (or finish) a table; see :func:`anisosample._table_build.build`."""
+    """Build (or finish) the ``kind``-direction table for ``n`` points (W Sec. 5.4); resumable.
+
+    Keyword options: ``out`` (table directory, default the user cache), ``seed``, ``sets`` (a
+    subset of :func:`canonical_sets`), ``batch`` (sets per ``synthesize_batch`` loop; 1 =
+    ``synthesize`` per set with checkpoints), ``devices`` (default: all local devices, one worker
+    each), ``checkpoint_every``, ``show_progress`` and synthesis options (``recipe``, ``steps``,
+    ``learning_rate``, ...). Each finished set is written at once; a rerun verifies and keeps
+    them, and a complete table gets the file checksums in ``table.json``. Several hosts: call
+    ``jax.distributed.initialize()`` first and share ``out``. Returns a summary dict.
+    Details: ``anisosample/_table_build.py``.
+    """
     from ._table_build import build as _build
 
     return _build(n, kind, **options)
