@@ -31,6 +31,12 @@ the tables shipped in ``anisosample/data/tables``, and the user cache
 ``$XDG_CACHE_HOME/anisosample/tables`` (default ``~/.cache/anisosample/tables``), where
 ``anisosample tables build`` writes by default.
 
+Shipped: the 46-set 3-direction table for ``n = 256`` (``make tables``; 380 kB). The paper's
+``n = 4096`` table (about 1.5 MB) is not shipped: on the shared 2-core development machine one
+set took about a minute (``experiments/bench_tables.py``), so the 46 sets take most of an hour;
+build it with ``anisosample tables build --n 4096 --directions 3`` (into the user cache, where
+``lookup`` finds it), on a GPU or several devices for the 4,141-set 4-direction table.
+
 The aligned sampler (W Sec. 5.4): estimate the integrand's extra directions
 (:func:`anisosample.directions.estimate`), round them to integer degrees, look the set up, fall
 back to ``pmj02bn`` when no extra direction is found, and decorrelate realizations with a
