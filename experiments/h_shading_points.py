@@ -282,16 +282,29 @@ def plot(data, out):
         y = np.arange(len(names))
         ax.barh(y, vals, color="tab:blue", label="ours (shading points)")
         hart = data[light]["hart"]
+        labelled = False
         for i, n in enumerate(names):
+            if rows[n]["mse_improvement"] > 1e4:
+                ax.text(
+                    2,
+                    i,
+                    "exact: MSE at float32 round-off, bar clipped",
+                    va="center",
+                    fontsize=6,
+                    color="w",
+                )
             if n in hart:
-                ax.plot(hart[n], i, "k*", ms=9, label="Hart et al. (pbrt scene)" if i < 3 else None)
+                ax.plot(
+                    hart[n], i, "k*", ms=9, label=None if labelled else "Hart et al. (pbrt scene)"
+                )
+                labelled = True
         ax.set_yticks(y, names, fontsize=7)
         ax.set_xscale("log")
         ax.invert_yaxis()
         ax.set_xlabel("MSE improvement over the first method")
         ax.set_title(f"{light} light")
         ax.grid(True, axis="x", alpha=0.3)
-    axes[0][0].legend(fontsize=7, loc="lower right")
+    axes[0][1].legend(fontsize=7, loc="upper right")
     return aplot.save_figure(fig, out / f"{NAME}.png")
 
 
