@@ -357,7 +357,10 @@ def load_or_synthesize(path, key, n: int, directions_deg, **options):
         want = _io._to_jsonable(_expected_options(recipe, options))
         if (meta.get("n") == n and meta.get("directions_deg") == list(directions_deg)
                 and meta.get("key") == _key_record(key) and meta.get("recipe") == recipe
-                and meta.get("options") == want):
+                and meta.get("options") == want
+                and meta.get("frequency_design") == _io._to_jsonable(_freq.design(
+                    n, directions_deg, want["design"],
+                    **(options.get("frequency_options") or {})).params)):
             return pts, meta
     options = dict(options)
     options.pop("return_info", None)

@@ -46,13 +46,14 @@ SCALES = {
 BASELINES = {"pmj02bn": "shift", "sobol-owen": "fresh+shift"}
 
 
-def our_sets(out: Path, dirs, ns, seeds, bar):
+def our_sets(out: Path, dirs, ns, seeds, bar, frequency_options=None):
     sets = {}
     for n in ns:
         for s in range(seeds):
             name = "_".join(f"{d:g}" for d in dirs) + f"_n{n}_s{s}.npz"
             pts, _ = synthesis.load_or_synthesize(out / "sets" / name, jax.random.key(1000 + s),
-                                                  n, dirs, show_progress=False)
+                                                  n, dirs, show_progress=False,
+                                                  frequency_options=frequency_options)
             sets[(n, s)] = pts
             bar.update(1)
     return sets
@@ -104,8 +105,13 @@ def main(argv=None):
                     help="skip the two-/four-edge cases and the misalignment curve")
     ap.add_argument("--two-edges", default=None,
                     help="override two-edge pairs and run only them, e.g. 30:120,67:150")
+    ap.add_argument("--weight-spread-deg", type=float, default=None,
+                    help="frequency design option (robustness weights); use its own --out")
     args = ap.parse_args(argv)
     cfg = dict(SCALES[args.scale])
+    fopts = ({"weight_spread_deg": args.weight_spread_deg} if args.weight_spread_deg
+             else None)
+    cfg["frequency_options"] = fopts
     if args.log2_ns:
         cfg["log2_ns"] = [int(t) for t in args.log2_ns.split(",")]
     if args.seeds:
@@ -137,7 +143,7 @@ def main(argv=None):
     tag = f"_n{min(ns)}-{max(ns)}_s{seeds}_R{R}"  # variance caches are per sweep
     set_dirs = {tuple(c[2]) for c in cases}
     bar = progress(total=len(set_dirs) * len(ns) * seeds, desc="w_fig6 sets")
-    sets = {d: our_sets(out, list(d), ns, seeds, bar) for d in sorted(set_dirs)}
+    sets = {d: our_sets(out, list(d), ns, seeds, bar, fopts) for d in sorted(set_dirs)}
     bar.close()
 
     results = {"settings": {"scale": args.scale, **cfg, "ns": ns,
