@@ -189,6 +189,7 @@ def main(argv=None):
         for name, style in (("ours", "-o"), ("pmj02bn", "--s"), ("sobol-owen", ":^")):
             ax.loglog(ns, e[name]["variance"], style, ms=3,
                       label=f"{name} {e[name]['fit']['slope']:.2f}")
+        ax.set_xscale("log", base=2)
         ax.set_title(label, fontsize=8)
         ax.set_xlabel("n")
         ax.legend(fontsize=7)
