@@ -12,9 +12,10 @@ the shading point), integral ``2 (pi - beta)`` sr where ``beta`` is the angle be
   circles become straight segments in each octant face, the energy sits in a few discrete
   directions.
 
-Measured: (1) the spread of ``P_g`` (FFT of a grid of ``g``): the share of the non-axis spectral
-energy within +-3 degrees of its strongest direction (``anisosample.spectrum.angular_profile``,
-radii 2..r_max, the +-2 degree windows around 0 and 90 excluded); (2) the directions
+Measured: (1) the spread of the edge directions of ``g`` on a grid (W Sec. 5.1's orientation
+histogram, axes zeroed): the share of its mass within +-3 degrees of its maximum and the number
+of 1-degree bins holding 90 % of it, next to a picture of ``P_g`` (FFT of the grid); (2) the
+directions
 ``anisosample.directions.estimate`` finds on a 96^2 grid; (3) the variance convergence of
 pmj02bn and of the aligned 3-direction set for the estimated strongest direction (sets missing
 from the installed tables are synthesized into ``results/w_render_tables``), under both maps,
@@ -39,7 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import anisosample as asp
-from anisosample import directions, plot, spectrum, warps
+from anisosample import directions, plot, warps
 from anisosample import variance as V
 from anisosample.progress import progress
 
@@ -76,20 +77,25 @@ def grid_of(f, size: int) -> np.ndarray:
 
 
 def spread(values: np.ndarray, window_deg: float = 3.0) -> dict:
-    """Angular distribution of the grid's spectral energy (axes excluded) and its spread."""
-    g = values - values.mean()
-    P = np.abs(np.fft.fftshift(np.fft.fft2(g))) ** 2  # rows v_y, columns v_x, centred
-    P = P[1:, 1:]  # even size N: drop the -N/2 row/column -> centred, half-width r
-    r = P.shape[0] // 2
-    centres, prof = spectrum.angular_profile(P, r_min=2.0, r_max=r - 2, bins=180)
-    axial = np.minimum(np.abs(centres % 90.0), 90.0 - np.abs(centres % 90.0))
-    prof = np.where(axial <= 2.0, 0.0, prof)
-    total = float(prof.sum())
-    top = float(centres[int(np.argmax(prof))])
+    """How concentrated the edge directions of ``g`` are: W Sec. 5.1's gradient-orientation
+    histogram (``anisosample.directions.orientation_histogram``, the +-2 degree windows at the
+    axes zeroed by ``zero_axes``), the share of its mass within ``window_deg`` of its maximum,
+    and the number of bins holding 90 % of the mass."""
+    hist = np.asarray(directions.zero_axes(directions.orientation_histogram(values)), float)
+    total = float(hist.sum())
+    centres = np.arange(hist.size, dtype=float)
+    top = float(centres[int(np.argmax(hist))])
     dist = np.minimum(np.abs(centres - top) % 180.0, 180.0 - np.abs(centres - top) % 180.0)
-    share = float(prof[dist <= window_deg].sum() / total) if total > 0 else 0.0
-    return {"profile_deg": centres.tolist(), "profile": prof.tolist(), "top_deg": top,
-            "share_within_deg": window_deg, "share": share}
+    share = float(hist[dist <= window_deg].sum() / total) if total > 0 else 0.0
+    cum = np.cumsum(np.sort(hist)[::-1]) / max(total, 1e-30)
+    return {"histogram": hist.tolist(), "top_deg": top, "share_within_deg": window_deg,
+            "share": share, "bins_for_90_percent": int(np.searchsorted(cum, 0.9) + 1)}
+
+
+def spectrum_image(values: np.ndarray) -> np.ndarray:
+    """``log10 P_g`` of the grid (FFT, centred, zero frequency removed) for the picture."""
+    P = np.abs(np.fft.fftshift(np.fft.fft2(values - values.mean()))) ** 2
+    return np.log10(P + 1e-12 * P.max())
 
 
 def main(argv=None):
@@ -139,24 +145,28 @@ def main(argv=None):
                                  "fit": V.fit_slope(ns, var, se).as_dict()}
             asp.io.save_json(path, {"settings": settings, "curves": curves}, overwrite=True)
         results[mname] = {"estimated_deg": list(est), "table_direction_deg": d0,
-                          "spectrum_spread": sp, "curves": curves,
+                          "edge_spread": sp, "curves": curves,
                           "grid_min": float(values.min()), "grid_max": float(values.max())}
         np.save(out / f"{mname}_grid.npy", values)
 
-    fig, axes = plot.new_figure(2, 3, size=3.0)
+    fig, axes = plot.new_figure(2, 4, size=3.0)
     for row, (mname, r) in enumerate(results.items()):
         vals = np.load(out / f"{mname}_grid.npy")
         axes[row, 0].imshow(vals, origin="lower", extent=(0, 1, 0, 1), cmap="gray")
         axes[row, 0].set_title(f"{mname}: g(u)", fontsize=8)
-        sp = r["spectrum_spread"]
-        axes[row, 1].plot(sp["profile_deg"], sp["profile"], lw=0.8)
-        axes[row, 1].set_yscale("log")
-        axes[row, 1].set_title(f"angular P_g (axes cut); {100 * sp['share']:.0f}% within "
+        axes[row, 1].imshow(spectrum_image(vals), origin="lower", cmap="magma")
+        axes[row, 1].set_title(f"{mname}: log10 P_g", fontsize=8)
+        axes[row, 1].set_xticks([])
+        axes[row, 1].set_yticks([])
+        sp = r["edge_spread"]
+        axes[row, 2].plot(np.arange(len(sp["histogram"])), sp["histogram"], lw=0.8)
+        axes[row, 2].set_title(f"orientation histogram: {100 * sp['share']:.0f}% within "
                                f"+-{sp['share_within_deg']:g} deg of {sp['top_deg']:.0f}",
                                fontsize=7)
         for d in r["estimated_deg"]:
-            axes[row, 1].axvline(d, color="r", lw=0.8)
-        ax = axes[row, 2]
+            axes[row, 2].axvline(d, color="r", lw=0.8)
+        axes[row, 2].set_xlabel("deg (estimates in red)", fontsize=7)
+        ax = axes[row, 3]
         for label, c in r["curves"].items():
             fit = c["fit"]
             plot.convergence_panel(ax, ns, c["variance"], label=label, slope=fit["slope"],
@@ -170,10 +180,10 @@ def main(argv=None):
                                                 "maps": results}, settings, started)
     print(f"figure: {pngs[0]}\nnumbers: {json_path}")
     for mname, r in results.items():
-        sp = r["spectrum_spread"]
-        print(f"  {mname}: estimated {[round(d, 1) for d in r['estimated_deg']]}, spectral energy "
-              f"share within +-{sp['share_within_deg']:g} deg of {sp['top_deg']:.0f}: "
-              f"{sp['share']:.3f}")
+        sp = r["edge_spread"]
+        print(f"  {mname}: estimated {[round(d, 1) for d in r['estimated_deg']]}; edge-direction "
+              f"mass within +-{sp['share_within_deg']:g} deg of {sp['top_deg']:.0f}: "
+              f"{sp['share']:.3f}, bins for 90 %: {sp['bins_for_90_percent']}")
         for label, c in r["curves"].items():
             fit = c["fit"]
             print(f"    {label:22s} slope {fit['slope']:+.3f} [{fit['ci_low']:+.3f}, "
