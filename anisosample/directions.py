@@ -361,7 +361,7 @@ def _estimate_hist(hist, k: int, params: _Params) -> Estimate:
         if params.method == "gradient":
             # refine (mu, kappa) continuously from the fixed-kappa result (W Fig. 4c)
             fit = vmf._fit_reverse_kl(
-                p, jnp.radians(2.0 * mu_deg), kappa, params.floor, params.nodes,
+                p_fit, jnp.radians(2.0 * mu_deg), kappa, params.floor, params.nodes,
                 1e3, 1e-6, 1e-6, 100, None, params.kappa_min_fit,
             )
             mu_deg = jnp.mod(jnp.degrees(fit.mu) / 2.0, 180.0)
