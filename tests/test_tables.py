@@ -164,6 +164,17 @@ def test_lookup_applies_the_symmetry(tmp_path):
                                   tab.load((0,)))
 
 
+def test_four_direction_lookup(tmp_path):
+    tab = _fake_table(tmp_path, kind=4, sets=[(10, 110), (0, 30)])
+    c = tables.canonicalize([0, 90, 20, 100])
+    assert (c.kind, c.extra, c.transform) == (4, (10, 110), "rotate90")
+    got = np.asarray(tables.lookup([100, 20], 32, table=tmp_path))
+    np.testing.assert_array_equal(got, np.asarray(tables.apply_symmetry(tab.load((10, 110)),
+                                                                        "rotate90")))
+    assert tables.set_directions((0, 30)) == (0, 90, 30)
+    assert tables.set_directions((0, 0)) == (0, 90)
+
+
 def test_lookup_missing_and_incompatible(tmp_path):
     tab = _fake_table(tmp_path)
     with pytest.raises(FileNotFoundError, match="tables build --n 64 --directions 3"):
