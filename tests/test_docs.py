@@ -125,7 +125,11 @@ def test_report_number_matches_json(path, key, written):
     source = ROOT / path
     if not source.exists():
         pytest.skip(f"{path} not produced yet (make figures)")
-    value = _walk(json.loads(source.read_text()), key)
+    try:
+        value = _walk(json.loads(source.read_text()), key)
+    except (KeyError, IndexError, ValueError):
+        pytest.fail(f"docs/reproduction.md quotes {key!r} from {path}, which has no such entry: "
+                    "the experiment's JSON changed or skipped it; fix the marker")
     if written == "not yet measured":
         pytest.skip(f"{path} exists now: run `make docs` to quote {key}")
     if isinstance(value, bool):
