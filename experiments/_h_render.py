@@ -1,0 +1,311 @@
+"""Image-level plumbing of the Hart et al. experiments (H Sec. 4: Fig. 2, Tables 4-5).
+
+No science lives here beyond wiring library pieces together: the primary hit of every pixel
+centre comes from the ray caster (:mod:`anisosample.render`), the light-sampling technique is a
+warp chain from :mod:`anisosample.warps` fitted per shading point (as H fits per shading
+point), and one sample of the pixel is the MIS combination of one light sample through that
+chain and one BSDF sample (power heuristic, H Sec. 4: "one light sample and one BSDF sample").
+The light pdf of the BSDF-sampled direction is the chain's H Algorithm 2 pdf (``warp.pdf``).
+
+Visibility and emission of *both* strategies come from tracing the ray through the scene (the
+emitter must be scene geometry), so every technique estimates the same pixel value. For an area
+base warp (``measure == "area"``) the area density is converted to solid angle by
+``d^2 / |cos_l|`` with the light's normal at the sampled point.
+
+MSE (H: mean over pixels of the squared error against a converged reference; MRSE divides each
+pixel's squared error by ``ref^2 + 0.01``), time (the jitted fit + sampling + evaluation of one
+whole-image realization, ``block_until_ready``, after compilation, best of 9 runs of 4 images)
+and Monte Carlo efficiency ``1 / (MSE x time)`` (H Sec. 4) are computed by :func:`measure`.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import anisosample as asp
+from anisosample.progress import progress
+from anisosample.render.bsdf import eval_bsdf, pdf_bsdf, sample_bsdf
+from anisosample.render.camera import generate_ray
+from anisosample.render.geometry import intersect, offset_origin
+from anisosample.render.integrator import LUMINANCE
+from anisosample.render.lights import emitted
+
+_LUM = jnp.asarray(LUMINANCE, jnp.float32)
+
+
+class Shading(eqx.Module):
+    """The primary hit of one pixel centre (batched over pixels by :func:`shading_points`)."""
+
+    p: jax.Array
+    n: jax.Array  # geometric normal, flipped to the side of wi
+    wi: jax.Array
+    mat: jax.Array
+    valid: jax.Array  # a non-emitting surface was hit
+    Le: jax.Array  # luminance of emission seen directly
+
+
+def shading_points(scene) -> Shading:
+    """Primary hits of all pixel centres, row-major (``scene.height * scene.width``)."""
+    w, h = scene.width, scene.height
+    cols, rows = np.meshgrid(np.arange(w), np.arange(h), indexing="xy")
+    films = jnp.asarray(
+        np.stack([(cols.ravel() + 0.5) / w, (rows.ravel() + 0.5) / h], -1), jnp.float32
+    )
+    half = jnp.full(2, 0.5, jnp.float32)
+
+    def one(film):
+        o, d = generate_ray(scene.camera, film, half)
+        hit = intersect(scene, o, d)
+        wi = -d
+        front = jnp.dot(hit.n, wi) > 0
+        seen = hit.valid & (hit.light >= 0) & front
+        le = jnp.where(seen, emitted(scene, jnp.maximum(hit.light, 0), hit.uv), 0.0)
+        n = jnp.where(front, hit.n, -hit.n)
+        return Shading(
+            p=hit.p,
+            n=n,
+            wi=wi,
+            mat=hit.material,
+            valid=hit.valid & (hit.light < 0),
+            Le=jnp.dot(le, _LUM),
+        )
+
+    return jax.jit(jax.vmap(one))(films)
+
+
+@dataclass(frozen=True)
+class Light:
+    """What the estimator needs of the sampled light beyond the warp chain.
+
+    ``normal(x)``: unit normal at a point ``x`` of the sampled surface (area bases only);
+    ``snap(x)``: a traced hit on the emitter's geometry moved onto the surface the area base
+    samples (identity for flat lights; the projection onto a bilinear patch for its
+    tessellation).
+    """
+
+    normal: Callable
+    snap: Callable = staticmethod(lambda x: x)
+
+
+def _power(a, b):
+    a2, b2 = a * a, b * b
+    s = a2 + b2
+    return jnp.where(s > 0, a2 / jnp.where(s > 0, s, 1.0), 0.0)
+
+
+def _finite_pos(x):
+    return jnp.isfinite(x) & (x > 0)
+
+
+def _emission_along(scene, sp: Shading, w):
+    """Luminance of the emitter first hit from ``sp.p`` along ``w`` (0 if none), and the hit."""
+    origin = offset_origin(scene, sp.p, sp.n, w)
+    hit = intersect(scene, origin, w)
+    ok = hit.valid & (hit.light >= 0) & (jnp.dot(hit.n, -w) > 0)
+    le = jnp.dot(emitted(scene, jnp.maximum(hit.light, 0), hit.uv), _LUM)
+    return jnp.where(ok, le, 0.0), hit
+
+
+def _to_solid_angle(warp, light: Light, p, x, pdf):
+    if warp.measure != "area":
+        return x, pdf
+    v = x - p
+    d2 = jnp.dot(v, v)
+    w = v * jax.lax.rsqrt(jnp.maximum(d2, 1e-30))
+    cos_l = jnp.abs(jnp.dot(light.normal(x), w))
+    return w, jnp.where(cos_l > 0, pdf * d2 / jnp.maximum(cos_l, 1e-30), 0.0)
+
+
+def one_sample(scene, light: Light, sp: Shading, warp, u_light, u_bsdf, *, mis: bool = True):
+    """Luminance of one MIS sample (one light sample through ``warp``, one BSDF sample)."""
+    mats = scene.materials
+    x, pdf = warp.sample_and_pdf(u_light)
+    wl, pl = _to_solid_angle(warp, light, sp.p, x, pdf)
+    le, _ = _emission_along(scene, sp, wl)
+    f = jnp.dot(eval_bsdf(mats, sp.mat, sp.n, sp.wi, wl), _LUM)  # includes the cosine
+    wgt = _power(pl, pdf_bsdf(mats, sp.mat, sp.n, sp.wi, wl)) if mis else 1.0
+    ok = _finite_pos(pl) & jnp.all(jnp.isfinite(wl))
+    total = jnp.where(ok, f * le * wgt / jnp.where(ok, pl, 1.0), 0.0)
+    if mis:
+        wb, pb = sample_bsdf(mats, sp.mat, sp.n, sp.wi, u_bsdf)
+        leb, hit = _emission_along(scene, sp, wb)
+        if warp.measure == "area":
+            xb = light.snap(hit.p)
+            _, plb = _to_solid_angle(warp, light, sp.p, xb, warp.pdf(xb))
+        else:
+            plb = warp.pdf(wb)
+        plb = jnp.where(jnp.isfinite(plb) & (leb > 0), plb, 0.0)
+        fb = jnp.dot(eval_bsdf(mats, sp.mat, sp.n, sp.wi, wb), _LUM)
+        okb = _finite_pos(pb)
+        total = total + jnp.where(okb, fb * leb * _power(pb, plb) / jnp.where(okb, pb, 1.0), 0.0)
+    total = jnp.where(sp.valid & jnp.isfinite(total), total, 0.0)
+    return sp.Le + total
+
+
+def make_render(scene, light: Light, make_warp: Callable, spp: int, *, mis: bool = True):
+    """Jitted ``render(key) -> (h*w,)`` one realization: per-pixel fit, then ``spp`` samples.
+
+    ``make_warp(sp)`` builds the technique's warp chain for one shading point (vmapped).
+    """
+    sps = shading_points(scene)
+    npix = sps.p.shape[0]
+
+    @jax.jit
+    def render(key):
+        keys = jax.random.split(key, npix)
+
+        def pixel(sp, k):
+            warp = make_warp(sp)
+            u = jax.random.uniform(k, (spp, 4), jnp.float32, 0.0, 1.0 - 2.0**-24)
+            vals = jax.vmap(lambda ul, ub: one_sample(scene, light, sp, warp, ul, ub, mis=mis))(
+                u[:, :2], u[:, 2:]
+            )
+            return jnp.mean(vals)
+
+        return jax.lax.map(lambda a: jax.vmap(pixel)(*a), _blocks(sps, keys, npix))
+
+    def call(key):
+        return render(key).reshape(-1)[:npix]
+
+    return call
+
+
+_BLOCK = 1024
+
+
+def _blocks(sps, keys, npix):
+    nb = -(-npix // _BLOCK)
+    pad = nb * _BLOCK - npix
+
+    def r(a):
+        a = jnp.concatenate([a, jnp.repeat(a[-1:], pad, axis=0)]) if pad else a
+        return a.reshape(nb, _BLOCK, *a.shape[1:])
+
+    return jax.tree.map(r, sps), r(keys)
+
+
+def best_time(fn, *args, repeats: int = 9, calls: int = 4) -> float:
+    """Seconds per call: the best of ``repeats`` timings of ``calls`` back-to-back calls (the
+    minimum is the least disturbed by the other processes on a shared machine)."""
+    jax.block_until_ready(fn(*args))  # compile and warm up
+    best = np.inf
+    for _ in range(repeats):
+        t = time.perf_counter()
+        for _ in range(calls):
+            out = fn(*args)
+        jax.block_until_ready(out)
+        best = min(best, (time.perf_counter() - t) / calls)
+    return best
+
+
+def reference(scene, light, make_warp, spp_total: int, key, *, chunk_spp: int = 64):
+    """Converged image (mean of ``spp_total`` MIS samples per pixel) and its per-pixel variance
+    of the mean (from the spread of the ``chunk_spp``-sample chunks)."""
+    render = make_render(scene, light, make_warp, chunk_spp)
+    n = max(spp_total // chunk_spp, 2)
+    chunks = np.stack(
+        [np.asarray(render(k), np.float64) for k in progress(jax.random.split(key, n),
+                                                               desc="reference", total=n)]
+    )
+    return chunks.mean(0), chunks.var(0, ddof=1) / n
+
+
+def measure(scene, light, techniques: dict, ref, spp: int, realizations: int, key, *,
+            mis: bool = True, relative: bool = False):
+    """Per technique: MSE (or MRSE) image and value, bias check, time per image, efficiency.
+
+    Every technique sees the same keys (common random numbers do not matter here: the
+    warps change what the numbers mean).
+    """
+    keys = jax.random.split(key, realizations)
+    rows, images = {}, {}
+    denom = ref**2 + 0.01 if relative else np.ones_like(ref)
+    for name, make in progress(techniques.items(), desc="techniques", total=len(techniques)):
+        render = make_render(scene, light, make, spp, mis=mis)
+        est = np.stack([np.asarray(render(k), np.float64) for k in keys])  # (R, P)
+        seconds = best_time(render, keys[0])
+        err = est - ref[None, :]
+        mse_img = np.mean(err**2 / denom[None, :], axis=0)
+        var_img = np.var(est, axis=0, ddof=1) / denom
+        mean_err = float(np.mean(err))
+        rows[name] = dict(
+            mse=float(np.mean(mse_img)),
+            mse_from_variance=float(np.mean(var_img)),
+            mean_error=mean_err,
+            mean_error_stderr=float(np.std(np.mean(err, axis=1), ddof=1) / np.sqrt(len(keys))),
+            seconds_per_image=seconds,
+        )
+        images[name] = mse_img
+    base = next(iter(rows.values()))
+    for r in rows.values():
+        r["mse_factor"] = r["mse"] / base["mse"]
+        r["time_factor"] = r["seconds_per_image"] / base["seconds_per_image"]
+        r["efficiency"] = 1.0 / (r["mse"] * r["seconds_per_image"])
+        r["efficiency_factor"] = r["efficiency"] / base["efficiency"]
+    return rows, images
+
+
+def markdown_table(rows: dict, measure_name: str = "MSE") -> str:
+    lines = [
+        f"| Sampling method | {measure_name} | {measure_name} factor | Time (s/image) |"
+        " Time factor | Efficiency factor |",
+        "|---|---|---|---|---|---|",
+    ]
+    for n, r in rows.items():
+        lines.append(
+            f"| {n} | {r['mse']:.4g} | {r['mse_factor']:.3f} | {r['seconds_per_image']:.3g} |"
+            f" {r['time_factor']:.2f} | {r['efficiency_factor']:.2f} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def print_rows(rows: dict, measure_name: str = "MSE") -> None:
+    print(f"  {'method':34s} {measure_name:>9s} {'factor':>7s} {'time s':>8s} {'t-fac':>6s}"
+          f" {'eff-fac':>7s} {'bias/se':>7s}")
+    for n, r in rows.items():
+        z = r["mean_error"] / r["mean_error_stderr"] if r["mean_error_stderr"] > 0 else 0.0
+        print(f"  {n:34s} {r['mse']:9.3e} {r['mse_factor']:7.3f} {r['seconds_per_image']:8.3g}"
+              f" {r['time_factor']:6.2f} {r['efficiency_factor']:7.2f} {z:7.2f}")
+
+
+def plot_images(out, name, scene, ref, images: dict, title: str, label: str = "MSE"):
+    """Reference (tonemapped luminance) and per-technique error images on one log scale."""
+    from matplotlib.colors import LogNorm
+
+    from anisosample import plot as aplot
+
+    h, w = scene.height, scene.width
+    k = len(images) + 1
+    fig, axes = aplot.new_figure(1, k, size=2.6)
+    ax = axes[0][0]
+    ax.imshow(np.clip(ref.reshape(h, w) / max(np.percentile(ref, 99), 1e-12), 0, 1) ** (1 / 2.2),
+              cmap="gray")
+    ax.set_title("reference", fontsize=8)
+    vals = np.concatenate([v.ravel() for v in images.values()])
+    pos = vals[vals > 0]
+    lo = max(np.percentile(pos, 2), 1e-12) if pos.size else 1e-12
+    hi = max(np.percentile(pos, 99.5), lo * 10) if pos.size else 1.0
+    for ax, (n, img) in zip(axes[0][1:], images.items(), strict=True):
+        im = ax.imshow(np.maximum(img.reshape(h, w), lo), cmap="inferno", norm=LogNorm(lo, hi))
+        ax.set_title(f"{n}\n{label} {np.mean(img):.3g}", fontsize=7)
+    for ax in axes[0]:
+        ax.set_xticks([])
+        ax.set_yticks([])
+    fig.colorbar(im, ax=axes[0][-1], shrink=0.8)
+    fig.suptitle(title, fontsize=9)
+    return aplot.save_figure(fig, out / f"{name}.png")
+
+
+def save_exrs(out, scene, ref, images: dict):
+    h, w = scene.height, scene.width
+    asp.io.write_exr(out / "reference.exr", ref.reshape(h, w), overwrite=True)
+    for n, img in images.items():
+        slug = "".join(c if c.isalnum() else "_" for c in n).strip("_")
+        asp.io.write_exr(out / f"mse_{slug}.exr", img.reshape(h, w), overwrite=True)
