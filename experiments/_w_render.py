@@ -67,33 +67,44 @@ def pixel_f(base, scene, pixel):
     return eqx.tree_at(lambda f: f.film, base, film)
 
 
-def estimate_blocks(scene, base, block_px: int, samples: int = 96, k: int = 2):
-    """W Sec. 5.3 per-block estimate with interleaved pixel samples (module docstring).
-
-    Returns (Estimate with leading axes (rows, cols), seconds including the integrand samples).
-    """
+def block_samples(scene, base, block_px: int, samples: int = 96) -> np.ndarray:
+    """All blocks' interleaved estimation grids as one ``(rows*s, cols*s)`` array (module
+    docstring; block ``(a, b)`` holds rows ``a s .. a s + s - 1``, ``estimate_blocks``' layout),
+    computed one row of blocks at a time."""
     w, h = scene.width, scene.height
     if w % block_px or h % block_px:
         raise ValueError(f"image {w}x{h} is not a whole number of {block_px}-pixel blocks")
-    blocks = (h // block_px, w // block_px)
+    by, bx = h // block_px, w // block_px
     ii, jj = np.meshgrid(np.arange(samples), np.arange(samples), indexing="ij")
-    di = jnp.asarray(ii % block_px, jnp.float32)
-    dj = jnp.asarray(jj % block_px, jnp.float32)
+    c = (np.arange(samples) + 0.5) / samples
+    x = np.stack(np.meshgrid(c, c, indexing="xy"), -1).reshape(-1, 2).astype(np.float32)
+    xs = jnp.asarray(np.tile(x, (bx, 1)))
+    out = np.empty((by * samples, bx * samples), np.float32)
+    for a in range(by):
+        row = a * block_px + ii % block_px
+        films = np.concatenate([
+            np.stack([(b * block_px + jj % block_px + 0.5) / w, (row + 0.5) / h], -1)
+            .reshape(-1, 2) for b in range(bx)]).astype(np.float32)
+        vals = np.asarray(_films_eval(base, jnp.asarray(films), xs))
+        out[a * samples:(a + 1) * samples] = (
+            vals.reshape(bx, samples, samples).transpose(1, 0, 2).reshape(samples, -1))
+    return out
 
-    def f(bi, x):
-        row = bi[0].astype(jnp.float32) * block_px + di
-        col = bi[1].astype(jnp.float32) * block_px + dj
-        films = jnp.stack([(col + 0.5) / w, (row + 0.5) / h], axis=-1)
 
-        def one(film, xy):
-            return eqx.tree_at(lambda g: g.film, base, film)(xy)
+def estimate_blocks(scene, base, block_px: int, samples: int = 96, k: int = 2):
+    """W Sec. 5.3 per-block estimate with interleaved pixel samples (module docstring).
 
-        return jax.vmap(one)(films.reshape(-1, 2), x.reshape(-1, 2)).reshape(samples, samples)
-
+    Returns (Estimate with leading axes (rows, cols), seconds including the integrand samples,
+    per-block standard deviation of the samples).
+    """
     t0 = time.perf_counter()
-    est = directions.estimate_blocks(f, k=k, samples_per_block=samples, blocks=blocks)
+    grid = block_samples(scene, base, block_px, samples)
+    est = directions.estimate_blocks(grid, k=k, samples_per_block=samples)
     jax.block_until_ready(est)
-    return est, time.perf_counter() - t0
+    seconds = time.perf_counter() - t0
+    by, bx = grid.shape[0] // samples, grid.shape[1] // samples
+    spread = grid.reshape(by, samples, bx, samples).std(axis=(1, 3))
+    return est, seconds, spread
 
 
 def block_grid_values(scene, base, block, block_px: int, samples: int = 96) -> np.ndarray:
@@ -186,18 +197,6 @@ def pick_block(est, *, strength=None, exclude=(), min_axis_deg: float = 10.0):
     return None
 
 
-def block_strength(scene, base, est, block_px: int, samples: int = 96) -> np.ndarray:
-    """Standard deviation of each block's estimation samples (NaN where no direction)."""
-    v = np.asarray(est.valid)[..., 0]
-    out = np.full(v.shape, np.nan)
-    for a in range(v.shape[0]):
-        for b in range(v.shape[1]):
-            if v[a, b]:
-                out[a, b] = float(np.std(block_grid_values(scene, base, (a, b), block_px,
-                                                           samples)))
-    return out
-
-
 def direction_rgb(directions_deg, valid) -> np.ndarray:
     """Per-block colour maps ``(rows, cols, k, 3)``: hue = direction / 180, grey = none."""
     import matplotlib
@@ -217,6 +216,6 @@ def finite_json(x):
 __all__ = [
     "METHODS", "SCENES", "TABLES", "available_scenes", "load_scene", "base_integrand", "pixel_f",
     "estimate_blocks", "block_grid_values", "strongest", "aligned_usable", "aligned_set",
-    "block_sets", "pixel_variance", "region_pixels", "pick_block", "block_strength",
+    "block_sets", "pixel_variance", "region_pixels", "pick_block", "block_samples",
     "direction_rgb", "asp",
 ]

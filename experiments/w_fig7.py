@@ -32,7 +32,7 @@ from anisosample.progress import progress
 
 NAME = "w_fig7"
 SCALES = {
-    "small": dict(size=64, block_px=16, samples=96, preview_spp=16),
+    "small": dict(size=128, block_px=16, samples=96, preview_spp=16),
     "paper": dict(size=1280, block_px=16, samples=96, preview_spp=64),
 }
 ALL_SCENES = ("cornell", "blinds", "attic", "dof")
@@ -46,7 +46,7 @@ def run_scene(name, cfg, key, out, fresh):
         return cached
     scene = W.load_scene(name, cfg["size"], cfg["size"])
     base = W.base_integrand(scene, name)
-    est, seconds = W.estimate_blocks(scene, base, cfg["block_px"], cfg["samples"])
+    est, seconds, spread = W.estimate_blocks(scene, base, cfg["block_px"], cfg["samples"])
     img = render.render(scene, key, spp=cfg["preview_spp"], sampler="pmj02bn", progress=False,
                         square_aperture=W.SCENES[name]["square_aperture"])
     meta = {**asp.io.provenance(), **img.settings}
@@ -54,7 +54,7 @@ def run_scene(name, cfg, key, out, fresh):
     asp.io.save_png(out / f"{name}.png", render.tonemap(img.mean), overwrite=True)
     v = np.asarray(est.valid)
     counts = np.bincount(v.sum(-1).reshape(-1), minlength=3).tolist()
-    block = W.pick_block(est, strength=W.block_strength(scene, base, est, cfg["block_px"]))
+    block = W.pick_block(est, strength=spread)
     rec = {
         "settings": settings,
         "blocks": list(v.shape[:2]),

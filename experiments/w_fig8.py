@@ -61,7 +61,7 @@ def run_scene(name, cfg, key, out, fresh):
     size, bp, n, R = cfg["size"], cfg["block_px"], cfg["spp"], cfg["realizations"]
     scene = W.load_scene(name, size, size)
     base = W.base_integrand(scene, name)
-    est, _ = W.estimate_blocks(scene, base, bp)
+    est, _, _ = W.estimate_blocks(scene, base, bp)
     nb = size // bp
     var = {m: np.zeros((size, size)) for m in W.METHODS}
     k_sets, k_pix = jax.random.split(key)

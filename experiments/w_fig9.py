@@ -43,7 +43,7 @@ from anisosample.progress import progress
 NAME = "w_fig9"
 SCALES = {
     # small: a 64^2 image, 16-pixel blocks, the 4x4 pixels at the block centre, up to 2^10 spp
-    "small": dict(size=64, block_px=16, region_px=4, log2_ns=[8, 9, 10], realizations=64),
+    "small": dict(size=128, block_px=16, region_px=4, log2_ns=[8, 9, 10], realizations=64),
     # paper: W's 1280^2 image, 16x16-pixel blocks, the whole block, 2^8..2^12 spp (GPU)
     "paper": dict(size=1280, block_px=16, region_px=16, log2_ns=[8, 9, 10, 11, 12],
                   realizations=128),
@@ -60,8 +60,8 @@ def run_scene(name, cfg, key, out, fresh):
         return cached
     scene = W.load_scene(name, cfg["size"], cfg["size"])
     base = W.base_integrand(scene, name)
-    est, est_seconds = W.estimate_blocks(scene, base, cfg["block_px"])
-    block = W.pick_block(est, strength=W.block_strength(scene, base, est, cfg["block_px"]))
+    est, est_seconds, spread = W.estimate_blocks(scene, base, cfg["block_px"])
+    block = W.pick_block(est, strength=spread)
     if block is None:
         print(f"{name}: no block with a matchable extra direction; skipped")
         rec = {"settings": settings, "skipped": "no block with a matchable extra direction"}
