@@ -125,7 +125,10 @@ def _class_members(cls) -> list[str]:
             continue
         obj = getattr(cls, name, raw)
         if isinstance(raw, property) or isinstance(inspect.getattr_static(cls, name), property):
-            lines.append(f"  - `{name}` (property) — {first_paragraph(raw) or '(no docstring)'}")
+            doc = first_paragraph(raw) or next(  # a property's docstring is not inherited
+                (first_paragraph(vars(base)[name]) for base in cls.__mro__[1:]
+                 if name in vars(base) and first_paragraph(vars(base)[name])), "")
+            lines.append(f"  - `{name}` (property) — {doc or '(no docstring)'}")
         elif callable(obj) and not inspect.isclass(obj):
             lines.append(
                 f"  - `{name}{signature(obj)}` — {first_paragraph(obj) or '(no docstring)'}"
