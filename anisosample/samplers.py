@@ -27,6 +27,7 @@ import numpy as np
 from ._validate import ONE_MINUS_EPSILON, check_int, check_key, check_points
 
 __all__ = [
+    "BASELINES",
     "Sampler",
     "get",
     "names",
@@ -41,6 +42,9 @@ __all__ = [
     "shear",
     "grid_shape",
 ]
+
+BASELINES = ("random", "jittered", "cmj", "sobol-owen", "pmj02", "pmj02bn")
+"""The baseline samplers, which take no options (``get(name)(key, n)``)."""
 
 MAX_LOG2_N = 24
 """Nets are exact up to 2^24 points: float32 carries 24 bits of each coordinate."""

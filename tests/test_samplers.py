@@ -7,7 +7,7 @@ from helpers import brute_force_spectrum, is_net, toroidal_nn_distance
 import anisosample as asp
 from anisosample import samplers
 
-BASELINES = ["random", "jittered", "cmj", "sobol-owen", "pmj02", "pmj02bn"]
+BASELINES = samplers.BASELINES
 NETS = ["sobol-owen", "pmj02", "pmj02bn"]
 
 
@@ -233,6 +233,12 @@ def test_bad_points(points):
 def test_bad_shear_direction(d):
     with pytest.raises(ValueError, match="direction_deg"):
         samplers.shear(np.zeros((4, 2), np.float32), d)
+
+
+def test_baselines_are_registered_and_take_no_options():
+    assert set(samplers.BASELINES) <= set(samplers.names())
+    with pytest.raises(TypeError, match="takes no options"):
+        samplers.get("pmj02bn", candidates=3)
 
 
 def test_register_rejects_taken_names():
