@@ -23,7 +23,7 @@ from scipy.spatial import cKDTree
 from anisosample import io, losses, plot, spectrum, synthesis
 from anisosample.progress import progress
 
-SCALES = {"small": dict(n=1024, steps=600), "paper": dict(n=4096, steps=1500)}
+SCALES = {"small": dict(n=512, steps=300), "paper": dict(n=4096, steps=1500)}
 DIRS = [0.0, 90.0, 30.0]
 VARIANTS = {
     "spectrum loss only": dict(c=0.0),
