@@ -91,3 +91,12 @@ def test_bad_input():
         fr.custom_set(np.zeros((1, 2), int), [0.0])
     with pytest.raises(ValueError, match="angle_deg"):
         fr.wedge(0.0, 10.0, 1.0, 50.0)
+
+
+def test_edge_weights_spread():
+    v = np.array([[10, 1], [100, 3]])
+    w = fr.edge_weights(v, [0.0], spread_deg=2.0)
+    s2 = 3 / (100 * math.tan(math.radians(2.0)))
+    np.testing.assert_allclose(w, [1 / (101 * 2), 1 / (10009 * (1 + s2 * s2))])
+    assert "weight_spread_deg" not in fr.design(256, [0.0, 90.0]).params
+    assert fr.design(256, [0.0, 90.0], weight_spread_deg=1.0).params["weight_spread_deg"] == 1.0
