@@ -50,8 +50,8 @@ def _to_jsonable(obj):
         return {str(k): _to_jsonable(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):
         return [_to_jsonable(v) for v in obj]
-    if isinstance(obj, np.generic):
-        return obj.item()
+    if isinstance(obj, np.generic):  # np.float64 is also a float: convert, then handle NaN/Inf
+        return _to_jsonable(obj.item())
     if hasattr(obj, "__array__") and not isinstance(obj, str | bytes):
         return _to_jsonable(np.asarray(obj).tolist())
     if isinstance(obj, Path):
@@ -83,8 +83,9 @@ def atomic_path(path: str | os.PathLike, *, overwrite: bool = False) -> Iterator
 
 
 def save_json(path, data: Mapping, *, overwrite: bool = False) -> Path:
+    """Write ``data`` as strict JSON: arrays become lists, NaN becomes null, +-Inf "inf"/"-inf"."""
     with atomic_path(path, overwrite=overwrite) as tmp:
-        tmp.write_text(json.dumps(_to_jsonable(data), indent=2) + "\n")
+        tmp.write_text(json.dumps(_to_jsonable(data), indent=2, allow_nan=False) + "\n")
     return Path(path)
 
 
@@ -100,7 +101,7 @@ def save_npz(
         raise ValueError(f"arrays must not use the reserved name {_METADATA_KEY!r}")
     meta = {**provenance(), **(dict(metadata) if metadata else {})}
     payload = {k: np.asarray(v) for k, v in arrays.items()}
-    payload[_METADATA_KEY] = np.asarray(json.dumps(_to_jsonable(meta)))
+    payload[_METADATA_KEY] = np.asarray(json.dumps(_to_jsonable(meta), allow_nan=False))
     with atomic_path(path, overwrite=overwrite) as tmp:
         with open(tmp, "wb") as fh:
             np.savez(fh, **payload)
