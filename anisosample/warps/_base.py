@@ -120,8 +120,8 @@ class Compose(AbstractWarp):
         x = _check_point("u", u, 2)
         pdf = jnp.ones((), x.dtype)
         for w in self.warps:
-            x = w.sample(x)
-            pdf = pdf * w.pdf(x)
+            x, j = w.sample_and_pdf(x)  # J_w at the warp's own output
+            pdf = pdf * j
         return x, pdf
 
     def pdf(self, x):

@@ -117,6 +117,10 @@ class SphericalTriangle(AbstractWarp):
         w = z * b + sin_t * safe_normalize(cp - jnp.dot(cp, b) * b)
         return jnp.where(self.valid, safe_normalize(w), self.a)
 
+    def sample_and_pdf(self, u):
+        """H Alg. 1 step: the sample is on the triangle by construction, its pdf is ``1/Omega``."""
+        return self.sample(u), jnp.where(self.valid, 1.0 / self.solid_angle, 0.0)
+
     def contains(self, w):
         """Whether the unit direction ``w`` lies in the spherical triangle (with tolerance)."""
         return jnp.all(self.normals @ w >= -_INSIDE_TOL)
@@ -249,6 +253,10 @@ class SphericalRectangle(AbstractWarp):
         u = _check_point("u", u, 2)
         w = safe_normalize(self._sample_local(u)) @ self.frame
         return jnp.where(self.valid, w, self.frame[2])
+
+    def sample_and_pdf(self, u):
+        """H Alg. 1 step: the sample is on the rectangle by construction, its pdf is ``1/S``."""
+        return self.sample(u), jnp.where(self.valid, 1.0 / self.solid_angle, 0.0)
 
     def _local_hit(self, w):
         wl = self.frame @ w
