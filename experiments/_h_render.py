@@ -128,7 +128,10 @@ def one_sample(scene, light: Light, sp: Shading, warp, u_light, u_bsdf, *, mis: 
     mats = scene.materials
     x, pdf = warp.sample_and_pdf(u_light)
     wl, pl = _to_solid_angle(warp, light, sp.p, x, pdf)
-    le, _ = _emission_along(scene, sp, wl)
+    le, hit_l = _emission_along(scene, sp, wl)
+    if warp.measure == "area":  # the traced hit must be the sampled point (not a fold in front)
+        dist = jnp.linalg.norm(x - sp.p)
+        le = jnp.where(hit_l.t >= 0.99 * dist, le, 0.0)
     f = jnp.dot(eval_bsdf(mats, sp.mat, sp.n, sp.wi, wl), _LUM)  # includes the cosine
     wgt = _power(pl, pdf_bsdf(mats, sp.mat, sp.n, sp.wi, wl)) if mis else 1.0
     ok = _finite_pos(pl) & jnp.all(jnp.isfinite(wl))
