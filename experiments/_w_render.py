@@ -5,10 +5,14 @@ only strings together ``anisosample.render``, ``anisosample.directions``, ``anis
 
 * Per-block estimation (W Sec. 5.3): one ``s x s`` grid of integrand samples per block of
   ``B x B`` pixels (W: s = 96, B = 16, i.e. 36 samples per pixel). Grid sample ``(i, j)`` at
-  ``x = ((j + .5)/s, (i + .5)/s)`` is taken by pixel ``(row0 + i mod B, col0 + j mod B)`` of the
-  block, so every pixel contributes ``(s/B)^2`` samples spread over the whole domain and the
-  shared histogram mixes the block's structurally similar integrands. The pixel integrands are
-  the papers' fixed-primary-hit ones (``pixel_center``; W Sec. 6.2).
+  ``x = ((j + .5)/s, (i + .5)/s)`` is taken by pixel ``(row0 + i // t, col0 + j // t)`` of the
+  block, ``t = s / B``: each pixel fills one ``t x t`` tile of the grid (its own part of the
+  domain), neighbouring tiles come from neighbouring pixels, so the grid pieces together one
+  integrand from the block's structurally similar ones (jumps between tiles are those between
+  adjacent pixels, along the axes, whose histogram windows are zeroed anyway). W does not say
+  how pixels share the grid; an interleaved layout (``i mod B``) was tried first and put
+  15-pixel jumps every B samples. The pixel integrands are the papers' fixed-primary-hit ones
+  (``pixel_center``; W Sec. 6.2).
 * Per-pixel estimator (W Sec. 5.4): one point set per block (pmj02bn; pmj02bn sheared to the
   block's strongest direction, Singh & Jarosz 2017; the aligned 3-direction set of the table for
   the block's strongest direction, rounded), decorrelated across pixels and realizations by
@@ -68,22 +72,25 @@ def pixel_f(base, scene, pixel):
 
 
 def block_samples(scene, base, block_px: int, samples: int = 96) -> np.ndarray:
-    """All blocks' interleaved estimation grids as one ``(rows*s, cols*s)`` array (module
+    """All blocks' estimation grids as one ``(rows*s, cols*s)`` array (module
     docstring; block ``(a, b)`` holds rows ``a s .. a s + s - 1``, ``estimate_blocks``' layout),
     computed one row of blocks at a time."""
     w, h = scene.width, scene.height
     if w % block_px or h % block_px:
         raise ValueError(f"image {w}x{h} is not a whole number of {block_px}-pixel blocks")
+    if samples % block_px:
+        raise ValueError(f"samples={samples} is not a multiple of block_px={block_px}")
     by, bx = h // block_px, w // block_px
     ii, jj = np.meshgrid(np.arange(samples), np.arange(samples), indexing="ij")
+    ii, jj = ii // (samples // block_px), jj // (samples // block_px)  # the pixel of each sample
     c = (np.arange(samples) + 0.5) / samples
     x = np.stack(np.meshgrid(c, c, indexing="xy"), -1).reshape(-1, 2).astype(np.float32)
     xs = jnp.asarray(np.tile(x, (bx, 1)))
     out = np.empty((by * samples, bx * samples), np.float32)
     for a in range(by):
-        row = a * block_px + ii % block_px
+        row = a * block_px + ii
         films = np.concatenate([
-            np.stack([(b * block_px + jj % block_px + 0.5) / w, (row + 0.5) / h], -1)
+            np.stack([(b * block_px + jj + 0.5) / w, (row + 0.5) / h], -1)
             .reshape(-1, 2) for b in range(bx)]).astype(np.float32)
         vals = np.asarray(_films_eval(base, jnp.asarray(films), xs))
         out[a * samples:(a + 1) * samples] = (
@@ -92,7 +99,7 @@ def block_samples(scene, base, block_px: int, samples: int = 96) -> np.ndarray:
 
 
 def estimate_blocks(scene, base, block_px: int, samples: int = 96, k: int = 2):
-    """W Sec. 5.3 per-block estimate with interleaved pixel samples (module docstring).
+    """W Sec. 5.3 per-block estimate from the blocks' tiled pixel samples (module docstring).
 
     Returns (Estimate with leading axes (rows, cols), seconds including the integrand samples,
     per-block standard deviation of the samples).
@@ -108,11 +115,12 @@ def estimate_blocks(scene, base, block_px: int, samples: int = 96, k: int = 2):
 
 
 def block_grid_values(scene, base, block, block_px: int, samples: int = 96) -> np.ndarray:
-    """The interleaved ``(s, s)`` sample grid of one block (what its histogram is built from)."""
+    """The ``(s, s)`` sample grid of one block (what its histogram is built from)."""
     w, h = scene.width, scene.height
     ii, jj = np.meshgrid(np.arange(samples), np.arange(samples), indexing="ij")
-    row = block[0] * block_px + ii % block_px
-    col = block[1] * block_px + jj % block_px
+    t = samples // block_px
+    row = block[0] * block_px + ii // t
+    col = block[1] * block_px + jj // t
     films = np.stack([(col + 0.5) / w, (row + 0.5) / h], -1).reshape(-1, 2).astype(np.float32)
     c = (np.arange(samples) + 0.5) / samples
     x = np.stack(np.meshgrid(c, c, indexing="xy"), -1).reshape(-1, 2).astype(np.float32)

@@ -2,7 +2,7 @@
 
 For each scene the extra principal directions (besides 0 and 90 degrees) are estimated in every
 block of ``16 x 16`` pixels from one shared grid of 96^2 samples of the pixels' light-sample (or
-lens-sample) integrands (W Sec. 5.3; samples interleaved over the block's pixels, see
+lens-sample) integrands (W Sec. 5.3; samples tiled over the block's pixels, see
 ``experiments/_w_render.py``), with ``anisosample.directions.estimate_blocks``. The picture shows
 the rendered image and, per block, the angle of the first and of the second direction as a colour
 (hue = angle / 180 degrees, a cyclic map for axial angles); grey blocks have no such direction.
@@ -39,7 +39,8 @@ ALL_SCENES = ("cornell", "blinds", "attic", "dof")
 
 
 def run_scene(name, cfg, key, out, fresh):
-    settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist())}
+    settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist()),
+                "estimation_layout": "tiles"}
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
     if cached is not None and cached.get("settings") == settings and (out / f"{name}.exr").exists():

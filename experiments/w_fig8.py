@@ -52,7 +52,8 @@ def _slug(m: str) -> str:
 
 
 def run_scene(name, cfg, key, out, fresh):
-    settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist())}
+    settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist()),
+                "estimation_layout": "tiles"}
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
     exrs = [out / f"{name}_{_slug(m)}_variance.exr" for m in W.METHODS]

@@ -2,7 +2,7 @@
 
 For each scene (W Sec. 6.2: CORNELL-BOX, BREAKFAST-ROOM = our blinds, ATTIC, DEPTH-OF-FIELD;
 the shipped look-alikes under experiments/scenes/, attic only if its XML exists) the principal
-directions are estimated per block of pixels (W Sec. 5.3, 96^2 samples per block, interleaved
+directions are estimated per block of pixels (W Sec. 5.3, 96^2 samples per block, tiled
 over the block's pixels; see ``experiments/_w_render.py``), one block is picked
 (``_w_render.pick_block``: a first direction that a 3-direction table can match, at least 10
 degrees from both axes if any block has one, then the largest spread of the block's samples;
@@ -53,6 +53,7 @@ ALL_SCENES = ("cornell", "blinds", "attic", "dof")
 
 def run_scene(name, cfg, key, out, fresh):
     settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist()),
+                "estimation_layout": "tiles",
                 "block_rule": "off-axis >= 10 deg, then largest sample spread"}
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
