@@ -5,7 +5,8 @@ in the same run. Prints samples per second for both and their ratio (issue 7 tar
 Our time excludes compilation (reported separately); Mitsuba's excludes scene loading. Both
 report the best of ``--repeats`` runs, the two renderers alternating run by run. Mitsuba
 runs ``scalar_rgb`` (its multi-threaded CPU variant that needs nothing but the wheel), and
-also ``llvm_ad_rgb`` when ``DRJIT_LIBLLVM_PATH`` points at a usable LLVM (Debian's libllvm19).
+also ``llvm_ad_rgb`` when ``DRJIT_LIBLLVM_PATH`` points at a usable LLVM, or when Debian's
+libllvm19 is installed (``apt-get install libllvm19``; found automatically).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import numpy as np
 from anisosample import render
 
 SCENE = Path(__file__).resolve().parent / "scenes" / "cornell.xml"
+DEBIAN_LLVM19 = "/usr/lib/x86_64-linux-gnu/libLLVM-19.so"  # apt-get install libllvm19
 
 
 def _best(fn, repeats):
@@ -60,25 +62,35 @@ def main(argv=None):
     if mi is not None:
         variants = ["scalar_rgb"]
         llvm = os.environ.get("DRJIT_LIBLLVM_PATH")
+        if not llvm and Path(DEBIAN_LLVM19).exists():
+            llvm = os.environ["DRJIT_LIBLLVM_PATH"] = DEBIAN_LLVM19
         if llvm and Path(llvm).exists():
             variants.append("llvm_ad_rgb")
         else:
             print("llvm_ad_rgb skipped (set DRJIT_LIBLLVM_PATH to Debian's libLLVM-19.so)")
     else:
         print("mitsuba not installed: no comparison")
-    # Alternate the renderers run by run so that both see the same machine load (the reference
-    # machine is shared); report the best time of each.
+    # Alternate ours and scalar_rgb run by run so that both see the same machine load (the
+    # reference machine is shared); llvm_ad_rgb runs afterwards on its own (its thread pool,
+    # once started, slows other processes down). Report the best time of each.
     ours_times, theirs = [], {v: [] for v in variants}
     scenes = {}
-    for v in variants:
+
+    def mitsuba_run(v):
         mi.set_variant(v)
-        scenes[v] = mi.load_file(str(SCENE), **size)
-        mi.render(scenes[v], spp=args.spp)  # warm-up (JIT for llvm)
+        if v not in scenes:
+            scenes[v] = mi.load_file(str(SCENE), **size)
+            mi.render(scenes[v], spp=args.spp)  # warm-up (JIT for llvm)
+        theirs[v].append(_best(lambda: np.asarray(mi.render(scenes[v], spp=args.spp)), 1))
+
     for _ in range(args.repeats):
         ours_times.append(_best(ours_fn, 1))
-        for v in variants:
-            mi.set_variant(v)
-            theirs[v].append(_best(lambda v=v: np.asarray(mi.render(scenes[v], spp=args.spp)), 1))
+        if "scalar_rgb" in variants:
+            mitsuba_run("scalar_rgb")
+    for v in variants:
+        if v != "scalar_rgb":
+            for _ in range(args.repeats):
+                mitsuba_run(v)
     ours = min(ours_times)
     print(f"anisosample: first call {first:.2f} s (with compilation), best {ours:.3f} s "
           f"-> {n / ours / 1e6:.3f} M samples/s")
