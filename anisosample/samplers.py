@@ -141,6 +141,28 @@ def grid_shape(n: int) -> tuple[int, int]:
 # --- random, jittered, CMJ --------------------------------------------------------------------
 
 
+def _in_stratum(s, u, count: int):
+    """``(s + u) / count`` in float32, inside the stratum ``[s/count, (s+1)/count)``.
+
+    ``s`` integer stratum indices, ``u`` uniform in ``[0, 1)``. Forming ``s + u`` first loses the
+    low bits of ``u`` and rounds ``s + u`` up to ``s + 1`` for ``u`` near 1 (any ``s >= 1``),
+    which put the point in the next stratum; ``s / count + u / count`` keeps full float32
+    resolution, and a clamp keeps the result inside the stratum. XLA's float32 division on CPU
+    is off by up to one ulp, so for a ``count`` that is not a power of two (where ``s / count``
+    is inexact) the clamp bounds step two ulps inwards; then the guarantee holds wherever a
+    stratum spans more than four float32 values (``count <= 2^22``). Power-of-two counts are
+    exact. The result is at most ``1 - 2^-24``.
+    """
+    sf = s.astype(jnp.float32)
+    lo = sf / count
+    hi = jnp.nextafter((sf + 1.0) / count, jnp.float32(0.0))
+    if count & (count - 1):  # inexact quotients: two more ulps of margin on each side
+        up, down = jnp.float32(1.0), jnp.float32(0.0)
+        lo = jnp.where(s > 0, jnp.nextafter(jnp.nextafter(lo, up), up), lo)
+        hi = jnp.nextafter(jnp.nextafter(hi, down), down)
+    return jnp.minimum(jnp.minimum(jnp.maximum(lo + u / count, lo), hi), ONE_MINUS_EPSILON)
+
+
 @functools.partial(jax.jit, static_argnums=1)
 def _random(key, n):
     return jax.random.uniform(key, (n, 2), dtype=jnp.float32)
@@ -150,12 +172,11 @@ def _random(key, n):
 def _jittered(key, n):
     nx, ny = grid_shape(n)
     xi = jax.random.uniform(key, (ny, nx, 2), dtype=jnp.float32)
-    i = jnp.arange(nx, dtype=jnp.float32)[None, :]
-    j = jnp.arange(ny, dtype=jnp.float32)[:, None]
-    x = (i + xi[..., 0]) / nx
-    y = (j + xi[..., 1]) / ny
-    pts = jnp.stack([x.reshape(-1), y.reshape(-1)], axis=-1)
-    return jnp.minimum(pts, ONE_MINUS_EPSILON)
+    i = jnp.broadcast_to(jnp.arange(nx, dtype=jnp.int32)[None, :], (ny, nx))
+    j = jnp.broadcast_to(jnp.arange(ny, dtype=jnp.int32)[:, None], (ny, nx))
+    x = _in_stratum(i, xi[..., 0], nx)
+    y = _in_stratum(j, xi[..., 1], ny)
+    return jnp.stack([x.reshape(-1), y.reshape(-1)], axis=-1)
 
 
 @functools.partial(jax.jit, static_argnums=1)
@@ -173,20 +194,13 @@ def _cmj(key, n):
     j = jnp.repeat(jnp.arange(q, dtype=jnp.uint32), m)
     fine_x = i * q + perm_y[j]  # x-stratum index in [0, n)
     fine_y = j * m + perm_x[i]  # y-stratum index in [0, n)
-    # uniform jitter inside the fine stratum, in float64-free fixed point
+    # uniform jitter inside the fine stratum
     jitter = jax.random.uniform(k_j, (n, 2), dtype=jnp.float32)
-    x = (fine_x.astype(jnp.float32) + jitter[:, 0]) / n
-    y = (fine_y.astype(jnp.float32) + jitter[:, 1]) / n
-    # float32 rounding of (s + u) / n can reach the next stratum's lower edge; clamp inside.
-    x = jnp.clip(
-        x, fine_x.astype(jnp.float32) / n, jnp.nextafter((fine_x + 1).astype(jnp.float32) / n, 0.0)
-    )
-    y = jnp.clip(
-        y, fine_y.astype(jnp.float32) / n, jnp.nextafter((fine_y + 1).astype(jnp.float32) / n, 0.0)
-    )
+    x = _in_stratum(fine_x, jitter[:, 0], n)
+    y = _in_stratum(fine_y, jitter[:, 1], n)
     pts = jnp.stack([x, y], axis=-1)
     order = jax.random.permutation(k_order, n)  # decorrelate sample order (Kensler Sec. 4)
-    return jnp.minimum(pts[order], ONE_MINUS_EPSILON)
+    return pts[order]
 
 
 # --- Owen-scrambled Sobol' (Burley 2020) -------------------------------------------------------

@@ -244,3 +244,27 @@ def test_baselines_are_registered_and_take_no_options():
 def test_register_rejects_taken_names():
     with pytest.raises(ValueError, match="already registered"):
         samplers.register("random", lambda: samplers.random)
+
+
+@pytest.mark.parametrize(
+    "name, n", [("jittered", 16), ("jittered", 13), ("jittered", 4096), ("cmj", 240), ("cmj", 4096)]
+)
+@pytest.mark.parametrize("u", [0.0, float(np.float32(1.0 - 2.0**-24))])
+def test_extreme_jitter_stays_in_its_stratum(monkeypatch, name, n, u):
+    """Jitter at the ends of [0, 1): (i + u) / nx rounded to (i + 1) / nx in float32 (the next
+    stratum) before the fix. Runs the construction eagerly with a constant 'uniform'."""
+    real_uniform = jax.random.uniform
+
+    def constant(key, shape=(), dtype=jnp.float32, *args, **kwargs):
+        return jnp.full(shape, u, dtype) if shape[-1] == 2 else real_uniform(key, shape, dtype)
+
+    monkeypatch.setattr(jax.random, "uniform", constant)
+    fn = {"jittered": samplers._jittered, "cmj": samplers._cmj}[name].__wrapped__
+    pts = np.asarray(fn(jax.random.key(0), n), dtype=np.float64)
+    assert pts.min() >= 0.0 and pts.max() < 1.0
+    nx, ny = samplers.grid_shape(n)
+    cells = np.floor(pts[:, 0] * nx).astype(int) * ny + np.floor(pts[:, 1] * ny).astype(int)
+    assert sorted(cells) == list(range(n))
+    if name == "cmj":
+        assert sorted(np.floor(pts[:, 0] * n).astype(int)) == list(range(n))
+        assert sorted(np.floor(pts[:, 1] * n).astype(int)) == list(range(n))
