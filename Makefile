@@ -14,7 +14,8 @@ JOBS   ?= 2
         tables w-aligned-end-to-end \
         render-scenes \
         w-fig7 w-fig8 w-fig9 w-fig10 w-fig12 \
-        h-shading-points
+        h-shading-points \
+        h-fig2 h-table4 h-table5 beyond-warped-aligned
 
 help:
 	@echo "make demo      set up .venv and run the headline experiment at small scale"
@@ -62,12 +63,25 @@ figures: w-directions-accuracy w-fig5-baselines \
          w-aligned-end-to-end \
          render-scenes \
          w-fig7 w-fig8 w-fig9 w-fig10 w-fig12 \
-         h-shading-points
+         h-shading-points \
+         h-fig2 h-table4 h-table5 beyond-warped-aligned
 	@echo "figures done: run 'make docs' to refresh docs/api.md and the numbers in docs/reproduction.md"
 
 # Figure targets for experiment scripts (one each; SCALE=small|paper).
 h-shading-points: $(VENV)/.installed
 	$(PY) experiments/h_shading_points.py --scale $(SCALE)
+
+h-fig2: $(VENV)/.installed
+	$(PY) experiments/h_fig2.py --scale $(SCALE)
+
+h-table4: $(VENV)/.installed
+	$(PY) experiments/h_table4.py --scale $(SCALE)
+
+h-table5: $(VENV)/.installed
+	$(PY) experiments/h_table5.py --scale $(SCALE)
+
+beyond-warped-aligned: $(VENV)/.installed
+	$(PY) experiments/beyond_warped_aligned.py --scale $(SCALE)
 
 w-fig3: $(VENV)/.installed
 	$(PY) experiments/w_fig3.py --scale $(SCALE)
