@@ -238,8 +238,10 @@ def measure(scene, light, techniques: dict, ref, spp: int, realizations: int, ke
         mse_img = np.mean(err**2 / denom[None, :], axis=0)
         var_img = np.var(est, axis=0, ddof=1) / denom
         mean_err = float(np.mean(err))
+        per_real = np.mean(err**2 / denom[None, :], axis=1)  # (R,) image MSE per realization
         rows[name] = dict(
             mse=float(np.mean(mse_img)),
+            mse_stderr=float(np.std(per_real, ddof=1) / np.sqrt(len(keys))),
             mse_from_variance=float(np.mean(var_img)),
             mean_error=mean_err,
             mean_error_stderr=float(np.std(np.mean(err, axis=1), ddof=1) / np.sqrt(len(keys))),
@@ -257,24 +259,26 @@ def measure(scene, light, techniques: dict, ref, spp: int, realizations: int, ke
 
 def markdown_table(rows: dict, measure_name: str = "MSE") -> str:
     lines = [
-        f"| Sampling method | {measure_name} | {measure_name} factor | Time (s/image) |"
-        " Time factor | Efficiency factor |",
+        f"| Sampling method | {measure_name} (+- std. error) | {measure_name} factor |"
+        " Time (s/image) | Time factor | Efficiency factor |",
         "|---|---|---|---|---|---|",
     ]
     for n, r in rows.items():
         lines.append(
-            f"| {n} | {r['mse']:.4g} | {r['mse_factor']:.3f} | {r['seconds_per_image']:.3g} |"
+            f"| {n} | {r['mse']:.4g} +- {r.get('mse_stderr', float('nan')):.2g} |"
+            f" {r['mse_factor']:.3f} | {r['seconds_per_image']:.3g} |"
             f" {r['time_factor']:.2f} | {r['efficiency_factor']:.2f} |"
         )
     return "\n".join(lines) + "\n"
 
 
 def print_rows(rows: dict, measure_name: str = "MSE") -> None:
-    print(f"  {'method':34s} {measure_name:>9s} {'factor':>7s} {'time s':>8s} {'t-fac':>6s}"
-          f" {'eff-fac':>7s} {'bias/se':>7s}")
+    print(f"  {'method':44s} {measure_name:>9s} {'+-':>8s} {'factor':>7s} {'time s':>8s}"
+          f" {'t-fac':>6s} {'eff-fac':>7s} {'bias/se':>7s}")
     for n, r in rows.items():
         z = r["mean_error"] / r["mean_error_stderr"] if r["mean_error_stderr"] > 0 else 0.0
-        print(f"  {n:34s} {r['mse']:9.3e} {r['mse_factor']:7.3f} {r['seconds_per_image']:8.3g}"
+        print(f"  {n:44s} {r['mse']:9.3e} {r.get('mse_stderr', float('nan')):8.1e}"
+              f" {r['mse_factor']:7.3f} {r['seconds_per_image']:8.3g}"
               f" {r['time_factor']:6.2f} {r['efficiency_factor']:7.2f} {z:7.2f}")
 
 
