@@ -6,8 +6,8 @@
 Three evaluation paths, all differentiable with respect to the points:
 
 * ``"direct"``: the sum itself, chunked over frequencies (the reference; the fast path on GPUs).
-  In float32 the phase ``v . x`` is formed from an exact high part and a small low part of ``x``,
-  so it stays accurate for frequencies in the thousands.
+  In float32 the phase ``v . x`` is reduced modulo 1 from an exact high part and a small low part
+  of ``x``, so it stays accurate for frequencies up to tens of thousands (``|v| < 2^24``).
 * ``"nufft"``: a type-1 NUFFT (jax-finufft) onto the centred grid that bounds the frequencies,
   then a gather: cheap when the frequencies fill their bounding box.
 * ``"nufft3"``: a type-3 NUFFT at exactly the requested frequencies, in coordinates rotated to the
@@ -46,6 +46,7 @@ METHODS = ("auto", "direct", "nufft", "nufft3")
 
 _DIRECT_MAX_WORK = 1 << 22  # n * m below which the direct sum is cheapest on a CPU
 _CHUNK = 256  # frequencies per chunk of the direct sum
+_MAX_FREQ = 1 << 24  # float32 holds every integer frequency below this exactly
 
 
 def white_noise_level(n: int) -> float:
@@ -68,21 +69,23 @@ def frequency_grid(radius: int) -> np.ndarray:
 
 
 def _phase_fraction(points, v):
-    """``v . x`` as an exact integer-part-free fraction plus a small remainder.
+    """``v . x`` modulo 1 (up to an integer), accurate in float32 for large integer ``v``.
 
-    ``x = x_hi + x_lo`` with ``x_hi`` a multiple of 2^-10: ``v * x_hi`` is exact in float32 for
-    ``|v| < 2^14`` and its fraction is taken exactly; ``|v * x_lo| < 16`` keeps ~1e-6 accuracy.
-    The gradient flows through ``x_lo`` (``x_hi`` is a truncation), which is exact:
-    ``d(v . x)/dx = v``.
+    ``x = x_hi + x_lo`` with ``x_hi = k / 1024`` (a truncation, ``k < 1024``) and
+    ``0 <= x_lo < 2^-10``. Since ``1024 x_hi`` is an integer, ``v x_hi = (v mod 1024) x_hi`` modulo
+    1, a product of two 10-bit numbers that float32 holds exactly, so its fraction is exact for
+    every ``|v| < 2^24``; ``v x_lo`` (``|v x_lo| < |v| / 1024``) is rounded once and reduced
+    modulo 1 too, so the phase error grows only like ``|v| 2^-34``. The gradient flows through
+    ``x_lo`` (``x_hi`` is a truncation), which is exact: ``d(v . x)/dx = v``.
     """
     scale = jnp.asarray(1024.0, points.dtype)
     hi = jax.lax.stop_gradient(jnp.floor(points * scale) / scale)
     lo = points - hi
-    prod_hi = v[:, None, :] * hi[None, :, :]  # (c, n, 2)
-    frac_hi = prod_hi - jnp.floor(prod_hi)
-    return (
-        jnp.sum(frac_hi, axis=-1) + lo[None, :, 0] * v[:, None, 0] + lo[None, :, 1] * v[:, None, 1]
-    )
+    v_mod = v - scale * jnp.floor(v / scale)  # in [0, 1024), exact
+    prod_hi = v_mod[:, None, :] * hi[None, :, :]  # (c, n, 2), exact
+    prod_lo = v[:, None, :] * lo[None, :, :]
+    frac = (prod_hi - jnp.floor(prod_hi)) + (prod_lo - jax.lax.stop_gradient(jnp.floor(prod_lo)))
+    return jnp.sum(frac, axis=-1)
 
 
 def _direct_chunk(points, v):
@@ -183,7 +186,7 @@ def power_spectrum(points, freqs, *, method: str = "auto"):
 
     Args:
         points: ``(n, 2)`` in ``[0, 1)^2`` (float32, or float64 under ``jax.enable_x64``).
-        freqs: ``(m, 2)`` integer frequency vectors ``(v_x, v_y)``.
+        freqs: ``(m, 2)`` integer frequency vectors ``(v_x, v_y)`` with ``|v_x|, |v_y| < 2^24``.
         method: ``"auto"``, ``"direct"``, ``"nufft"`` (type 1 on the bounding grid) or
             ``"nufft3"`` (type 3 in rotated coordinates). All agree to ~1e-6 (float32) or
             ~1e-10 (float64) relative to ``P_S(0) = 1``, and all are differentiable in ``points``.
@@ -191,6 +194,11 @@ def power_spectrum(points, freqs, *, method: str = "auto"):
     check_choice("method", method, METHODS)
     points = check_points("points", points)
     freqs = check_frequencies("freqs", freqs)
+    if (
+        not isinstance(freqs, jax.core.Tracer)
+        and np.abs(np.asarray(freqs, np.int64)).max() >= _MAX_FREQ
+    ):
+        raise ValueError(f"freqs must satisfy |v_x|, |v_y| < 2^24, got up to {np.abs(freqs).max()}")
     pts = jnp.asarray(points)
     if pts.dtype not in (jnp.float32, jnp.float64):
         pts = pts.astype(jnp.float32)
