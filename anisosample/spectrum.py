@@ -28,7 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._validate import check_choice, check_frequencies, check_int, check_points
+from ._validate import check_choice, check_frequencies, check_int, check_key, check_points
 
 __all__ = [
     "power_spectrum",
@@ -273,8 +273,10 @@ def expected_power_spectrum(
     if isinstance(sampler, str):
         sampler = _samplers.get(sampler)
     n = check_int("n", n, minimum=1)
+    key = check_key("key", key)
     realizations = check_int("realizations", realizations, minimum=1)
     freqs = check_frequencies("freqs", freqs)
+    check_choice("method", method, METHODS)
     keys, one = _realizations(sampler, n, key, realizations, shift)
     acc = None
     for k in _progress(keys, desc="expected spectrum", disable=not progress):
@@ -293,7 +295,9 @@ def expected_power_spectrum_grid(
     if isinstance(sampler, str):
         sampler = _samplers.get(sampler)
     n = check_int("n", n, minimum=1)
+    key = check_key("key", key)
     realizations = check_int("realizations", realizations, minimum=1)
+    check_int("radius", radius, minimum=1)
     keys, one = _realizations(sampler, n, key, realizations, shift)
     acc = None
     for k in _progress(keys, desc="expected spectrum", disable=not progress):

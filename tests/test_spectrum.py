@@ -161,3 +161,15 @@ def test_float32_direct_gradient_equals_float64_gradient():
         )
     scale = np.abs(g64).max()
     assert np.abs(g32 - g64).max() < 1e-3 * scale
+
+
+def test_expected_spectrum_validates_before_sampling():
+    f = np.array([[1, 0]])
+    with pytest.raises(TypeError, match="key must be a single JAX PRNG key"):
+        spectrum.expected_power_spectrum("random", 16, 0, f, realizations=2)
+    with pytest.raises(TypeError, match="key must be a single JAX PRNG key"):
+        spectrum.expected_power_spectrum_grid("random", 16, 0, 3, realizations=2)
+    with pytest.raises(ValueError, match="radius must be >= 1"):
+        spectrum.expected_power_spectrum_grid("random", 16, jax.random.key(0), 0)
+    with pytest.raises(ValueError, match="method must be one of"):
+        spectrum.expected_power_spectrum("random", 16, jax.random.key(0), f, method="fft")
