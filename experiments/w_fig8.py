@@ -136,7 +136,10 @@ def main(argv=None):
     results = {s: run_scene(s, cfg, jax.random.fold_in(key, i), args.out, args.fresh)
                for i, s in enumerate(progress(present, desc=NAME))}
     pngs = figure(results, args.out)
-    json_path = common.write_record(args.out, NAME, {"scenes": results, "missing_scenes": missing},
+    images = {s: {m: np.round(asp.io.read_exr(args.out / f"{s}_{_slug(m)}_variance.exr")
+                              .astype(float), 15).tolist() for m in W.METHODS} for s in results}
+    json_path = common.write_record(args.out, NAME, {"scenes": results, "missing_scenes": missing,
+                                                     "pixel_variance": images},
                                     {**cfg, "scale": args.scale, "seed": args.seed,
                                      "methods": list(W.METHODS)}, started)
     print(f"figure: {pngs[0]}\nnumbers: {json_path}")

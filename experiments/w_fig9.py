@@ -156,8 +156,7 @@ def main(argv=None):
     results = {s: run_scene(s, cfg, jax.random.fold_in(key, i), args.out, args.fresh)
                for i, s in enumerate(progress(present, desc=NAME))}
     pngs = figure(results, args.out)
-    data = {"scenes": {s: {k: v for k, v in r.items() if k not in ("block_grid",)}
-                       for s, r in results.items()}, "missing_scenes": missing}
+    data = {"scenes": results, "missing_scenes": missing}
     json_path = common.write_record(args.out, NAME, data, {**cfg, "scale": args.scale,
                                     "seed": args.seed, "methods": list(W.METHODS)}, started)
     print(f"figure: {pngs[0]}\nnumbers: {json_path}")
