@@ -465,8 +465,14 @@ def fit_slope(ns, variances, std_errors=None, *, confidence: float = 0.95) -> Sl
         raise ValueError(
             f"ns and variances must have the same length >= 2, got {ns.size} and {v.size}"
         )
+    if not (np.all(np.isfinite(v)) and np.all(np.isfinite(ns))):
+        raise ValueError("ns and variances must be finite for a log-log fit")
     if np.any(v <= 0) or np.any(ns <= 0):
         raise ValueError("ns and variances must be positive for a log-log fit")
+    if len(np.unique(ns)) < 2:
+        raise ValueError(f"ns must hold at least 2 different sizes, got {ns.tolist()}")
+    if not 0.0 < float(confidence) < 1.0:
+        raise ValueError(f"confidence must lie in (0, 1), got {confidence}")
     x, y = np.log(ns), np.log(v)
     if std_errors is None:
         w = np.ones_like(y)
@@ -487,7 +493,7 @@ def fit_slope(ns, variances, std_errors=None, *, confidence: float = 0.95) -> Sl
         scale = max(1.0, math.sqrt(chi2 / dof))
     se_slope = math.sqrt(cov[1, 1]) * scale
     q = float(scipy.stats.t.ppf(0.5 + confidence / 2, dof)) if dof > 0 else float("inf")
-    if std_errors is not None and dof > 0 and scale == 1.0:
+    if std_errors is not None and scale == 1.0:  # known errors explain the scatter: normal
         q = float(scipy.stats.norm.ppf(0.5 + confidence / 2))
     return SlopeFit(
         float(beta[1]),
@@ -578,8 +584,15 @@ def convergence(
         for m in ns:
             row.append(
                 estimate_variance(
-                    f, smp, m, key, realizations, exact,
-                    randomization=mode, patterns=pats, confidence=confidence,
+                    f,
+                    smp,
+                    m,
+                    key,
+                    realizations,
+                    exact,
+                    randomization=mode,
+                    patterns=pats,
+                    confidence=confidence,
                 )
             )
             bar.update(1)

@@ -82,8 +82,9 @@ def test_results_do_not_depend_on_chunking(getkey):
     key = getkey()
     for s in ("random", "pmj02"):
         a = V.realization_estimates(f, s, 256, key, 40, randomization="shift", patterns=2)
-        b = V.realization_estimates(f, s, 256, key, 40, randomization="shift", patterns=2,
-                                    chunk_elements=256 * 7)
+        b = V.realization_estimates(
+            f, s, 256, key, 40, randomization="shift", patterns=2, chunk_elements=256 * 7
+        )
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-7)
         a = V.realization_estimates(f, s, 256, key, 40)
         b = V.realization_estimates(f, s, 256, key, 40, chunk_elements=256 * 7)
@@ -97,8 +98,9 @@ def test_fixed_set_shift_identity_exact(getkey):
     pts = samplers.get("jittered")(getkey(), n)
     f = I.Polygon([(0, 0), (1, 0), (1, 1)])
     k = np.arange(1, 20001)
-    freqs = np.concatenate([np.stack([k, 0 * k], -1), np.stack([0 * k, k], -1),
-                            np.stack([k, -k], -1)])
+    freqs = np.concatenate(
+        [np.stack([k, 0 * k], -1), np.stack([0 * k, k], -1), np.stack([k, -k], -1)]
+    )
     ps = np.asarray(spectrum.power_spectrum(pts, freqs, method="direct"), np.float64)
     pf = f.power_spectrum(freqs)
     # each ray also has its mirror -v with the same P_S and P_f
@@ -118,8 +120,9 @@ def _grid(radius):
     return v[np.any(v != 0, axis=-1)]
 
 
-@pytest.mark.parametrize("sampler,shape", [("random", "polygon"), ("jittered", "polygon"),
-                                           ("jittered", "bump")])
+@pytest.mark.parametrize(
+    "sampler,shape", [("random", "polygon"), ("jittered", "polygon"), ("jittered", "bump")]
+)
 def test_eq5_prediction_matches_measurement(sampler, shape, getkey):
     """W Eq. 5 with closed-form <P_S> (random: 1/N; n x n jitter: (1 - sinc^2 sinc^2)/N) and the
     integrand's exact P_f, against the measured variance of the homogenized pattern (10 %)."""
@@ -147,8 +150,9 @@ def test_eq5_is_a_finite_sum_for_a_trigonometric_texture(getkey):
     v = np.array([k for k, _ in tex._terms() if k != (0, 0)])
     ps = (1 - (np.sinc(v[:, 0] / side) * np.sinc(v[:, 1] / side)) ** 2) / n
     predicted = V.predicted_variance(ps, tex.power_spectrum(v))
-    est = V.estimate_variance(tex, "jittered", n, getkey(), 4096, tex.integral,
-                              randomization="fresh+shift")
+    est = V.estimate_variance(
+        tex, "jittered", n, getkey(), 4096, tex.integral, randomization="fresh+shift"
+    )
     assert abs(est.variance - predicted) < 4 * est.std_error, (est.variance, predicted)
 
 
@@ -196,22 +200,27 @@ def test_pmj02bn_axis_edge_beats_30_degree_edge():
 def test_smooth_bump_converges_at_least_n_minus_1_9():
     f = I.GaussianBump()
     # a shift keeps P_S, and the bump is smooth on the torus: shifts of 4 scrambles per n
-    r = V.convergence(f, ["sobol-owen"], SQUARES, jax.random.key(14), 512, randomization="shift",
-                      patterns=4)
+    r = V.convergence(
+        f, ["sobol-owen"], SQUARES, jax.random.key(14), 512, randomization="shift", patterns=4
+    )
     assert r.fits["sobol-owen"].slope <= -1.9
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("sampler,f,want", [
-    ("sobol-owen", I.edges([30.0]), -1.5),
-    ("pmj02bn", I.edges([30.0]), -1.5),
-    ("jittered", I.edges([60.0]), -1.5),
-    ("cmj", I.edges([30.0]), -1.5),
-])
+@pytest.mark.parametrize(
+    "sampler,f,want",
+    [
+        ("sobol-owen", I.edges([30.0]), -1.5),
+        ("pmj02bn", I.edges([30.0]), -1.5),
+        ("jittered", I.edges([60.0]), -1.5),
+        ("cmj", I.edges([30.0]), -1.5),
+    ],
+)
 def test_edge_slopes_slow(sampler, f, want):
     ns = [2**k for k in range(4, 15, 2)]
-    r = V.convergence(f, [sampler], ns, jax.random.key(21), 4096,
-                      patterns=8 if sampler == "pmj02bn" else 1)
+    r = V.convergence(
+        f, [sampler], ns, jax.random.key(21), 4096, patterns=8 if sampler == "pmj02bn" else 1
+    )
     _check_slope(r.fits[sampler], want, 0.1)
 
 
@@ -251,8 +260,8 @@ def test_randomizations_and_fixed_sets(getkey):
     # exact= gives the mean squared error about the integral
     e = V.estimate_variance(f, "random", 64, key, 512, exact=f.integral)
     assert e.variance == pytest.approx(
-        np.mean((V.realization_estimates(f, "random", 64, key, 512) - f.integral) ** 2),
-        rel=1e-5)
+        np.mean((V.realization_estimates(f, "random", 64, key, 512) - f.integral) ** 2), rel=1e-5
+    )
 
 
 def test_bad_input_is_refused():
@@ -271,8 +280,9 @@ def test_bad_input_is_refused():
     with pytest.raises(ValueError, match="patterns applies"):
         V.estimator_variance(f, "random", 64, key, 8, patterns=2)
     with pytest.raises(ValueError, match="fixed point set"):
-        V.estimator_variance(f, np.full((64, 2), 0.5, np.float32), 64, key, 8,
-                             randomization="fresh")
+        V.estimator_variance(
+            f, np.full((64, 2), 0.5, np.float32), 64, key, 8, randomization="fresh"
+        )
     with pytest.raises(ValueError, match="unknown sampler"):
         V.estimator_variance(f, "halton", 64, key, 8)
     with pytest.raises(TypeError, match="key"):
@@ -287,8 +297,19 @@ def test_cli_variance_writes_table_and_json(tmp_path, capsys):
     from anisosample import cli
 
     out = tmp_path / "v.json"
-    argv = ["variance", "--integrand", "edges:30,75", "--sampler", "random,pmj02",
-            "--n", "16,64,256", "--realizations", "64", "-o", str(out)]
+    argv = [
+        "variance",
+        "--integrand",
+        "edges:30,75",
+        "--sampler",
+        "random,pmj02",
+        "--n",
+        "16,64,256",
+        "--realizations",
+        "64",
+        "-o",
+        str(out),
+    ]
     assert cli.main(argv) == 0
     text = capsys.readouterr().out
     assert "slope" in text and "pmj02" in text
@@ -298,3 +319,33 @@ def test_cli_variance_writes_table_and_json(tmp_path, capsys):
     assert rec["ns"] == [16, 64, 256] and len(rec["samplers"]["random"]["variance"]) == 3
     assert cli.main(argv) == 2  # refuses to overwrite
     assert cli.main(["variance", "--integrand", "wave:3", "-o", str(tmp_path / "w.json")]) == 2
+
+
+def test_fit_slope_two_points_closed_form_and_bad_input():
+    """Two sizes with known errors: the slope's standard error is exactly
+    sqrt(se1^2 + se2^2) / log(n2 / n1) (errors of log Var are se / Var); the interval used to be
+    infinite (Student t with 0 dof) although nothing is unknown."""
+    fit = V.fit_slope([16, 256], [1e-2, 1e-4], [1e-3, 2e-5])
+    want = math.sqrt(0.1**2 + 0.2**2) / math.log(16)
+    assert fit.slope == pytest.approx(-math.log(100) / math.log(16), rel=1e-12)
+    assert fit.std_error == pytest.approx(want, rel=1e-12)
+    assert fit.ci_high - fit.ci_low == pytest.approx(2 * 1.959963984540054 * want, rel=1e-9)
+    with pytest.raises(ValueError, match="confidence must lie in"):
+        V.fit_slope([16, 64, 256], [1e-2, 1e-3, 1e-4], confidence=1.5)
+    with pytest.raises(ValueError, match="at least 2 different sizes"):
+        V.fit_slope([16, 16], [1e-2, 1e-3])
+    with pytest.raises(ValueError, match="finite"):
+        V.fit_slope([16, 64], [1e-2, np.nan])
+
+
+def test_fit_slope_interval_covers_at_its_confidence():
+    """Coverage of the 95 % interval over 2000 synthetic sweeps with known 10 % log-normal
+    errors: binomial sd 0.005, so [0.93, 0.97] is a 4-sigma band around 0.95."""
+    rng = np.random.default_rng(3)
+    ns = 2.0 ** np.arange(4, 12, 1)
+    hits = 0
+    for _ in range(2000):
+        v = 0.7 * ns**-1.5 * np.exp(0.1 * rng.standard_normal(ns.size))
+        fit = V.fit_slope(ns, v, 0.1 * v)
+        hits += fit.ci_low < -1.5 < fit.ci_high
+    assert 0.93 <= hits / 2000 <= 0.97
