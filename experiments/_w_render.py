@@ -101,8 +101,9 @@ def block_samples(scene, base, block_px: int, samples: int = 96) -> np.ndarray:
 def estimate_blocks(scene, base, block_px: int, samples: int = 96, k: int = 2):
     """W Sec. 5.3 per-block estimate from the blocks' tiled pixel samples (module docstring).
 
-    Returns (Estimate with leading axes (rows, cols), seconds including the integrand samples,
-    per-block standard deviation of the samples).
+    Returns (Estimate with leading axes (rows, cols), seconds including the integrand samples
+    (not the strength), per-block edge strength: the orientation histogram's mass outside the
+    zeroed axis windows, W Sec. 5.1).
     """
     t0 = time.perf_counter()
     grid = block_samples(scene, base, block_px, samples)
@@ -110,8 +111,12 @@ def estimate_blocks(scene, base, block_px: int, samples: int = 96, k: int = 2):
     jax.block_until_ready(est)
     seconds = time.perf_counter() - t0
     by, bx = grid.shape[0] // samples, grid.shape[1] // samples
-    spread = grid.reshape(by, samples, bx, samples).std(axis=(1, 3))
-    return est, seconds, spread
+    blocks = grid.reshape(by, samples, bx, samples).transpose(0, 2, 1, 3)
+    # edge strength: gradient mass of the block's histogram outside the zeroed axis windows
+    strength = np.array([[float(np.sum(directions.zero_axes(
+        directions.orientation_histogram(blocks[a, b])))) for b in range(bx)]
+        for a in range(by)])
+    return est, seconds, strength
 
 
 def block_grid_values(scene, base, block, block_px: int, samples: int = 96) -> np.ndarray:
@@ -190,8 +195,8 @@ def region_pixels(block, block_px: int, region_px: int) -> list[tuple[int, int]]
 def pick_block(est, *, strength=None, exclude=(), min_axis_deg: float = 10.0):
     """The block for W Fig. 9's region: among blocks whose first direction the aligned table can
     match, prefer directions at least ``min_axis_deg`` from both axes (where alignment matters),
-    then the largest ``strength`` (e.g. the spread of the block's samples; default: the
-    direction's confidence). None if no block has a matchable direction."""
+    then the largest ``strength`` (e.g. the block's edge strength from :func:`estimate_blocks`;
+    default: the direction's confidence). None if no block has a matchable direction."""
     d = np.asarray(est.directions_deg)[..., 0]
     v = np.asarray(est.valid)[..., 0]
     c = np.asarray(est.confidence)[..., 0] if strength is None else np.asarray(strength)

@@ -40,14 +40,14 @@ ALL_SCENES = ("cornell", "blinds", "attic", "dof")
 
 def run_scene(name, cfg, key, out, fresh):
     settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist()),
-                "estimation_layout": "tiles"}
+                "estimation_layout": "tiles", "block_rule": "edge strength"}
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
     if cached is not None and cached.get("settings") == settings and (out / f"{name}.exr").exists():
         return cached
     scene = W.load_scene(name, cfg["size"], cfg["size"])
     base = W.base_integrand(scene, name)
-    est, seconds, spread = W.estimate_blocks(scene, base, cfg["block_px"], cfg["samples"])
+    est, seconds, strength = W.estimate_blocks(scene, base, cfg["block_px"], cfg["samples"])
     img = render.render(scene, key, spp=cfg["preview_spp"], sampler="pmj02bn", progress=False,
                         square_aperture=W.SCENES[name]["square_aperture"])
     meta = {**asp.io.provenance(), **img.settings}
@@ -55,7 +55,7 @@ def run_scene(name, cfg, key, out, fresh):
     asp.io.save_png(out / f"{name}.png", render.tonemap(img.mean), overwrite=True)
     v = np.asarray(est.valid)
     counts = np.bincount(v.sum(-1).reshape(-1), minlength=3).tolist()
-    block = W.pick_block(est, strength=spread)
+    block = W.pick_block(est, strength=strength)
     rec = {
         "settings": settings,
         "blocks": list(v.shape[:2]),

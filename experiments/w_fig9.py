@@ -5,10 +5,10 @@ the shipped look-alikes under experiments/scenes/, attic only if its XML exists)
 directions are estimated per block of pixels (W Sec. 5.3, 96^2 samples per block, tiled
 over the block's pixels; see ``experiments/_w_render.py``), one block is picked
 (``_w_render.pick_block``: a first direction that a 3-direction table can match, at least 10
-degrees from both axes if any block has one, then the largest spread of the block's samples;
-outlined in ``w_fig7``'s maps), and in a region of pixels at its centre the variance of each
-pixel's estimator (fixed primary hit, W's setting) is measured over toroidal shifts of one point
-set per method (fresh per n) and averaged over the region:
+degrees from both axes if any block has one, then the largest edge strength, i.e. orientation-
+histogram mass off the axes; outlined in ``w_fig7``'s maps), and in a region of pixels at its
+centre the variance of each pixel's estimator (fixed primary hit, W's setting) is measured
+over toroidal shifts of one point set per method (fresh per n) and averaged over the region:
 
 * ``pmj02bn`` (matches 0 and 90 degrees only),
 * ``sheared pmj02bn`` (Singh & Jarosz 2017: one axis re-aimed at the block's direction),
@@ -54,15 +54,15 @@ ALL_SCENES = ("cornell", "blinds", "attic", "dof")
 def run_scene(name, cfg, key, out, fresh):
     settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist()),
                 "estimation_layout": "tiles",
-                "block_rule": "off-axis >= 10 deg, then largest sample spread"}
+                "block_rule": "off-axis >= 10 deg, then largest edge strength"}
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
     if cached is not None and cached.get("settings") == settings:
         return cached
     scene = W.load_scene(name, cfg["size"], cfg["size"])
     base = W.base_integrand(scene, name)
-    est, est_seconds, spread = W.estimate_blocks(scene, base, cfg["block_px"])
-    block = W.pick_block(est, strength=spread)
+    est, est_seconds, strength = W.estimate_blocks(scene, base, cfg["block_px"])
+    block = W.pick_block(est, strength=strength)
     if block is None:
         print(f"{name}: no block with a matchable extra direction; skipped")
         rec = {"settings": settings, "skipped": "no block with a matchable extra direction"}
