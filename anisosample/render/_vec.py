@@ -2,9 +2,9 @@
 
 XLA's CPU backend (jaxlib 0.10.2) miscompiles some fused reductions over a trailing axis of
 length 3 (``jnp.sum(a * b, axis=-1)`` of a ``jnp.cross``) once a vmapped batch passes a few
-thousand rows: rows beyond about 2/3 of the batch come out wrong (see
-``tests/render/test_xla_reduction.py``). Spelling dot products and norms out component by
-component avoids the reduction entirely.
+thousand rows: rows beyond about 2/3 of the batch come out wrong (regression test:
+``test_large_batches_match_small_ones`` in ``tests/render/test_analytic.py``). Spelling dot
+products and norms out component by component avoids the reduction entirely.
 """
 
 import jax.numpy as jnp
