@@ -65,6 +65,13 @@ DEFAULT_NODES = 4
 _TWO_PI = 2.0 * math.pi
 
 
+def _wrap_2pi(x):
+    """``x mod 2 pi`` in ``[0, 2 pi)``: ``mod`` of a tiny negative float32 rounds up to ``2 pi``
+    itself (the float nearest 2 pi), which is the same angle as 0."""
+    r = jnp.mod(x, _TWO_PI)
+    return jnp.where(r >= jnp.asarray(_TWO_PI, r.dtype), jnp.zeros_like(r), r)
+
+
 # --- Bessel ratios ------------------------------------------------------------------------------
 
 
@@ -321,7 +328,7 @@ def _fit_mle(hist):
     s = jnp.sum(hist * jnp.sin(x), axis=-1)
     rbar = jnp.sqrt(c * c + s * s) / jnp.where(total > 0, total, 1.0)
     defined = rbar > 1e-6
-    mu = jnp.where(defined, jnp.mod(jnp.arctan2(s, c), _TWO_PI), 0.0)
+    mu = jnp.where(defined, _wrap_2pi(jnp.arctan2(s, c)), 0.0)
     return MLEFit(mu, kappa_from_resultant(rbar), rbar, defined)
 
 
@@ -382,7 +389,7 @@ def _fit_reverse_kl(hist, mu0, kappa0, floor, nodes, kappa_max, rtol, atol, max_
     sol = optx.minimise(
         objective, optx.BFGS(rtol=rtol, atol=atol), y0, max_steps=max_steps, throw=False
     )
-    mu = jnp.mod(sol.value[0], _TWO_PI)
+    mu = _wrap_2pi(sol.value[0])
     kappa = jnp.exp(jnp.clip(sol.value[1], lo, hi))
     value = objective(sol.value, None)
     converged = sol.result == optx.RESULTS.successful

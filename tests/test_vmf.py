@@ -14,12 +14,39 @@ from anisosample import vmf
 
 KAPPAS = [0.5, 1.0, 2.0, 5.0, 10.0, 30.0, 50.0, 100.0, 1000.0]
 # references/directions_vmf.md Sec. 3 (scipy, float64)
-A_REF = [0.2424996126, 0.4463899659, 0.6977746580, 0.8933831370, 0.9485998260, 0.9831895554,
-         0.9899489674, 0.9949873730, 0.9994998749]
-LOGI0_REF = [0.0615497192, 0.2359143585, 0.8239935415, 3.3046817758, 7.9429720831,
-             27.3847014332, 47.1275755019, 96.7797326899, 995.6273088899]
-DA_REF = [0.4561947, 0.3543460, 0.1642232, 2.318994e-2, 5.298388e-3, 5.653130e-4, 2.020626e-4,
-          5.025383e-5, 5.002504e-7]
+A_REF = [
+    0.2424996126,
+    0.4463899659,
+    0.6977746580,
+    0.8933831370,
+    0.9485998260,
+    0.9831895554,
+    0.9899489674,
+    0.9949873730,
+    0.9994998749,
+]
+LOGI0_REF = [
+    0.0615497192,
+    0.2359143585,
+    0.8239935415,
+    3.3046817758,
+    7.9429720831,
+    27.3847014332,
+    47.1275755019,
+    96.7797326899,
+    995.6273088899,
+]
+DA_REF = [
+    0.4561947,
+    0.3543460,
+    0.1642232,
+    2.318994e-2,
+    5.298388e-3,
+    5.653130e-4,
+    2.020626e-4,
+    5.025383e-5,
+    5.002504e-7,
+]
 
 
 def test_bessel_ratios_match_reference_table():
@@ -65,8 +92,16 @@ def test_pdf_matches_scipy_vonmises():
 
 @pytest.mark.parametrize(
     "rbar,kappa",
-    [(0.10, 0.201008), (0.30, 0.629215), (0.50, 1.159320), (0.70, 2.013628), (0.85, 3.680408),
-     (0.90, 5.304689), (0.95, 10.271689), (0.99, 50.253847)],
+    [
+        (0.10, 0.201008),
+        (0.30, 0.629215),
+        (0.50, 1.159320),
+        (0.70, 2.013628),
+        (0.85, 3.680408),
+        (0.90, 5.304689),
+        (0.95, 10.271689),
+        (0.99, 50.253847),
+    ],
 )
 def test_kappa_from_resultant_table(rbar, kappa):
     with jax.enable_x64(True):
@@ -84,12 +119,14 @@ def test_kappa_from_resultant_edge_cases():
 
 def test_negentropy_is_numerical_integral_of_q_log_q():
     for kappa in [0.5, 5.0, 50.0, 500.0]:
+
         def integrand(x, kappa=kappa):
             logq = scipy.stats.vonmises.logpdf(x, kappa)
             return np.exp(logq) * logq
 
-        ref, _ = scipy.integrate.quad(integrand, -math.pi, math.pi, points=[0.0], limit=200,
-                                      epsabs=1e-13, epsrel=1e-12)
+        ref, _ = scipy.integrate.quad(
+            integrand, -math.pi, math.pi, points=[0.0], limit=200, epsabs=1e-13, epsrel=1e-12
+        )
         with jax.enable_x64(True):
             got = float(vmf.negentropy(jnp.float64(kappa)))
         assert got == pytest.approx(ref, abs=1e-9), kappa
@@ -126,8 +163,11 @@ def test_reverse_kl_closed_form_equals_numerical_eq17(mu, kappa):
     hist = _test_hist()
     ref = _eq17_by_quadrature(hist, mu, kappa, floor=1e-4)
     with jax.enable_x64(True):
-        got = float(vmf.reverse_kl(jnp.asarray(hist), jnp.float64(mu), jnp.float64(kappa),
-                                   floor=1e-4, nodes=8))
+        got = float(
+            vmf.reverse_kl(
+                jnp.asarray(hist), jnp.float64(mu), jnp.float64(kappa), floor=1e-4, nodes=8
+            )
+        )
     assert got == pytest.approx(ref, abs=1e-6)
     got32 = float(vmf.reverse_kl(jnp.asarray(hist, jnp.float32), mu, kappa, floor=1e-4))
     assert got32 == pytest.approx(ref, abs=1e-4 * max(1.0, abs(ref)))
@@ -189,8 +229,9 @@ def test_reverse_kl_all_mu_matches_pointwise():
 
 def _fig4_hist(nbins=360):
     """W Fig. 4: 3/4 vMF(90 deg, 10) + 1/4 vMF(180 deg, 30), exact bin masses on [0, 2 pi)."""
-    return (0.75 * vmf.bin_masses(math.pi / 2, 10.0, nbins)
-            + 0.25 * vmf.bin_masses(math.pi, 30.0, nbins))
+    return 0.75 * vmf.bin_masses(math.pi / 2, 10.0, nbins) + 0.25 * vmf.bin_masses(
+        math.pi, 30.0, nbins
+    )
 
 
 def test_fig4_reverse_kl_is_mode_seeking_and_mle_mode_averaging():
@@ -265,3 +306,19 @@ def test_mle_of_uniform_histogram_is_flagged():
     fit = vmf.fit_mle(jnp.ones(180))
     assert not bool(fit.defined) and float(fit.kappa) == pytest.approx(0.0, abs=1e-4)
     assert np.isfinite(float(fit.mu))
+
+
+def test_fitted_mu_stays_below_two_pi_for_modes_at_zero():
+    """A mode centred on bin 0 can be fitted at mu = -1e-7; float32 mod(-1e-7, 2 pi) is the float
+    nearest 2 pi, outside the documented [0, 2 pi). Both fits must return a mu in [0, 2 pi) that
+    is circularly ~0 (the histogram is symmetric about 0 up to 1e-6)."""
+    two_pi = np.float32(2 * np.pi)
+    h = np.zeros(180, np.float32)
+    h[0], h[1], h[-1] = 1.0, 0.5, 0.5
+    fit = vmf.fit_reverse_kl(h, -1e-7, 50.0)
+    h2 = h.copy()
+    h2[-1] += 1e-6
+    mle = vmf.fit_mle(h2)
+    for mu in (float(fit.mu), float(mle.mu)):
+        assert 0.0 <= mu < two_pi
+        assert min(mu, 2 * np.pi - mu) < 1e-4
