@@ -46,7 +46,7 @@ from anisosample.render.bsdf import eval_bsdf
 
 NAME = "beyond_warped_aligned"
 SCALES = {
-    "small": dict(size=64, candidates=12, pixels=6, n=256, realizations=256, patterns=8,
+    "small": dict(size=64, candidates=12, pixels=6, n=256, realizations=1024, patterns=16,
                   probe=24),
     "paper": dict(size=128, candidates=24, pixels=24, n=256, realizations=2048, patterns=32,
                   probe=32),
