@@ -188,8 +188,9 @@ def bin_masses(mu, kappa, nbins: int, *, nodes: int = DEFAULT_NODES):
     and 4 nodes; raise ``nodes`` for narrower q).
     """
     mu = jnp.asarray(mu)
-    dtype = jnp.result_type(mu, jnp.float32) if not jnp.issubdtype(mu.dtype, jnp.floating) \
-        else mu.dtype
+    dtype = (
+        jnp.result_type(mu, jnp.float32) if not jnp.issubdtype(mu.dtype, jnp.floating) else mu.dtype
+    )
     t, w = _gauss_legendre(nodes)
     delta = _TWO_PI / nbins
     x = bin_centers(nbins, dtype)[:, None] + jnp.asarray(t, dtype)[None, :] * delta
@@ -222,8 +223,9 @@ def _check_hist(hist):
     return hist
 
 
-def reverse_kl(hist, mu, kappa, *, floor: float = DEFAULT_FLOOR, nodes: int = DEFAULT_NODES,
-               mask=None):
+def reverse_kl(
+    hist, mu, kappa, *, floor: float = DEFAULT_FLOOR, nodes: int = DEFAULT_NODES, mask=None
+):
     """Reverse KL ``D_KL(q(. | mu, kappa) || p)`` of W Eqs. 17-18 against a histogram ``p``.
 
     ``p`` is the piecewise-constant density of the normalised, floored histogram (module
@@ -242,6 +244,8 @@ def reverse_kl(hist, mu, kappa, *, floor: float = DEFAULT_FLOOR, nodes: int = DE
     floor = check_positive_float("floor", floor)
     nodes = check_int("nodes", nodes, minimum=1)
     _check_kappa(kappa)
+    _check_mu("mu", mu)
+    mask = _check_mask(mask, hist.shape[-1])
     return _reverse_kl(hist, mu, kappa, floor, nodes, mask)
 
 
@@ -253,6 +257,25 @@ def _reverse_kl(hist, mu, kappa, floor, nodes, mask=None):
     m = jnp.asarray(mask, q.dtype)
     cross = jnp.sum(q * m * logp, axis=-1) / jnp.maximum(jnp.sum(q * m, axis=-1), 1e-30)
     return negentropy(kappa) - cross
+
+
+def _check_mask(mask, nbins: int):
+    """``mask``: ``None`` or ``(K,)`` booleans with at least one observed (True) bin."""
+    if mask is None or isinstance(mask, jax.core.Tracer):
+        return mask
+    m = np.asarray(mask)
+    if m.shape != (nbins,) or m.dtype != np.bool_:
+        raise ValueError(
+            f"mask must be a boolean array of shape ({nbins},), got {m.dtype} {m.shape}"
+        )
+    if not m.any():
+        raise ValueError("mask must mark at least one bin as observed (True)")
+    return jnp.asarray(m)
+
+
+def _check_mu(name: str, mu):
+    if not isinstance(mu, jax.core.Tracer) and not np.all(np.isfinite(np.asarray(mu))):
+        raise ValueError(f"{name} must be finite (radians), got {np.asarray(mu).tolist()}")
 
 
 def _check_kappa(kappa):
@@ -281,6 +304,7 @@ def reverse_kl_all_mu(
     floor = check_positive_float("floor", floor)
     nodes = check_int("nodes", nodes, minimum=1)
     _check_kappa(kappa)
+    mask = _check_mask(mask, hist.shape[-1])
     return _reverse_kl_all_mu(hist, kappa, floor, nodes, mask)
 
 
@@ -372,12 +396,19 @@ def fit_reverse_kl(
     if kappa_min >= kappa_max:
         raise ValueError(f"kappa_min must be < kappa_max, got {kappa_min} >= {kappa_max}")
     _check_kappa(kappa0)
-    return _fit_reverse_kl(hist, mu0, kappa0, floor, nodes, kappa_max, rtol, atol, max_steps,
-                           mask, kappa_min)
+    _check_mu("mu0", mu0)
+    mask = _check_mask(mask, hist.shape[-1])
+    rtol = check_positive_float("rtol", rtol)
+    atol = check_positive_float("atol", atol)
+    max_steps = check_int("max_steps", max_steps, minimum=1)
+    return _fit_reverse_kl(
+        hist, mu0, kappa0, floor, nodes, kappa_max, rtol, atol, max_steps, mask, kappa_min
+    )
 
 
-def _fit_reverse_kl(hist, mu0, kappa0, floor, nodes, kappa_max, rtol, atol, max_steps,
-                    mask=None, kappa_min=1e-3):
+def _fit_reverse_kl(
+    hist, mu0, kappa0, floor, nodes, kappa_max, rtol, atol, max_steps, mask=None, kappa_min=1e-3
+):
     dtype = hist.dtype
     lo, hi = math.log(kappa_min), math.log(kappa_max)
 

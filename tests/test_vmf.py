@@ -322,3 +322,20 @@ def test_fitted_mu_stays_below_two_pi_for_modes_at_zero():
     for mu in (float(fit.mu), float(mle.mu)):
         assert 0.0 <= mu < two_pi
         assert min(mu, 2 * np.pi - mu) < 1e-4
+
+
+def test_fit_and_objective_options_are_validated():
+    h = jnp.ones(36)
+    cases = [
+        (lambda: vmf.fit_reverse_kl(h, 0.0, 1.0, rtol=0.0), "rtol must be finite and > 0"),
+        (lambda: vmf.fit_reverse_kl(h, 0.0, 1.0, atol=-1.0), "atol must be finite and > 0"),
+        (lambda: vmf.fit_reverse_kl(h, 0.0, 1.0, max_steps=0), "max_steps must be >= 1"),
+        (lambda: vmf.fit_reverse_kl(h, float("nan"), 1.0), "mu0 must be finite"),
+        (lambda: vmf.reverse_kl(h, float("inf"), 1.0), "mu must be finite"),
+        (lambda: vmf.reverse_kl(h, 0.0, 1.0, mask=np.ones(35, bool)), r"mask must be .* \(36,\)"),
+        (lambda: vmf.reverse_kl_all_mu(h, 1.0, mask=np.ones(36)), "mask must be a boolean"),
+        (lambda: vmf.fit_reverse_kl(h, 0.0, 1.0, mask=np.zeros(36, bool)), "at least one bin"),
+    ]
+    for call, message in cases:
+        with pytest.raises(ValueError, match=message):
+            call()
