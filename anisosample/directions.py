@@ -119,6 +119,10 @@ class _Params:
 
 
 def _params(**kw) -> _Params:
+    known = {f.name for f in dataclasses.fields(_Params)}
+    unknown = sorted(set(kw) - known)
+    if unknown:  # a misspelled option must not fall back silently to its default
+        raise TypeError(f"unknown option(s) {unknown}; known options: {sorted(known)}")
     p = {}
     for name in (
         "sigma_px",

@@ -221,3 +221,13 @@ def test_zeroed_windows_are_filled_from_kept_neighbours_for_the_objective():
     assert (a[1], b[1]) == (3, 3) and (a[179], b[179]) == (177, 177)
     assert {int(a[0]), int(b[0])} == {3, 177} and {int(a[90]), int(b[90])} == {87, 93}
     assert np.all(keep[a]) and np.all(keep[b])
+
+
+def test_misspelled_options_raise_instead_of_falling_back_to_defaults():
+    ok = grid(step(30.0), 32)
+    with pytest.raises(TypeError, match=r"unknown option\(s\) \['kapa'\]"):
+        directions.estimate(ok, kapa=5.0)
+    with pytest.raises(TypeError, match="known options"):
+        directions.estimate_from_histogram(np.ones(180, np.float32), treshold=0.5)
+    with pytest.raises(TypeError, match="unknown option"):
+        directions.estimate_blocks(np.zeros((32, 32), np.float32), samples_per_block=32, sigma=1.0)
