@@ -520,7 +520,7 @@ def aligned_sampler(*, integrand=None, values=None, directions_deg=None, k: int 
         raise ValueError("aligned sampler needs exactly one of integrand=, values= or "
                          "directions_deg=")
     k = check_int("k", k, minimum=1, maximum=2)
-    check_choice("fallback", fallback, _samplers.names())
+    check_choice("fallback", fallback, _samplers.BASELINES)  # option-free samplers only
     if directions_deg is not None:
         if isinstance(directions_deg, int | float | np.number):
             directions_deg = (directions_deg,)

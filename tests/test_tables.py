@@ -416,3 +416,13 @@ def test_batched_build_redoes_a_group_identically(tmp_path):
     np.testing.assert_array_equal(tab.load((20,)), b)
     with pytest.raises(ValueError, match="other settings"):  # batch is part of the settings
         tables.build(64, 3, out=out, sets=[(10,)], steps=10, show_progress=False)
+
+
+def test_aligned_fallback_must_be_an_option_free_baseline():
+    """'sheared' and 'aligned' are registered names too, but need options: as a fallback they
+    failed only when the sampler was built, with a message about another parameter."""
+    for name in ("sheared", "aligned"):
+        with pytest.raises(ValueError, match="fallback must be one of"):
+            tables.aligned_sampler(directions_deg=[0.0], fallback=name)
+    s = tables.aligned_sampler(directions_deg=[0.0], fallback="sobol-owen")
+    assert s.directions_deg == () and s(jax.random.key(0), 16).shape == (16, 2)
