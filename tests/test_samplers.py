@@ -268,3 +268,27 @@ def test_extreme_jitter_stays_in_its_stratum(monkeypatch, name, n, u):
     if name == "cmj":
         assert sorted(np.floor(pts[:, 0] * n).astype(int)) == list(range(n))
         assert sorted(np.floor(pts[:, 1] * n).astype(int)) == list(range(n))
+
+
+@pytest.mark.parametrize("theta", [60.0, 120.0])
+def test_shear_vertical_identities(theta):
+    """Directions in (45, 135) deg use the vertical shear y' = (y + t x) mod 1 with t = -cot theta
+    (only the horizontal branch was checked): x is kept, y is recovered exactly, and the Fourier
+    shear theorem P'(a, b) = P(a + b t, b) holds; the (0, k) axis's low energy moves to theta."""
+    n = 1024
+    pts = samplers.get("cmj")(jax.random.key(4), n)
+    sh = np.asarray(samplers.shear(pts, theta), dtype=np.float64)
+    t = -1.0 / np.tan(np.radians(theta))
+    p = np.asarray(pts, dtype=np.float64)
+    np.testing.assert_array_equal(sh[:, 0], p[:, 0])  # x kept
+    back = np.mod(sh[:, 1] - t * sh[:, 0], 1.0)
+    err = np.abs(back - p[:, 1])
+    np.testing.assert_allclose(np.minimum(err, 1 - err), 0, atol=2e-6)
+    for a, b in [(0, 1), (2, 3), (-4, 10)]:
+        ph = 2 * np.pi * ((a + b * t) * p[:, 0] + b * p[:, 1])
+        rhs = (np.cos(ph).sum() ** 2 + np.sin(ph).sum() ** 2) / n**2
+        assert abs(brute_force_spectrum(sh, [[a, b]])[0] - rhs) < 1e-5
+    r = np.radians(theta)
+    ks = np.arange(4, 200)
+    ray = np.stack([np.rint(ks * np.cos(r)), np.rint(ks * np.sin(r))], axis=1)
+    assert brute_force_spectrum(sh, ray).mean() < 0.5 * brute_force_spectrum(pts, ray).mean()
