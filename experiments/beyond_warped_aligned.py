@@ -175,6 +175,8 @@ def plot(results, summary, out):
     ax.set_yticks(np.arange(len(names)), names, fontsize=7)
     ax.invert_yaxis()
     ax.set_xscale("log")
+    vals = [v for v in summary.values() if np.isfinite(v) and v > 0]
+    ax.set_xlim(min([0.1, *vals]) * 0.8, max([1.0, *vals]) * 1.25)
     ax.set_xlabel("variance / (base + pmj02bn), geometric mean over pixels")
     ax.set_title("aligned points through composed warps", fontsize=9)
     return aplot.save_figure(fig, out / f"{NAME}.png")
