@@ -3,9 +3,10 @@
 Every sampler is a callable ``sampler(key, n) -> (n, 2)`` float32 in ``[0, 1)^2``, reachable by
 name through :func:`get`. Randomness comes only from the key: the same key gives the same bits.
 
-Coordinates of the stratified constructions are built as 32-bit fixed-point integers and
-converted to float32 by *truncation* (``(X >> 8) * 2^-24``), never by rounding, so strata survive
-the conversion and no coordinate becomes 1.0.
+Coordinates of the digital constructions (sobol-owen, pmj02, pmj02bn) are built as 32-bit
+fixed-point integers and converted to float32 by *truncation* (``(X >> 8) * 2^-24``), never by
+rounding, so strata survive the conversion and no coordinate becomes 1.0. Jittered and CMJ form
+``s / count + u / count`` in float32 and clamp it inside its stratum (:func:`_in_stratum`).
 
 References: Kensler 2013 (CMJ); Burley 2020 (hash-based Owen scrambling); Christensen, Kensler,
 Kilpatrick 2018 (pmj02, pmj02bn); Helmer, Christensen, Kensler 2021 (stochastic generation of
@@ -480,7 +481,10 @@ def shear(points, direction_deg) -> jax.Array:
 
 
 def _sheared_factory(*, base: str = "pmj02bn", direction_deg: float) -> Sampler:
+    if base not in BASELINES:
+        raise ValueError(f"base must be one of {list(BASELINES)}, got {base!r}")
     inner = get(base)
+    shear(np.zeros((1, 2), np.float32), direction_deg)  # validate direction_deg now, not per call
 
     def fn(key, n):
         return shear(inner(key, n), direction_deg)

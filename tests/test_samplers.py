@@ -292,3 +292,10 @@ def test_shear_vertical_identities(theta):
     ks = np.arange(4, 200)
     ray = np.stack([np.rint(ks * np.cos(r)), np.rint(ks * np.sin(r))], axis=1)
     assert brute_force_spectrum(sh, ray).mean() < 0.5 * brute_force_spectrum(pts, ray).mean()
+
+
+def test_sheared_factory_validates_when_built():
+    with pytest.raises(ValueError, match="direction_deg must lie in"):
+        samplers.get("sheared", base="cmj", direction_deg=200.0)
+    with pytest.raises(ValueError, match="base must be one of"):
+        samplers.get("sheared", base="sheared", direction_deg=30.0)
