@@ -389,3 +389,21 @@ def test_gaussian_bump_fourier_against_quadrature():
     # far out the coefficients underflow to zero instead of overflowing
     far = I.GaussianBump(sigma=0.01).fourier_coefficients(np.array([[1000, 1000]]))
     assert np.all(np.isfinite(far))
+
+
+@pytest.mark.parametrize(
+    "vertices, inside",
+    [
+        ([[0, 0], [1, 0], [1, 1], [0, 1]], 1.0),  # covers the square: no edge test left
+        ([[-1, -1], [2, -1], [2, 2], [-1, 2]], 1.0),
+        ([[2, 2], [3, 2], [2, 3]], 0.0),  # misses the square: empty clipped chain
+    ],
+)
+def test_convex_polygon_without_inner_edges_keeps_the_batch_shape(vertices, inside):
+    """f(x) over (..., 2) must return (...): it returned a scalar when no edge cut the square."""
+    f = I.Polygon(np.asarray(vertices, np.float64), value=2.0)
+    x = jnp.asarray(np.random.default_rng(0).random((3, 5, 2)), jnp.float32)
+    out = np.asarray(f(x))
+    assert out.shape == (3, 5)
+    np.testing.assert_array_equal(out, np.full((3, 5), 2.0 * inside, np.float32))
+    assert f.integral == pytest.approx(2.0 * inside)

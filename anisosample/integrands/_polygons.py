@@ -153,7 +153,8 @@ class Polygon(_PolygonalIndicator):
         dt = x.dtype
         if self.convex:
             # unrolled over the (few) edges: elementwise work that XLA fuses into one loop
-            inside = jnp.asarray(len(self.chain) > 0)
+            # full shape even when no edge cuts the square (the polygon covers it or misses it)
+            inside = jnp.full(px.shape, len(self.chain) > 0)
             for nx, ny, c in self._tests:
                 inside = inside & (px * jnp.asarray(nx, dt) + py * jnp.asarray(ny, dt)
                                    <= jnp.asarray(c, dt))
