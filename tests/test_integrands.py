@@ -407,3 +407,11 @@ def test_convex_polygon_without_inner_edges_keeps_the_batch_shape(vertices, insi
     assert out.shape == (3, 5)
     np.testing.assert_array_equal(out, np.full((3, 5), 2.0 * inside, np.float32))
     assert f.integral == pytest.approx(2.0 * inside)
+
+
+def test_fourier_coefficients_refuse_infinite_frequencies():
+    f = I.HalfPlane(30.0, 0.5)
+    with pytest.raises(ValueError, match="v must hold integer frequency vectors"):
+        f.fourier_coefficients(np.array([[np.inf, 0.0]]))
+    with pytest.raises(ValueError, match="v must hold integer frequency vectors"):
+        I.GaussianBump().power_spectrum(np.array([[1.0, -np.inf]]))
