@@ -12,9 +12,9 @@ def _check_frequencies_any(v) -> np.ndarray:
     if v.ndim < 1 or v.shape[-1] != 2:
         raise ValueError(f"v must have shape (..., 2), got shape {v.shape}")
     if not np.issubdtype(v.dtype, np.integer):
-        if not (
-            np.issubdtype(v.dtype, np.floating) and np.all(np.isfinite(v)) and np.all(v == np.round(v))
-        ):  # inf == round(inf): without isfinite an infinite frequency gave NaN coefficients
+        floating = np.issubdtype(v.dtype, np.floating)
+        # inf == round(inf): without isfinite an infinite frequency gave NaN coefficients
+        if not (floating and np.all(np.isfinite(v)) and np.all(v == np.round(v))):
             raise ValueError("v must hold integer frequency vectors")
     return v.astype(np.float64)
 
