@@ -14,7 +14,8 @@ base warp (``measure == "area"``) the area density is converted to solid angle b
 
 MSE (H: mean over pixels of the squared error against a converged reference; MRSE divides each
 pixel's squared error by ``ref^2 + 0.01``), time (the jitted fit + sampling + evaluation of one
-whole-image realization, ``block_until_ready``, after compilation, best of 9 runs of 4 images)
+whole-image realization, ``block_until_ready``, after compilation; min over 9 round-robin rounds
+of 4 images each)
 and Monte Carlo efficiency ``1 / (MSE x time)`` (H Sec. 4) are computed by :func:`measure`.
 """
 
@@ -197,7 +198,6 @@ def _blocks(sps, keys, npix):
 def best_time(fn, *args, repeats: int = 9, calls: int = 4) -> float:
     """Seconds per call: the best of ``repeats`` timings of ``calls`` back-to-back calls (the
     minimum is the least disturbed by the other processes on a shared machine)."""
-    jax.block_until_ready(fn(*args))  # compile and warm up
     best = np.inf
     for _ in range(repeats):
         t = time.perf_counter()
@@ -221,36 +221,50 @@ def reference(scene, light, make_warp, spp_total: int, key, *, chunk_spp: int = 
 
 
 def measure(scene, light, techniques: dict, ref, spp: int, realizations: int, key, *,
-            mis: bool = True, relative: bool = False):
+            mis: bool = True, relative: bool = False, timing_rounds: int = 9):
     """Per technique: MSE (or MRSE) image and value, bias check, time per image, efficiency.
 
     Every technique sees the same keys (common random numbers do not matter here: the
     warps change what the numbers mean).
     """
     keys = jax.random.split(key, realizations)
-    rows, images = {}, {}
+    rows, images, renders, per = {}, {}, {}, {}
     denom = ref**2 + 0.01 if relative else np.ones_like(ref)
     for name, make in progress(techniques.items(), desc="techniques", total=len(techniques)):
         render = make_render(scene, light, make, spp, mis=mis)
         est = np.stack([np.asarray(render(k), np.float64) for k in keys])  # (R, P)
-        seconds = best_time(render, keys[0])
+        renders[name] = render
         err = est - ref[None, :]
         mse_img = np.mean(err**2 / denom[None, :], axis=0)
         var_img = np.var(est, axis=0, ddof=1) / denom
         mean_err = float(np.mean(err))
         per_real = np.mean(err**2 / denom[None, :], axis=1)  # (R,) image MSE per realization
+        per[name] = per_real
         rows[name] = dict(
             mse=float(np.mean(mse_img)),
             mse_stderr=float(np.std(per_real, ddof=1) / np.sqrt(len(keys))),
             mse_from_variance=float(np.mean(var_img)),
             mean_error=mean_err,
             mean_error_stderr=float(np.std(np.mean(err, axis=1), ddof=1) / np.sqrt(len(keys))),
-            seconds_per_image=seconds,
         )
         images[name] = mse_img
-    base = next(iter(rows.values()))
-    for r in rows.values():
+    # Timing round-robin over the techniques (min over rounds), so that load from other
+    # processes on a shared machine hits every technique alike.
+    best = dict.fromkeys(renders, np.inf)
+    for render in renders.values():
+        jax.block_until_ready(render(keys[0]))  # compiled already; warm
+    for _ in range(timing_rounds):
+        for name, render in renders.items():
+            best[name] = min(best[name], best_time(render, keys[0], repeats=1))
+    for name in rows:
+        rows[name]["seconds_per_image"] = best[name]
+    base_name = next(iter(rows))
+    base = rows[base_name]
+    for name, r in rows.items():
         r["mse_factor"] = r["mse"] / base["mse"]
+        # paired (same keys) standard error of the ratio, delta method
+        resid = per[name] - r["mse_factor"] * per[base_name]
+        r["mse_factor_stderr"] = float(np.std(resid, ddof=1) / np.sqrt(len(keys)) / base["mse"])
         r["time_factor"] = r["seconds_per_image"] / base["seconds_per_image"]
         r["efficiency"] = 1.0 / (r["mse"] * r["seconds_per_image"])
         r["efficiency_factor"] = r["efficiency"] / base["efficiency"]
@@ -259,26 +273,29 @@ def measure(scene, light, techniques: dict, ref, spp: int, realizations: int, ke
 
 def markdown_table(rows: dict, measure_name: str = "MSE") -> str:
     lines = [
-        f"| Sampling method | {measure_name} (+- std. error) | {measure_name} factor |"
-        " Time (s/image) | Time factor | Efficiency factor |",
+        f"| Sampling method | {measure_name} (+- std. error) |"
+        f" {measure_name} factor (+- paired std. error) | Time (s/image) | Time factor |"
+        " Efficiency factor |",
         "|---|---|---|---|---|---|",
     ]
     for n, r in rows.items():
         lines.append(
             f"| {n} | {r['mse']:.4g} +- {r.get('mse_stderr', float('nan')):.2g} |"
-            f" {r['mse_factor']:.3f} | {r['seconds_per_image']:.3g} |"
+            f" {r['mse_factor']:.3f} +- {r.get('mse_factor_stderr', float('nan')):.3f} |"
+            f" {r['seconds_per_image']:.3g} |"
             f" {r['time_factor']:.2f} | {r['efficiency_factor']:.2f} |"
         )
     return "\n".join(lines) + "\n"
 
 
 def print_rows(rows: dict, measure_name: str = "MSE") -> None:
-    print(f"  {'method':44s} {measure_name:>9s} {'+-':>8s} {'factor':>7s} {'time s':>8s}"
+    print(f"  {'method':44s} {measure_name:>9s} {'+-':>8s} {'factor':>7s} {'+-':>7s} {'time s':>8s}"
           f" {'t-fac':>6s} {'eff-fac':>7s} {'bias/se':>7s}")
     for n, r in rows.items():
         z = r["mean_error"] / r["mean_error_stderr"] if r["mean_error_stderr"] > 0 else 0.0
         print(f"  {n:44s} {r['mse']:9.3e} {r.get('mse_stderr', float('nan')):8.1e}"
-              f" {r['mse_factor']:7.3f} {r['seconds_per_image']:8.3g}"
+              f" {r['mse_factor']:7.3f} {r.get('mse_factor_stderr', float('nan')):7.3f}"
+              f" {r['seconds_per_image']:8.3g}"
               f" {r['time_factor']:6.2f} {r['efficiency_factor']:7.2f} {z:7.2f}")
 
 
