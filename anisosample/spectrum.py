@@ -237,17 +237,26 @@ def power_spectrum_grid(points, radius: int, *, method: str = "auto"):
 # --- expected spectra over realizations -----------------------------------------------------------
 
 
-def _realizations(sampler, n, key, realizations, shift):
+def _average_over_realizations(sampler, n, key, realizations, shift, progress, spectrum_of):
+    """``mean_r spectrum_of(S_r)`` over independent (optionally shifted) sets ``S_r``.
+
+    The one loop behind :func:`expected_power_spectrum` and :func:`expected_power_spectrum_grid`;
+    the arguments are already validated (the sampler may be a name).
+    """
     from . import samplers as _samplers
+    from .progress import progress as _progress
 
-    keys = jax.random.split(key, realizations)
-
-    def one(k):
+    if isinstance(sampler, str):
+        sampler = _samplers.get(sampler)
+    acc = None
+    for k in _progress(
+        jax.random.split(key, realizations), desc="expected spectrum", disable=not progress
+    ):
         k_pts, k_shift = jax.random.split(k)
         pts = sampler(k_pts, n)
-        return _samplers.toroidal_shift(k_shift, pts) if shift else pts
-
-    return keys, one
+        p = spectrum_of(_samplers.toroidal_shift(k_shift, pts) if shift else pts)
+        acc = p if acc is None else acc + p
+    return acc / realizations
 
 
 def expected_power_spectrum(
@@ -267,43 +276,29 @@ def expected_power_spectrum(
     pattern (W Sec. 2) without changing each set's spectrum; it matters only for the sets'
     positions, so it is on by default for use with W Eq. 5.
     """
-    from . import samplers as _samplers
-    from .progress import progress as _progress
-
-    if isinstance(sampler, str):
-        sampler = _samplers.get(sampler)
     n = check_int("n", n, minimum=1)
     key = check_key("key", key)
     realizations = check_int("realizations", realizations, minimum=1)
     freqs = check_frequencies("freqs", freqs)
     check_choice("method", method, METHODS)
-    keys, one = _realizations(sampler, n, key, realizations, shift)
-    acc = None
-    for k in _progress(keys, desc="expected spectrum", disable=not progress):
-        p = power_spectrum(one(k), freqs, method=method)
-        acc = p if acc is None else acc + p
-    return acc / realizations
+    return _average_over_realizations(
+        sampler, n, key, realizations, shift, progress,
+        lambda pts: power_spectrum(pts, freqs, method=method),
+    )  # fmt: skip
 
 
 def expected_power_spectrum_grid(
     sampler, n, key, radius, *, realizations: int = 64, shift: bool = True, progress: bool = False
 ):
     """``<P_S>`` on the centred grid of half-width ``radius`` (see :func:`power_spectrum_grid`)."""
-    from . import samplers as _samplers
-    from .progress import progress as _progress
-
-    if isinstance(sampler, str):
-        sampler = _samplers.get(sampler)
     n = check_int("n", n, minimum=1)
     key = check_key("key", key)
     realizations = check_int("realizations", realizations, minimum=1)
-    check_int("radius", radius, minimum=1)
-    keys, one = _realizations(sampler, n, key, realizations, shift)
-    acc = None
-    for k in _progress(keys, desc="expected spectrum", disable=not progress):
-        p = power_spectrum_grid(one(k), radius)
-        acc = p if acc is None else acc + p
-    return acc / realizations
+    radius = check_int("radius", radius, minimum=1)
+    return _average_over_realizations(
+        sampler, n, key, realizations, shift, progress,
+        lambda pts: power_spectrum_grid(pts, radius),
+    )  # fmt: skip
 
 
 # --- profiles -------------------------------------------------------------------------------------

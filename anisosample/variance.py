@@ -37,7 +37,7 @@ import numpy as np
 import scipy.stats
 
 from . import samplers as _samplers
-from ._validate import ONE_MINUS_EPSILON, check_choice, check_int, check_key, check_points
+from ._validate import check_choice, check_int, check_key, check_points
 from .progress import progress as _progress_bar
 
 __all__ = [
@@ -67,15 +67,12 @@ stays in cache, which measured faster than larger chunks)."""
 # --- the jitted kernels ---------------------------------------------------------------------------
 
 
-def _wrap(x):
-    return jnp.minimum(x - jnp.floor(x), ONE_MINUS_EPSILON)
-
-
 def _shifted_xy(x, y, tx, ty):
     """``(x + t) mod 1`` per coordinate, stacked last: kept as two planes (structure of arrays)
     until the integrand, which lets XLA fuse shift, wrap and integrand into one vectorized loop
     (several times faster on the CPU than shifting interleaved ``(..., 2)`` points)."""
-    return jnp.stack([_wrap(x + tx), _wrap(y + ty)], axis=-1)
+    wrap = _samplers._wrap  # the toroidal shift's own wrap (one definition of "mod 1, below 1")
+    return jnp.stack([wrap(x + tx), wrap(y + ty)], axis=-1)
 
 
 def _block_mean(v, n: int):
