@@ -339,3 +339,16 @@ def test_fit_and_objective_options_are_validated():
     for call, message in cases:
         with pytest.raises(ValueError, match=message):
             call()
+
+
+def test_fits_compile_once_per_shape_and_settings():
+    """fit_reverse_kl re-traced optimistix's BFGS on every call (seconds each) and fit_mle ran
+    op by op; both are jitted now: a second histogram of the same shape reuses the program."""
+    h = np.asarray(vmf.bin_masses(1.0, 20.0, 90))
+    vmf.fit_reverse_kl(h, 0.9, 10.0)
+    vmf.fit_mle(h)
+    sizes = (vmf._fit_reverse_kl_jit._cache_size(), vmf._fit_mle_jit._cache_size())
+    a = vmf.fit_reverse_kl(h[::-1].copy(), 2.0, 5.0)
+    vmf.fit_mle(h[::-1].copy())
+    assert (vmf._fit_reverse_kl_jit._cache_size(), vmf._fit_mle_jit._cache_size()) == sizes
+    assert float(a.kappa) == pytest.approx(20.0, rel=0.05)  # still the right fit
