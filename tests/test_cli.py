@@ -65,3 +65,26 @@ def test_spectrum_rejects_points_outside_the_square(tmp_path):
 def test_help_lists_commands():
     r = run("--help")
     assert r.returncode == 0 and "points" in r.stdout and "spectrum" in r.stdout
+
+
+def test_points_and_spectrum_files_hold_what_the_library_computes(tmp_path):
+    """The written points are the library's set for key(seed) (split: points, shift) bit for bit,
+    and the EXR spectrum is power_spectrum_grid of those points, upright (v_y grows upwards)."""
+    import jax
+
+    from anisosample import samplers, spectrum
+
+    npz = tmp_path / "p.npz"
+    assert cli.main(["points", "cmj", "-n", "100", "--seed", "5", "--shift", "-o", str(npz)]) == 0
+    k_pts, k_shift = jax.random.split(jax.random.key(5))
+    want = np.asarray(samplers.toroidal_shift(k_shift, samplers.get("cmj")(k_pts, 100)))
+    got = io.load_points(npz)
+    np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
+    exr = tmp_path / "s.exr"
+    assert cli.main(["spectrum", str(npz), "-o", str(exr), "--radius", "6"]) == 0
+    grid = np.asarray(spectrum.power_spectrum_grid(got, 6))
+    np.testing.assert_allclose(io.read_exr(exr)[::-1], grid, rtol=1e-6, atol=1e-9)
+    # upright: the top-left pixel of the file is v = (-6, +6)
+    v = np.array([[-6, 6]])
+    ref = np.abs(np.exp(-2j * np.pi * (got.astype(np.float64) @ v.T)).mean()) ** 2
+    assert io.read_exr(exr)[0, 0] == pytest.approx(ref, rel=1e-4, abs=1e-7)
