@@ -93,6 +93,8 @@ def check_frequencies(name: str, freqs) -> np.ndarray | jax.Array:
     if np.issubdtype(dtype, np.floating) and not isinstance(freqs, jax.core.Tracer):
         f = np.asarray(freqs)
         if np.all(np.isfinite(f)) and np.all(f == np.round(f)):
+            if np.abs(f).max() >= 2**31:  # astype(int32) would wrap around silently
+                raise ValueError(f"{name} must fit in int32, got values up to {np.abs(f).max()}")
             return f.astype(np.int32)
     raise ValueError(f"{name} must hold integer frequency vectors, got dtype {dtype}")
 

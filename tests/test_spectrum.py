@@ -173,3 +173,12 @@ def test_expected_spectrum_validates_before_sampling():
         spectrum.expected_power_spectrum_grid("random", 16, jax.random.key(0), 0)
     with pytest.raises(ValueError, match="method must be one of"):
         spectrum.expected_power_spectrum("random", 16, jax.random.key(0), f, method="fft")
+
+
+def test_huge_float_frequencies_are_refused_not_wrapped():
+    """Float frequencies were cast to int32 unchecked: 2^32 + 3 became 3."""
+    pts = np.array([[0.1, 0.2], [0.7, 0.4]], np.float32)
+    with pytest.raises(ValueError, match="freqs must fit in int32"):
+        spectrum.power_spectrum(pts, np.array([[2.0**32 + 3, 0.0]]))
+    with pytest.raises(ValueError, match="freqs must satisfy"):
+        spectrum.power_spectrum(pts, np.array([[2**33, 0]], np.int64))
