@@ -28,7 +28,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._validate import check_choice, check_frequencies, check_int, check_key, check_points
+from ._validate import (
+    check_choice,
+    check_frequencies,
+    check_int,
+    check_key,
+    check_points,
+    check_positive_float,
+)
 
 __all__ = [
     "power_spectrum",
@@ -365,6 +372,7 @@ def save_spectrum_image(path, grid, *, n: int, vmax: float = 2.0, overwrite: boo
     g = np.asarray(grid, dtype=np.float64)
     _grid_coords(g)
     n = check_int("n", n, minimum=1)
+    vmax = check_positive_float("vmax", vmax)  # vmax <= 0 or NaN gave a blank/garbled picture
     upright = g[::-1]
     if path.suffix == ".exr":
         return io.write_exr(

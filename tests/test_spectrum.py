@@ -182,3 +182,11 @@ def test_huge_float_frequencies_are_refused_not_wrapped():
         spectrum.power_spectrum(pts, np.array([[2.0**32 + 3, 0.0]]))
     with pytest.raises(ValueError, match="freqs must satisfy"):
         spectrum.power_spectrum(pts, np.array([[2**33, 0]], np.int64))
+
+
+def test_spectrum_image_rejects_bad_vmax(tmp_path):
+    g = np.ones((5, 5))
+    for vmax in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="vmax must be finite and > 0"):
+            spectrum.save_spectrum_image(tmp_path / "s.png", g, n=4, vmax=vmax)
+    assert not (tmp_path / "s.png").exists()
