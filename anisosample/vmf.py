@@ -111,8 +111,17 @@ def kappa_from_resultant(rbar, *, newton_steps: int = 6, kappa_max: float = 1e4)
     """Solve ``A(kappa) = rbar`` (the vMF maximum-likelihood kappa), ``rbar in [0, 1]``.
 
     Best & Fisher's piecewise approximation as the start, then Newton with the stable ``A'``.
-    ``rbar = 0`` gives ``kappa = 0``; ``rbar -> 1`` is capped at ``kappa_max``.
+    ``rbar = 0`` gives ``kappa = 0``; ``rbar -> 1`` is capped at ``kappa_max``. Concrete ``rbar``
+    must be finite and within 1e-6 of ``[0, 1]`` (round-off beyond the ends is clipped).
     """
+    newton_steps = check_int("newton_steps", newton_steps, minimum=0)
+    kappa_max = check_positive_float("kappa_max", kappa_max)
+    if not isinstance(rbar, jax.core.Tracer):
+        rb = np.asarray(rbar, dtype=np.float64)
+        if not np.all(np.isfinite(rb)) or np.any(rb < -1e-6) or np.any(rb > 1 + 1e-6):
+            raise ValueError(
+                f"rbar must be finite and in [0, 1], got {rb.reshape(-1)[:8].tolist()}"
+            )
     r = jnp.clip(jnp.asarray(rbar), 0.0, 1.0)
     r_hi = jnp.minimum(r, 1.0 - 1e-7)
     k0 = jnp.where(

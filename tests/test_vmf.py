@@ -352,3 +352,13 @@ def test_fits_compile_once_per_shape_and_settings():
     vmf.fit_mle(h[::-1].copy())
     assert (vmf._fit_reverse_kl_jit._cache_size(), vmf._fit_mle_jit._cache_size()) == sizes
     assert float(a.kappa) == pytest.approx(20.0, rel=0.05)  # still the right fit
+
+
+def test_kappa_from_resultant_refuses_nan_and_out_of_range():
+    """NaN rbar gave a NaN kappa silently, 1.5 was clipped to 1 silently."""
+    for bad in (float("nan"), 1.5, -0.2):
+        with pytest.raises(ValueError, match="rbar must be finite and in"):
+            vmf.kappa_from_resultant(bad)
+    with pytest.raises(ValueError, match="kappa_max"):
+        vmf.kappa_from_resultant(0.5, kappa_max=0.0)
+    assert float(vmf.kappa_from_resultant(1.0 + 1e-8)) == pytest.approx(1e4, rel=1e-3)
