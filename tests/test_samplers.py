@@ -246,9 +246,7 @@ def test_register_rejects_taken_names():
         samplers.register("random", lambda: samplers.random)
 
 
-@pytest.mark.parametrize(
-    "name, n", [("jittered", 16), ("jittered", 13), ("jittered", 4096), ("cmj", 240), ("cmj", 4096)]
-)
+@pytest.mark.parametrize("name, n", [("jittered", 16), ("jittered", 13), ("cmj", 240)])
 @pytest.mark.parametrize("u", [0.0, float(np.float32(1.0 - 2.0**-24))])
 def test_extreme_jitter_stays_in_its_stratum(monkeypatch, name, n, u):
     """Jitter at the ends of [0, 1): (i + u) / nx rounded to (i + 1) / nx in float32 (the next
