@@ -179,14 +179,14 @@ def read_exr(path) -> np.ndarray:
 
 
 def save_png(path, image, *, overwrite: bool = False, **imsave_kwargs) -> Path:
-    """Save an image array as PNG through matplotlib (``cmap``/``vmin``/``vmax`` allowed)."""
-    import matplotlib
+    """Save an image array as PNG through matplotlib (``cmap``/``vmin``/``vmax`` allowed).
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    Uses ``matplotlib.image.imsave``, which needs no GUI backend and leaves the user's alone.
+    """
+    from matplotlib.image import imsave
 
     with atomic_path(path, overwrite=overwrite) as tmp:
-        plt.imsave(tmp, np.asarray(image), format="png", **imsave_kwargs)
+        imsave(tmp, np.asarray(image), format="png", **imsave_kwargs)
     return Path(path)
 
 

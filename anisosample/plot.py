@@ -11,9 +11,8 @@ __all__ = ["new_figure", "spectrum_panel", "convergence_panel", "save_figure"]
 
 
 def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
+    # No matplotlib.use(): without a display pyplot falls back to Agg by itself, and with one
+    # the user's backend stays as it is.
     import matplotlib.pyplot as plt
 
     return plt

@@ -390,13 +390,19 @@ def _pmj02_fixed_point(bits: np.ndarray, log2_n: int, candidates: int) -> np.nda
     return pts
 
 
-@functools.lru_cache(maxsize=32)
-def _pmj02_cached(key_data: bytes, key_impl: str, log2_n: int, candidates: int) -> np.ndarray:
+_PMJ_CACHE_MAX_LOG2_N = 20
+"""Sets up to 2^20 points (8 MB each, 32 of them at most) are cached; larger ones are rebuilt."""
+
+
+def _pmj02_build(key_data: bytes, key_impl: str, log2_n: int, candidates: int) -> np.ndarray:
     key = jax.random.wrap_key_data(
         jnp.asarray(np.frombuffer(key_data, dtype=np.uint32)), impl=key_impl
     )
     bits = np.asarray(jax.random.bits(key, (1 << log2_n, candidates, 2), dtype=jnp.uint32))
     return _np_u32_to_unit_float32(_pmj02_fixed_point(bits, log2_n, candidates))
+
+
+_pmj02_cached = functools.lru_cache(maxsize=32)(_pmj02_build)
 
 
 def _pmj(key, n, candidates):
@@ -405,7 +411,8 @@ def _pmj(key, n, candidates):
     log2_n = max(0, (n - 1).bit_length())
     impl = str(jax.random.key_impl(key))
     data = np.asarray(jax.random.key_data(key)).tobytes()
-    return jnp.asarray(_pmj02_cached(data, impl, log2_n, candidates)[:n])
+    build = _pmj02_cached if log2_n <= _PMJ_CACHE_MAX_LOG2_N else _pmj02_build
+    return jnp.asarray(build(data, impl, log2_n, candidates)[:n])
 
 
 def _pmj02(key, n):

@@ -208,9 +208,8 @@ def chi2_test(
 
 
 def _plot(observed, expected, figure_path, warp) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
+    # No matplotlib.use(): without a display pyplot falls back to Agg by itself, and with one
+    # the user's backend stays as it is.
     import matplotlib.pyplot as plt
 
     if figure_path is None:
