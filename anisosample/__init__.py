@@ -7,19 +7,22 @@ The public API is this list of modules; see ``docs/`` for a guide.
 from importlib.metadata import PackageNotFoundError as _PackageNotFoundError
 from importlib.metadata import version as _version
 
+from . import diagnostics as diagnostics
+from . import directions as directions
+from . import frequencies as frequencies
 from . import integrands as integrands
 from . import io as io
+from . import losses as losses
+from . import plot as plot
+from . import render as render
 from . import samplers as samplers
 from . import spectrum as spectrum
-from . import variance as variance
-from . import frequencies as frequencies
-from . import losses as losses
 from . import synthesis as synthesis
-from . import warps as warps
-from . import directions as directions
-from . import vmf as vmf
 from . import tables as tables
-from . import render as render
+from . import testing as testing
+from . import variance as variance
+from . import vmf as vmf
+from . import warps as warps
 from .synthesis import synthesize as synthesize
 
 try:
