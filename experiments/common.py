@@ -46,6 +46,17 @@ def cached_json(path: Path, fresh: bool):
     return None
 
 
+def reuse_or_compute(path: Path, settings: dict, fresh: bool, compute, *, field: str = "curve"):
+    """``compute()``'s result, saved at ``path`` as ``{"settings": ..., field: ...}``; a later
+    run with the same ``settings`` (and no ``fresh``) reuses the saved value instead."""
+    cached = cached_json(path, fresh)
+    if cached is not None and cached.get("settings") == settings:
+        return cached[field]
+    value = compute()
+    asp.io.save_json(path, {"settings": settings, field: value}, overwrite=True)
+    return value
+
+
 def write_record(out: Path, name: str, data: dict, settings: dict, started: float) -> Path:
     """``out/<name>.json`` with the numbers, the settings, the package version and the machine."""
     record = {

@@ -63,12 +63,9 @@ def main(argv=None):
         slug = f"{label}__{sname}".replace(" ", "_").replace("=", "")
         path = out / "curves" / f"{slug}.json"
         settings = {"scale": args.scale, "seed": args.seed, "ns": ns, **cfg}
-        cached = common.cached_json(path, args.fresh)
-        if cached is None or cached.get("settings") != settings:
-            curve = measure(f, sampler, mode, ns, key, cfg)
-            asp.io.save_json(path, {"settings": settings, "curve": curve}, overwrite=True)
-        else:
-            curve = cached["curve"]
+        curve = common.reuse_or_compute(
+            path, settings, args.fresh,
+            lambda f=f, sampler=sampler, mode=mode: measure(f, sampler, mode, ns, key, cfg))
         entry = results.setdefault(label, {
             "integrand": type(f).__name__, "normal_deg": THETA, "integral": f.integral,
             "sigma": getattr(f, "sigma", 0.0), "samplers": {}})
