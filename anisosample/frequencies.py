@@ -139,23 +139,34 @@ def canonical_half(freqs) -> np.ndarray:
     return np.unique(v, axis=0).astype(np.int32)
 
 
-def edge_weights(freqs, directions_deg, spread_deg: float = 0.0) -> np.ndarray:
+def edge_weights(freqs, directions_deg, spread_deg: float = 0.0,
+                 core_deg: float = 0.0) -> np.ndarray:
     """``W(v) = sum_d 1 / (|v|^2 (1 + s_d^2))`` with ``s_d = v . d_perp`` (issue 4 design c).
 
     An edge along spectral direction ``d`` has ``P_f ~ |v|^-2`` on its ray and a lattice-scale
     spread across it; W weights each frequency by the energy a slightly misaligned edge could
     put there.  ``spread_deg > 0`` divides ``s`` by ``max(1, |v.d| tan(spread))``, so the
     weight stays high across the width a ray misaligned by ``spread_deg`` sweeps (robustness).
+
+    ``core_deg > 0`` gives each non-axis direction (not 0 or 90: the square's border is exactly
+    axis-aligned) a flat core: ``s`` is replaced by ``max(0, |s| - |v.d| tan(core))``, the
+    distance from the core's boundary.  An edge misaligned by ``delta <= core`` has its ray at
+    ``|s| = t sin(delta)`` (``t = |v.d|``), inside the core, where it gets the full weight
+    ``1/|v|^2`` of an aligned edge; outside the core the ``1/(1 + s'^2)`` falloff of the
+    edge's own spectrum follows (the robustness requirement of issue 4).
     """
     v = np.asarray(freqs, dtype=np.float64)
     r2 = np.sum(v * v, axis=1)
     w = np.zeros(v.shape[0])
     tan_b = math.tan(math.radians(spread_deg))
+    tan_c = math.tan(math.radians(core_deg))
     for theta in directions_deg:
         d, dp = _unit(theta)
         s = v @ dp
         if spread_deg > 0:  # measure s in units of the band a ray off by spread_deg reaches
             s = s / np.maximum(1.0, np.abs(v @ d) * tan_b)
+        if core_deg > 0 and theta not in (0.0, 90.0):  # distance from the flat core
+            s = np.maximum(0.0, np.abs(s) - np.abs(v @ d) * tan_c)
         w += 1.0 / (r2 * (1.0 + s * s))
     return w
 
@@ -224,6 +235,7 @@ def design(
     angle_deg: float | None = None,
     disk_radius: float | None = None,
     weight_spread_deg: float | None = None,
+    core_deg: float | None = None,
 ) -> FrequencySet:
     """The frequency set (and weights) for ``n`` points and the given spectral directions.
 
@@ -241,19 +253,23 @@ def design(
     else:
         p = {"length": 3.0 * math.sqrt(n), "width": 1.0, "angle_deg": 2.0, "disk_radius": 0.0}
     for name, val in (("length", length), ("width", width), ("angle_deg", angle_deg),
-                      ("disk_radius", disk_radius), ("weight_spread_deg", weight_spread_deg)):
+                      ("disk_radius", disk_radius), ("weight_spread_deg", weight_spread_deg),
+                      ("core_deg", core_deg)):
         if val is not None:
             p[name] = check_positive_float(name, val, allow_zero=name != "length")
+    if p.get("core_deg", 0.0) >= 45.0:
+        raise ValueError(f"core_deg must lie in [0, 45), got {p['core_deg']}")
     parts = [wedge(t, p["length"], p["width"], p["angle_deg"]) for t in directions_deg]
     if p["disk_radius"] >= 1.0:
         parts.append(disk(p["disk_radius"]))
     v = canonical_half(np.concatenate(parts))
     if v.shape[0] == 0:
         raise ValueError(f"the frequency set for n={n} and these parameters is empty: {p}")
-    if not p.get("weight_spread_deg"):  # 0: the plain weights (kept out of the record)
-        p.pop("weight_spread_deg", None)
-    w = (edge_weights(v, directions_deg, p.get("weight_spread_deg", 0.0)) if kind == "rate"
-         else np.ones(v.shape[0]))
+    for opt in ("weight_spread_deg", "core_deg"):
+        if not p.get(opt):  # 0: the plain weights (kept out of the record)
+            p.pop(opt, None)
+    w = (edge_weights(v, directions_deg, p.get("weight_spread_deg", 0.0),
+                      p.get("core_deg", 0.0)) if kind == "rate" else np.ones(v.shape[0]))
     params = {"design": kind, "n": n, "directions_deg": list(directions_deg), **p,
               "weights": "edge" if kind == "rate" else "uniform", "size": int(v.shape[0])}
     return _group(v, w, directions_deg, params)

@@ -107,11 +107,29 @@ def main(argv=None):
                     help="override two-edge pairs and run only them, e.g. 30:120,67:150")
     ap.add_argument("--weight-spread-deg", type=float, default=None,
                     help="frequency design option (robustness weights); use its own --out")
+    ap.add_argument("--core-deg", type=float, default=None,
+                    help="frequency design option: flat weight core of this angular half-width"
+                         " (frequencies.edge_weights); 0 = none; use its own --out")
+    ap.add_argument("--misaligned-deltas", default=None,
+                    help="override the misalignment offsets (deg), e.g. -2,-1,-0.5,0.5,1,2")
+    ap.add_argument("--no-multi-edge", action="store_true",
+                    help="skip the two-/four-edge cases (keep one edge and the misalignment)")
+    ap.add_argument("--baselines", default=",".join(BASELINES),
+                    help="comma list of baselines to compare with, or 'none'")
     args = ap.parse_args(argv)
     cfg = dict(SCALES[args.scale])
-    fopts = ({"weight_spread_deg": args.weight_spread_deg} if args.weight_spread_deg
-             else None)
+    fopts = {}
+    if args.weight_spread_deg:
+        fopts["weight_spread_deg"] = args.weight_spread_deg
+    if args.core_deg is not None:
+        fopts["core_deg"] = args.core_deg
+    fopts = fopts or None
     cfg["frequency_options"] = fopts
+    baselines = [] if args.baselines == "none" else args.baselines.split(",")
+    for b in baselines:
+        if b not in BASELINES:
+            ap.error(f"--baselines: unknown {b!r}; choose from {list(BASELINES)} or 'none'")
+    cfg["baselines"] = baselines
     if args.log2_ns:
         cfg["log2_ns"] = [int(t) for t in args.log2_ns.split(",")]
     if args.seeds:
@@ -122,6 +140,11 @@ def main(argv=None):
         cfg["two_edges"] = [tuple(float(x) for x in p.split(":")) for p in
                             args.two_edges.split(",")]
         cfg["one_edge"], cfg["four_edges"], cfg["misaligned"] = [], [], (None, [])
+    if args.misaligned_deltas:
+        cfg["misaligned"] = (cfg["misaligned"][0],
+                             [float(t) for t in args.misaligned_deltas.split(",")])
+    if args.no_multi_edge:
+        cfg["two_edges"], cfg["four_edges"] = [], []
     if args.only_one_edge:
         cfg["two_edges"], cfg["four_edges"] = [], []
         cfg["misaligned"] = (cfg["one_edge"][0], [])
@@ -155,13 +178,13 @@ def main(argv=None):
         entry = {"integrand_directions_deg": fdirs, "set_directions_deg": sdirs}
         entry["ours"] = cached(out / "var" / f"{slug}_ours.json", lambda f=f, sdirs=sdirs: curve(
             variance_of_sets(f, sets[tuple(sdirs)], ns, seeds, R, key), ns))
-        for b in BASELINES:
+        for b in baselines:
             entry[b] = cached(out / "var" / f"{slug}_{b}.json", lambda b=b, f=f: curve(
                 variance_of_baseline(f, b, ns, R, key), ns))
         results["cases"][label] = entry
         print(f"{label}: ours {entry['ours']['fit']['slope']:.3f} "
               f"[{entry['ours']['fit']['ci_low']:.3f}, {entry['ours']['fit']['ci_high']:.3f}]  "
-              + "  ".join(f"{b} {entry[b]['fit']['slope']:.3f}" for b in BASELINES), flush=True)
+              + "  ".join(f"{b} {entry[b]['fit']['slope']:.3f}" for b in baselines), flush=True)
 
     # robustness: the set made for t0 on edges at t0 + delta
     rob = {}
@@ -187,6 +210,8 @@ def main(argv=None):
     fig, axes = plt.subplots(1, k, figsize=(3.4 * k, 3.2), squeeze=False)
     for ax, (label, e) in zip(axes[0], results["cases"].items(), strict=False):
         for name, style in (("ours", "-o"), ("pmj02bn", "--s"), ("sobol-owen", ":^")):
+            if name not in e:
+                continue
             ax.loglog(ns, e[name]["variance"], style, ms=3,
                       label=f"{name} {e[name]['fit']['slope']:.2f}")
         ax.set_xscale("log", base=2)

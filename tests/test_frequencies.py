@@ -100,3 +100,53 @@ def test_edge_weights_spread():
     np.testing.assert_allclose(w, [1 / (101 * 2), 1 / (10009 * (1 + s2 * s2))])
     assert "weight_spread_deg" not in fr.design(256, [0.0, 90.0]).params
     assert fr.design(256, [0.0, 90.0], weight_spread_deg=1.0).params["weight_spread_deg"] == 1.0
+
+
+@pytest.mark.parametrize("theta", [12.0, 30.0, 67.0, 145.0])
+def test_edge_weights_core_holds_misaligned_rays(theta):
+    """core_deg: a ray misaligned by delta <= core gets an aligned ray's weight 1/|v|^2 (its
+    points are inside the core); beyond the core the weight falls with the distance from the
+    core's boundary, 1/(1 + s'^2), and it never exceeds the aligned weight."""
+    core = 1.0
+    t = np.array([5.0, 50.0, 500.0, 5000.0])
+    for delta in (-1.0, -0.5, 0.0, 0.3, 1.0):
+        th = math.radians(theta + delta)
+        v = t[:, None] * np.array([math.cos(th), math.sin(th)])
+        w = fr.edge_weights(v, [theta], core_deg=core)
+        np.testing.assert_allclose(w, 1.0 / t**2, rtol=1e-9)
+    for delta in (1.5, -2.0, 3.0):
+        th = math.radians(theta + delta)
+        v = t[:, None] * np.array([math.cos(th), math.sin(th)])
+        # independent geometry: distance from v to the nearer of the core's two boundary rays,
+        # measured across the direction (perpendicular offset minus the core's half-width)
+        along = t * math.cos(math.radians(delta))
+        across = t * abs(math.sin(math.radians(delta)))
+        s_out = across - along * math.tan(math.radians(core))
+        np.testing.assert_allclose(fr.edge_weights(v, [theta], core_deg=core),
+                                   1.0 / (t**2 * (1.0 + s_out**2)), rtol=1e-9)
+        assert np.all(fr.edge_weights(v, [theta], core_deg=core) < 1.0 / t**2)
+
+
+def test_edge_weights_core_spares_axes_and_zero_is_plain():
+    rng = np.random.default_rng(3)
+    v = rng.integers(-300, 300, size=(500, 2))
+    v = v[np.any(v != 0, axis=1)]
+    # the square's border is exactly axis-aligned: no core on 0 and 90
+    np.testing.assert_array_equal(fr.edge_weights(v, [0.0, 90.0], core_deg=1.5),
+                                  fr.edge_weights(v, [0.0, 90.0]))
+    np.testing.assert_array_equal(fr.edge_weights(v, [0.0, 90.0, 30.0], core_deg=0.0),
+                                  fr.edge_weights(v, [0.0, 90.0, 30.0]))
+    # a core only raises weights
+    assert np.all(fr.edge_weights(v, [0.0, 90.0, 30.0], core_deg=1.0)
+                  >= fr.edge_weights(v, [0.0, 90.0, 30.0]))
+
+
+def test_design_core_option():
+    plain = fr.design(1024, [0.0, 90.0, 30.0], core_deg=0.0)
+    cored = fr.design(1024, [0.0, 90.0, 30.0], core_deg=1.0)
+    assert "core_deg" not in plain.params and cored.params["core_deg"] == 1.0
+    np.testing.assert_array_equal(plain.freqs, cored.freqs)
+    assert np.all(cored.weights >= plain.weights) and np.any(cored.weights > plain.weights)
+    for bad in (-1.0, 45.0, float("nan")):
+        with pytest.raises(ValueError, match="core_deg"):
+            fr.design(256, [0.0, 90.0, 30.0], core_deg=bad)
