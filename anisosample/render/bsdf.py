@@ -1,4 +1,4 @@
-"""BSDFs: Lambertian ``diffuse`` and GGX ``roughconductor`` (Mitsuba 3 semantics).
+"""BSDFs: Lambertian ``diffuse``, GGX ``roughconductor`` and ``roughplastic`` (Mitsuba 3).
 
 Each BSDF is a triplet (STYLE): ``eval`` (the BSDF times the cosine at ``wo``), ``pdf`` (per
 steradian) and ``sample``. ``wi`` points towards the viewer, ``wo`` towards the light, both unit
@@ -10,7 +10,8 @@ GGX (Trowbridge & Reitz 1975; Walter et al. 2007): ``D(m) = a^2 / (pi cos^4 (a^2
 separable Smith ``G = G1(wi) G1(wo)``, ``G1(v) = 2 / (1 + sqrt(1 + a^2 tan^2 theta_v))``;
 sampled with visible normals (Heitz 2018). Conductor Fresnel: the exact unpolarised formula for a
 complex index ``eta + i k`` (as in pbrt-v3's ``FrConductor`` and Mitsuba's
-``fresnel_conductor``). ``f = F D G / (4 cos_i cos_o)``.
+``fresnel_conductor``). ``f = F D G / (4 cos_i cos_o)``. ``roughplastic`` (GGX or Beckmann,
+with Mitsuba's rough-interface transmittance tables) lives in :mod:`.plastic`.
 """
 
 from __future__ import annotations
@@ -18,8 +19,9 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from . import plastic
 from ._vec import cross, dot, norm
-from .scene import CONDUCTOR, DIFFUSE, Materials
+from .scene import CONDUCTOR, DIFFUSE, PLASTIC, Materials
 
 
 def frame(n):
@@ -68,6 +70,20 @@ def fresnel_conductor(cos_i, eta, k):
     return 0.5 * (rs + rp)
 
 
+def _plastic_row(materials: Materials, mat) -> dict:
+    return dict(
+        alpha=materials.alpha[mat],
+        eta=materials.eta[mat, 0],
+        specular=materials.specular[mat],
+        reflectance=materials.reflectance[mat],
+        transmittance=materials.transmittance[mat],
+        internal=materials.internal[mat],
+        spec_weight=materials.spec_weight[mat],
+        flags=materials.flags[mat],
+        beckmann=materials.distribution[mat] == plastic.BECKMANN,
+    )
+
+
 def _local(materials: Materials, mat, n, wi, wo):
     two = materials.twosided[mat] > 0
     n = jnp.where(two & (dot(n, wi) < 0), -n, n)
@@ -91,6 +107,9 @@ def eval_bsdf(materials: Materials, mat, n, wi, wo) -> Float[Array, "3"]:
     f = fresnel_conductor(dot(li, h), materials.eta[mat], materials.k[mat])
     cond = materials.specular[mat] * f * (d * g / (4 * jnp.maximum(li[2], 1e-20)))
     val = jnp.where(kind == DIFFUSE, diffuse, jnp.where(kind == CONDUCTOR, cond, 0.0))
+    if materials.has_plastic:
+        val = jnp.where(kind == PLASTIC, plastic.eval_plastic(_plastic_row(materials, mat), li, lo),
+                        val)
     return jnp.where(ok, val, 0.0)
 
 
@@ -110,6 +129,9 @@ def pdf_bsdf(materials: Materials, mat, n, wi, wo) -> Float[Array, ""]:
     )
     cond = vis / (4 * jnp.maximum(dot(lo, h), 1e-20))
     p = jnp.where(materials.kind[mat] == DIFFUSE, lo[2] / jnp.pi, cond)
+    if materials.has_plastic:
+        p = jnp.where(materials.kind[mat] == PLASTIC,
+                      plastic.pdf_plastic(_plastic_row(materials, mat), li, lo), p)
     return jnp.where(ok, p, 0.0)
 
 
@@ -138,7 +160,8 @@ def _sample_ggx_vndf(wi, alpha, u):
 def sample_bsdf(materials: Materials, mat, n, wi, u: Float[Array, "2"]):
     """Sample ``wo`` (world) for the BSDF at ``n`` seen from ``wi``: ``(wo, pdf)``.
 
-    Diffuse: cosine-weighted hemisphere (Malley's method); conductor: GGX visible normals.
+    Diffuse: cosine-weighted hemisphere (Malley's method); conductor: GGX visible normals;
+    plastic: the lobe mixture of :func:`.plastic.sample_plastic`.
     ``pdf`` is 0 where no valid direction came out.
     """
     two = materials.twosided[mat] > 0
@@ -152,6 +175,9 @@ def sample_bsdf(materials: Materials, mat, n, wi, u: Float[Array, "2"]):
     m = _sample_ggx_vndf(li, materials.alpha[mat], u)
     lo_c = 2 * dot(li, m) * m - li
     lo = jnp.where(materials.kind[mat] == DIFFUSE, lo_d, lo_c)
+    if materials.has_plastic:
+        lo_p = plastic.sample_plastic(_plastic_row(materials, mat), li, u, _sample_ggx_vndf)
+        lo = jnp.where(materials.kind[mat] == PLASTIC, lo_p, lo)
     wo = lo[0] * s + lo[1] * t + lo[2] * n
     p = pdf_bsdf(materials, mat, n, wi, wo)
     return wo, jnp.where(li[2] > 0, p, 0.0)

@@ -55,7 +55,16 @@ class Materials(eqx.Module):
     eta: Float[Array, "m 3"]  # conductor: real IOR; plastic: relative IOR in channel 0
     k: Float[Array, "m 3"]  # conductor: imaginary IOR
     twosided: Int[Array, " m"]
+    # roughplastic (Mitsuba 3; see render/plastic.py): the rough interface's external
+    # transmittance tabulated over cos theta, internal reflectance, specular sampling weight,
+    # flags (plastic.NONLINEAR | plastic.VISIBLE) and distribution (plastic.GGX / BECKMANN).
+    transmittance: Float[Array, "m 64"]
+    internal: Float[Array, " m"]
+    spec_weight: Float[Array, " m"]
+    flags: Int[Array, " m"]
+    distribution: Int[Array, " m"]
     has_glossy: bool = eqx.field(static=True, default=True)  # any GGX material (else skip it)
+    has_plastic: bool = eqx.field(static=True, default=False)  # any roughplastic
 
 
 class Textures(eqx.Module):
@@ -172,6 +181,11 @@ class _Material:
     eta: tuple = (0.0, 0.0, 0.0)
     k: tuple = (1.0, 1.0, 1.0)
     twosided: bool = False
+    transmittance: tuple = (1.0,) * 64  # roughplastic constants (render/plastic.py)
+    internal: float = 0.0
+    spec_weight: float = 0.5
+    flags: int = 0
+    distribution: int = 0
 
 
 @dataclass
@@ -210,6 +224,53 @@ class SceneBuilder:
                 eta=tuple(_rgb(eta)),
                 k=tuple(_rgb(k)),
                 twosided=twosided,
+            )
+        )
+        return len(self._materials) - 1
+
+    def roughplastic(
+        self,
+        alpha=0.1,
+        *,
+        int_ior=1.49,
+        ext_ior=1.000277,
+        diffuse_reflectance=(0.5, 0.5, 0.5),
+        specular_reflectance=(1.0, 1.0, 1.0),
+        distribution="beckmann",
+        nonlinear=False,
+        sample_visible=True,
+        twosided=False,
+    ) -> int:
+        """Rough plastic (Mitsuba 3 ``roughplastic``; IORs as numbers or Mitsuba's names).
+
+        The defaults are Mitsuba's, including ``distribution="beckmann"`` (pass ``"ggx"``).
+        Raises ``ValueError`` naming a bad parameter (see :func:`plastic.make_params`).
+        """
+        from . import plastic
+
+        p = plastic.make_params(
+            alpha=alpha,
+            int_ior=int_ior,
+            ext_ior=ext_ior,
+            diffuse_reflectance=_rgb(diffuse_reflectance),
+            specular_reflectance=_rgb(specular_reflectance),
+            distribution=distribution,
+            nonlinear=bool(nonlinear),
+            sample_visible=bool(sample_visible),
+        )
+        self._materials.append(
+            _Material(
+                PLASTIC,
+                reflectance=tuple(_rgb(diffuse_reflectance)),
+                specular=tuple(_rgb(specular_reflectance)),
+                alpha=p["alpha"],
+                eta=(p["eta"],) * 3,
+                twosided=twosided,
+                transmittance=p["transmittance"],
+                internal=p["internal"],
+                spec_weight=p["spec_weight"],
+                flags=p["flags"],
+                distribution=p["distribution"],
             )
         )
         return len(self._materials) - 1
@@ -461,7 +522,13 @@ class SceneBuilder:
             eta=f32([m.eta for m in mats]),
             k=f32([m.k for m in mats]),
             twosided=i32([int(m.twosided) for m in mats]),
+            transmittance=f32([m.transmittance for m in mats]),
+            internal=f32([m.internal for m in mats]),
+            spec_weight=f32([m.spec_weight for m in mats]),
+            flags=i32([m.flags for m in mats]),
+            distribution=i32([m.distribution for m in mats]),
             has_glossy=any(m.kind != DIFFUSE for m in mats),
+            has_plastic=any(m.kind == PLASTIC for m in mats),
         )
 
         L = self._lights

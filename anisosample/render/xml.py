@@ -9,7 +9,10 @@ Supported (everything else is an error naming the tag and line):
   ``face_normals="true"``); ``to_world`` built from ``translate``, ``rotate``, ``scale``,
   ``matrix`` and ``lookat``; ``flip_normals``;
 * BSDFs ``diffuse``, ``roughconductor`` with ``distribution="ggx"`` and isotropic ``alpha``,
-  ``twosided``; declared at top level with ``id`` and used by ``<ref id=...>``;
+  ``roughplastic`` (``ggx`` or ``beckmann``, isotropic ``alpha``, ``int_ior``/``ext_ior`` as
+  numbers or names, ``diffuse_reflectance``, ``specular_reflectance``, ``nonlinear``,
+  ``sample_visible``), ``twosided``; declared at top level with ``id`` and used by
+  ``<ref id=...>``;
 * emitters ``area`` (constant ``radiance`` or an EXR ``bitmap`` texture) and ``point``;
 * sensors ``perspective`` and ``thinlens`` with an ``hdrfilm`` and a ``box`` ``rfilter``;
   the sampler's ``sample_count`` becomes the default spp;
@@ -233,7 +236,9 @@ def _props(ctx: _Ctx, node: _Node, allowed: dict[str, str]):
                 f'"{node.attrs.get("type")}"> (supported: {sorted(allowed)})',
             )
         want = allowed[name]
-        if want == "color" and c.tag in ("rgb", "spectrum", "float"):
+        if want == "ior" and c.tag in ("float", "string"):  # a number or a Mitsuba IOR name
+            props[name] = ctx.attr(c, "value", required=True)
+        elif want == "color" and c.tag in ("rgb", "spectrum", "float"):
             v = _floats(ctx, c, ctx.attr(c, "value", required=True), (1, 3))
             props[name] = np.repeat(v, 3) if v.size == 1 else v
         elif want == "ignore":
@@ -317,7 +322,22 @@ def _bsdf(ctx: _Ctx, b: SceneBuilder, node: _Node, twosided=False) -> int:
             props.get("specular_reflectance", (1.0, 1.0, 1.0)),
             twosided=twosided,
         )
-    raise ctx.err(node, "unsupported BSDF plugin (diffuse, roughconductor, twosided)")
+    if kind == "roughplastic":
+        allowed = {"distribution": "string", "alpha": "float", "int_ior": "ior", "ext_ior": "ior",
+                   "nonlinear": "boolean", "sample_visible": "boolean",
+                   "diffuse_reflectance": "color", "specular_reflectance": "color"}
+        props, objs = _props(ctx, node, allowed)
+        _no_objects(ctx, objs)
+        if any(isinstance(v, tuple) for v in props.values()):
+            raise ctx.err(node, "textured reflectances are not supported")
+        props.setdefault("distribution", "beckmann")  # Mitsuba's default (not ggx)
+        try:
+            return b.roughplastic(twosided=twosided, **props)
+        except ValueError as exc:
+            raise ctx.err(node, str(exc)) from None
+    raise ctx.err(
+        node, "unsupported BSDF plugin (diffuse, roughconductor, roughplastic, twosided)"
+    )
 
 
 def _no_objects(ctx, objs):
