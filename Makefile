@@ -105,8 +105,8 @@ w-directions-accuracy: $(VENV)/.installed
 	$(PY) experiments/w_directions_accuracy.py --scale $(SCALE)
 
 # The shipped aligned-set table (W Sec. 5.4; resumable: rerun after an interruption; a finished
-# table is verified and left alone). The paper's n = 4096: `make tables TABLE_N=4096` (about an
-# hour on a busy 2-core machine, see experiments/bench_tables.py), or
+# table is verified and left alone). The paper's n = 4096 ships too: `make tables TABLE_N=4096 TABLE_BATCH=1`
+# rebuilds it (7.5 min on a quiet 2-core machine, see experiments/bench_tables.py), or
 # `anisosample tables build --n 4096` into the user cache; 4-direction: `--directions 4`.
 TABLE_N ?= 256
 TABLE_BATCH ?= 8

@@ -31,11 +31,11 @@ the tables shipped in ``anisosample/data/tables``, and the user cache
 ``$XDG_CACHE_HOME/anisosample/tables`` (default ``~/.cache/anisosample/tables``), where
 ``anisosample tables build`` writes by default.
 
-Shipped: the 46-set 3-direction table for ``n = 256`` (``make tables``; 380 kB). The paper's
-``n = 4096`` table (about 1.5 MB) is not shipped: on the shared 2-core development machine one
-set took about a minute (``experiments/bench_tables.py``), so the 46 sets take most of an hour;
-build it with ``anisosample tables build --n 4096 --directions 3`` (into the user cache, where
-``lookup`` finds it), on a GPU or several devices for the 4,141-set 4-direction table.
+Shipped: the 46-set 3-direction tables for ``n = 256`` (380 kB) and the paper's ``n = 4096``
+(1.8 MB; built in 7 min 25 s on this project's 2-core development machine with
+``anisosample tables build --n 4096 --directions 3``, see ``experiments/bench_tables.py``). Other
+``n`` and the 4,141-set 4-direction table are built on demand into the user cache (``lookup(...,
+build_missing=True)`` or the CLI), ideally on a GPU or several devices.
 
 The aligned sampler (W Sec. 5.4): estimate the integrand's extra directions
 (:func:`anisosample.directions.estimate`), round them to integer degrees, look the set up, fall
