@@ -2,7 +2,8 @@
 
 Triangles use Moeller & Trumbore (1997); spheres the numerically careful quadratic of
 pbrt-v4 / Ray Tracing Gems ch. 7 (the closest root from ``b' = d . (o - c)`` with the
-discriminant written as ``r^2 - |(o - c) - b' d|^2``). The scenes this package ships hold tens of
+discriminant written as ``r^2 - |(o - c) - b' d|^2``); bilinear patches Reshetov (2019) as in
+:mod:`anisosample.render.patch`. The scenes this package ships hold tens of
 primitives, for which testing every primitive is faster under XLA than walking a hierarchy.
 """
 
@@ -13,6 +14,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from ._vec import dot, norm
+from .patch import closest_patch_hit, intersect_patches, patch_frame
 from .scene import Scene
 
 _INF = jnp.float32(jnp.inf)
@@ -98,6 +100,16 @@ def intersect(
         uv = jnp.where(use_sph, jnp.zeros(2, jnp.float32), uv_tri)
         material = jnp.where(use_sph, scene.sph_material[is_], ids[0])
         light = jnp.where(use_sph, scene.sph_light[is_], ids[1])
+    if scene.has_patches:  # bilinear patches (render/patch.py)
+        t_bp, uv_bp, k = closest_patch_hit(scene.patches, o, d, tmin, tmax)
+        use_bp = t_bp < t
+        t = jnp.minimum(t, t_bp)
+        valid = jnp.isfinite(t)
+        p = o + jnp.where(valid, t, 0.0) * d
+        n = jnp.where(use_bp, patch_frame(scene.patches.corners[k], uv_bp)[0], n)
+        uv = jnp.where(use_bp, uv_bp, uv)
+        material = jnp.where(use_bp, scene.patches.material[k], material)
+        light = jnp.where(use_bp, scene.patches.light[k], light)
     light = jnp.where(valid, light, -1)
     return Hit(valid=valid, t=t, p=p, n=n, uv=uv, material=material, light=light)
 
@@ -115,10 +127,13 @@ def occluded(
     tt, _, _ = _triangle_t(scene, o, d)
     lo, hi = dist * eps, dist * (1 - eps)
     inside = lambda t: (t > lo) & (t < hi)
+    blocked = jnp.any(inside(tt))
+    if scene.has_patches:
+        blocked = blocked | jnp.any(inside(intersect_patches(scene.patches.corners, o, d)[0]))
     if not scene.has_spheres:
-        return jnp.any(inside(tt))
+        return blocked
     s0, s1 = _sphere_t(scene, o, d)
-    return jnp.any(inside(tt)) | jnp.any(inside(s0)) | jnp.any(inside(s1))
+    return blocked | jnp.any(inside(s0)) | jnp.any(inside(s1))
 
 
 def offset_origin(scene: Scene, p, n, towards) -> Float[Array, "3"]:

@@ -13,6 +13,13 @@ then, by ``technique``:
 * ``"solid_angle"``: uniform in the solid angle the primitive subtends from the shading point
   (Ureña et al. 2013 for parallelograms, Arvo 1995 for triangles) through
   :mod:`anisosample.warps`, with the area density converted back by ``cos / d^2``.
+* ``"parametric"``: uniform in the primitive's own parameters; the same as ``"area"`` except on
+  bilinear patches.
+
+Bilinear patches (:mod:`anisosample.render.patch`, H Sec. 4.2) are sampled by their approximate
+equal-area warp (``warps.patch_area_warp``'s bilinear warp of the corner area elements) under
+``"area"`` and, as in pbrt-v4 for non-rectangular patches, also under ``"solid_angle"``; under
+``"parametric"`` uniformly in ``(u, v)`` (area pdf ``1 / |p_u x p_v|``, H Eq. 11).
 
 Densities returned are per unit *area* on the light (including the selection probabilities) so
 that the integrator has one formula; point lights have ``delta = True`` and a density equal to
@@ -26,9 +33,18 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from ._vec import dot
-from .scene import LIGHT_PARALLELOGRAM, LIGHT_POINT, LIGHT_SPHERE, LIGHT_TRIANGLE, Scene, Textures
+from .patch import patch_pdf, sample_patch, uv_towards
+from .scene import (
+    LIGHT_PARALLELOGRAM,
+    LIGHT_PATCH,
+    LIGHT_POINT,
+    LIGHT_SPHERE,
+    LIGHT_TRIANGLE,
+    Scene,
+    Textures,
+)
 
-TECHNIQUES = ("area", "solid_angle")
+TECHNIQUES = ("area", "solid_angle", "parametric")
 
 
 class LightSample(eqx.Module):
@@ -141,6 +157,13 @@ def sample_light(
         p, pdf = _solid_angle(scene, prim, x0, x1, ref, p, pdf)
         # uv of the new point on a parallelogram / triangle, by solving in the edge basis
         uv = _uv_of_point(lights, prim, p)
+    if scene.has_patches:  # bilinear patch lights (render/patch.py)
+        is_bp = kind == LIGHT_PATCH
+        c = scene.patches.corners[jnp.maximum(lights.patch[prim], 0)]
+        method = "parametric" if technique == "parametric" else "area"
+        p_bp, n_bp, uv_bp, pdf_bp = sample_patch(c, jnp.stack([x0, x1]), method)
+        p, n, uv = jnp.where(is_bp, p_bp, p), jnp.where(is_bp, n_bp, n), jnp.where(is_bp, uv_bp, uv)
+        pdf = jnp.where(is_bp, lights.prim_prob[prim] / lights.start.shape[0] * pdf_bp, pdf)
     delta = kind == LIGHT_POINT
     n_em = lights.start.shape[0]
     pdf = jnp.where(delta, 1.0 / n_em, pdf)
@@ -207,4 +230,12 @@ def light_pdf(scene: Scene, prim, p, ref, technique: str = "area") -> Float[Arra
         valid = jnp.where(kind == LIGHT_PARALLELOGRAM, rect.valid, tri.valid)
         use = ((kind == LIGHT_PARALLELOGRAM) | (kind == LIGHT_TRIANGLE)) & valid
         pdf = jnp.where(use, sa, pdf)
+    if scene.has_patches:  # bilinear patches: the (u, v) of p from the ray ref -> p
+        lights = scene.lights
+        c = scene.patches.corners[jnp.maximum(lights.patch[prim], 0)]
+        uv, found = uv_towards(c, ref, p)
+        method = "parametric" if technique == "parametric" else "area"
+        pb = jnp.where(found, patch_pdf(c, uv, method), 0.0)
+        sel = lights.prim_prob[prim] / lights.start.shape[0]
+        pdf = jnp.where(lights.kind[prim] == LIGHT_PATCH, sel * pb, pdf)
     return pdf

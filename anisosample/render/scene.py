@@ -1,8 +1,9 @@
 """The scene: a PyTree of arrays that the JAX ray caster traces (intersection, BSDFs, lights).
 
 Geometry is flattened to what the kernels need: triangles (rectangles, cubes and OBJ meshes
-become triangles, as in Mitsuba 3), analytic spheres, a table of materials, a table of light
-primitives (parallelograms, triangles, spheres, points) grouped into emitters, and one camera.
+become triangles, as in Mitsuba 3), analytic spheres, bilinear patches, a table of materials, a
+table of light primitives (parallelograms, triangles, spheres, bilinear patches, points) grouped
+into emitters, and one camera.
 Use :class:`SceneBuilder` to assemble a scene from Python, or :func:`anisosample.render.load_xml`
 to read Mitsuba 3's XML format.
 
@@ -20,10 +21,13 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from .patch import Patches, build_patches, check_corners
+
 # Material kinds.
 DIFFUSE, CONDUCTOR, PLASTIC = 0, 1, 2
 # Light primitive kinds.
 LIGHT_PARALLELOGRAM, LIGHT_TRIANGLE, LIGHT_SPHERE, LIGHT_POINT = 0, 1, 2, 3
+LIGHT_PATCH = 4  # bilinear patch (render/patch.py)
 # Camera kinds.
 PERSPECTIVE, THINLENS = 0, 1
 
@@ -102,6 +106,7 @@ class Lights(eqx.Module):
     start: Int[Array, " e"]
     count: Int[Array, " e"]
     delta: Int[Array, " e"]  # 1 for point emitters
+    patch: Int[Array, " l"]  # bilinear patch lights: index into Scene.patches, else -1
     n_prims: int = eqx.field(static=True, default=0)  # static: 1 lets kernels skip selection
 
 
@@ -131,11 +136,13 @@ class Scene(eqx.Module):
     textures: Textures
     camera: Camera
     scale: Float[Array, ""]  # scene extent, for ray offsets
+    patches: Patches  # bilinear patches (render/patch.py)
     spp: int = eqx.field(static=True, default=64)
     emitter_samples: int = eqx.field(static=True, default=1)
     bsdf_samples: int = eqx.field(static=True, default=0)
     has_spheres: bool = eqx.field(static=True, default=True)
     has_textures: bool = eqx.field(static=True, default=True)
+    has_patches: bool = eqx.field(static=True, default=False)
 
     @property
     def width(self) -> int:
@@ -197,6 +204,7 @@ class SceneBuilder:
 
     _tris: list = field(default_factory=list)  # (p0, p1, p2, n, uv0, uv1, uv2, mat, light)
     _spheres: list = field(default_factory=list)  # (center, radius, mat, light)
+    _patches: list = field(default_factory=list)  # (corners (2, 2, 3), mat, light)
     _materials: list = field(default_factory=list)
     _lights: list = field(default_factory=list)  # dicts
     _emitters: list = field(default_factory=list)  # (start, count, delta)
@@ -455,6 +463,20 @@ class SceneBuilder:
             )
         self._spheres.append((np.asarray(center, np.float64), radius, material, light))
 
+    def bilinear_patch(self, corners, material: int, *, radiance=None, flip_normals=False) -> None:
+        """A bilinear patch, ``corners[i, j] = p_ij`` (world space, shape (2, 2, 3)), front side
+        along ``p_u x p_v``; ``flip_normals`` swaps ``u`` and ``v`` (render/patch.py, H Sec. 4.2).
+        An emissive patch is one emitter. Raises ``ValueError`` for a degenerate patch."""
+        c, area = check_corners(corners)
+        if flip_normals:
+            c = c.transpose(1, 0, 2)
+        light = -1
+        if radiance is not None:
+            row = _light_dict(LIGHT_PATCH, c[0, 0], c[1, 0] - c[0, 0], c[0, 1] - c[0, 0],
+                              np.zeros(3), area, _rgb(radiance), -1)
+            (light,) = self._add_emitter([{**row, "patch": len(self._patches)}], delta=False)
+        self._patches.append((c, material, light))
+
     # camera -------------------------------------------------------------------------------------
     def camera(
         self,
@@ -550,6 +572,7 @@ class SceneBuilder:
             start=i32([e[0] for e in self._emitters]),
             count=i32([e[1] for e in self._emitters]),
             delta=i32([e[2] for e in self._emitters]),
+            patch=i32([x.get("patch", -1) for x in L]),
             n_prims=len(L),
         )
 
@@ -578,6 +601,7 @@ class SceneBuilder:
 
         pts = [p0[: len(self._tris)], (p0 + e1)[: len(self._tris)], (p0 + e2)[: len(self._tris)]]
         pts += [np.array([s[0] for s in self._spheres]).reshape(-1, 3)]
+        pts += [np.array([q[0] for q in self._patches]).reshape(-1, 3)]
         pts += [np.asarray(c["to_world"][:3, 3])[None]]
         allp = np.concatenate([p.reshape(-1, 3) for p in pts])
         scale = float(np.max(np.abs(allp))) if allp.size else 1.0
@@ -610,6 +634,8 @@ class SceneBuilder:
             bsdf_samples=int(self.bsdf_samples),
             has_spheres=bool(self._spheres),
             has_textures=bool(self._textures),
+            patches=build_patches(self._patches),
+            has_patches=bool(self._patches),
         )
 
 

@@ -7,7 +7,9 @@ Supported (everything else is an error naming the tag and line):
 * shapes ``rectangle``, ``cube``, ``sphere`` (``center``/``radius``; ``to_world`` with translation
   and uniform scale), ``obj`` (triangles; polygons are fanned; per-vertex normals only with
   ``face_normals="true"``); ``to_world`` built from ``translate``, ``rotate``, ``scale``,
-  ``matrix`` and ``lookat``; ``flip_normals``;
+  ``matrix`` and ``lookat``; ``flip_normals``; and, as **our extension** (Mitsuba 3 has no such
+  shape), ``bilinear``: a bilinear patch with corners ``<point name="p00" .../>``, ``p10``,
+  ``p01``, ``p11`` (default: Mitsuba's rectangle ``[-1, 1]^2 x {0}``), see render/patch.py;
 * BSDFs ``diffuse``, ``roughconductor`` with ``distribution="ggx"`` and isotropic ``alpha``,
   ``roughplastic`` (``ggx`` or ``beckmann``, isotropic ``alpha``, ``int_ior``/``ext_ior`` as
   numbers or names, ``diffuse_reflectance``, ``specular_reflectance``, ``nonlinear``,
@@ -387,6 +389,10 @@ def _area_emitter(ctx: _Ctx, b: SceneBuilder, node: _Node):
     return rad, -1
 
 
+_PATCH_CORNERS = {"p00": np.array([-1.0, -1, 0]), "p10": np.array([1.0, -1, 0]),
+                  "p01": np.array([-1.0, 1, 0]), "p11": np.array([1.0, 1, 0])}
+
+
 def _shape(ctx: _Ctx, b: SceneBuilder, node: _Node):
     kind = ctx.attr(node, "type", required=True)
     allowed = {"to_world": "transform", "flip_normals": "boolean"}
@@ -394,8 +400,10 @@ def _shape(ctx: _Ctx, b: SceneBuilder, node: _Node):
         allowed |= {"center": "point", "radius": "float"}
     elif kind == "obj":
         allowed |= {"filename": "string", "face_normals": "boolean"}
+    elif kind == "bilinear":  # our extension (render/patch.py)
+        allowed |= dict.fromkeys(_PATCH_CORNERS, "point")
     elif kind not in ("rectangle", "cube"):
-        raise ctx.err(node, "unsupported shape plugin (rectangle, cube, sphere, obj)")
+        raise ctx.err(node, "unsupported shape plugin (rectangle, cube, sphere, obj, bilinear)")
     props, objs = _props(ctx, node, allowed)
     mat, radiance, tex = None, None, -1
     for o in objs:
@@ -421,6 +429,12 @@ def _shape(ctx: _Ctx, b: SceneBuilder, node: _Node):
             b.rectangle(
                 m, mat, radiance=radiance if emissive else None, texture=tex, flip_normals=flip
             )
+        elif kind == "bilinear":
+            if tex >= 0:
+                raise ValueError("textured emitters are supported on rectangles only")
+            c = [m[:3, :3] @ props.get(k, v) + m[:3, 3] for k, v in _PATCH_CORNERS.items()]
+            b.bilinear_patch(np.array([[c[0], c[2]], [c[1], c[3]]]), mat,
+                             radiance=radiance if emissive else None, flip_normals=flip)
         elif kind == "cube":
             if tex >= 0:
                 raise ValueError("textured emitters are supported on rectangles only")
