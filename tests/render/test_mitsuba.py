@@ -14,7 +14,7 @@ from .helpers import SCENES, mitsuba_render
 
 pytest.importorskip("mitsuba")
 
-SHIPPED = ["cornell", "blinds", "attic", "dof", "triangle_light", "glossy"]
+SHIPPED = ["cornell", "blinds", "attic", "dof", "triangle_light", "glossy", "plastic"]
 
 
 def _relrmse(a, b):
@@ -22,7 +22,15 @@ def _relrmse(a, b):
 
 
 def test_cornell_low_res_matches_mitsuba():
-    path = SCENES / "cornell.xml"
+    _low_res_matches_mitsuba(SCENES / "cornell.xml")
+
+
+def test_plastic_low_res_matches_mitsuba():
+    """roughplastic (GGX and Beckmann) with MIS: light and BSDF sampling both in play."""
+    _low_res_matches_mitsuba(SCENES / "plastic.xml")
+
+
+def _low_res_matches_mitsuba(path):
     size = dict(width=8, height=8)
     spp, reps = 256, 8
     ours = R.render(R.load_xml(path, **size), jax.random.key(0), spp=spp, realizations=reps,
