@@ -240,6 +240,8 @@ def _props(ctx: _Ctx, node: _Node, allowed: dict[str, str]):
         want = allowed[name]
         if want == "ior" and c.tag in ("float", "string"):  # a number or a Mitsuba IOR name
             props[name] = ctx.attr(c, "value", required=True)
+        elif want == "ior":
+            raise ctx.err(c, f"property {name!r} must be a <float> or a <string> (an IOR name)")
         elif want == "color" and c.tag in ("rgb", "spectrum", "float"):
             v = _floats(ctx, c, ctx.attr(c, "value", required=True), (1, 3))
             props[name] = np.repeat(v, 3) if v.size == 1 else v

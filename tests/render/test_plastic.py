@@ -273,6 +273,7 @@ SCENE = """<scene version="3.0.0">
          r"diffuse_reflectance must be one or three numbers in \[0, 1\]"),
         ('<float name="specular_reflectance" value="-0.1"/>', "specular_reflectance must be"),
         ('<float name="alpha_u" value="0.1"/>', "unsupported property 'alpha_u'"),
+        ('<rgb name="int_ior" value="1.5"/>', "must be a <float> or a <string>"),
     ],
 )
 def test_bad_parameters_name_file_line_and_parameter(tmp_path, prop, match):
