@@ -1,14 +1,13 @@
 """H Table 4 on the JAX ray caster: a bilinear-patch light, four patch samplers.
 
-Scene: the floor and box of ``experiments/scenes/triangle_light.xml`` with its triangle emitter
-replaced by a twisted, non-planar bilinear patch with one short edge (H Fig. 3's situation),
-written as a Mitsuba XML + OBJ (a 16x16 tessellation of the patch, emitting downwards) next to
-the results. The renderer has no bilinear-patch primitive, so the tessellation is the emitter's
-*geometry* (what rays hit: visibility, BSDF-sampled emission), while light sampling draws points
-on the exact patch (``warps.BilinearPatch``); a traced light-sample ray must reach the emitter
-within 1% of the sampled point's distance (rejecting the far side of a fold). The edges of
-patch and tessellation coincide; their interiors differ by the tessellation's chord error,
-which the unbiasedness check below would expose if it mattered.
+Scene: ``experiments/scenes/patch_light.xml``, the floor and box of ``triangle_light.xml`` under
+a twisted, non-planar bilinear-patch light with one short edge (H Fig. 3's situation), emitting
+downwards. The ray caster traces the exact patch (``<shape type="bilinear">``,
+:mod:`anisosample.render.patch`, Reshetov 2019), so the surface that rays hit (visibility,
+BSDF-sampled emission) is the surface that light sampling draws points on
+(``warps.BilinearPatch``); a traced light-sample ray must reach the emitter within 1% of the
+sampled point's distance (where the patch folds in front of the sampled point, that point is
+hidden).
 
 Pixel-centre primary hits, one light + one BSDF sample per pixel sample with the power
 heuristic (H: "All images were rendered using MIS"). Techniques, fitted per shading point:
@@ -42,8 +41,8 @@ import anisosample.warps as W
 
 NAME = "h_table4"
 SCALES = {
-    "small": dict(width=40, height=40, spp=4, realizations=16, reference_spp=512, tess=16),
-    "paper": dict(width=256, height=256, spp=1, realizations=64, reference_spp=8192, tess=32),
+    "small": dict(width=40, height=40, spp=4, realizations=16, reference_spp=512),
+    "paper": dict(width=256, height=256, spp=1, realizations=64, reference_spp=8192),
 }
 # corners[i, j] = p_ij at (u, v) = (i, j): twisted, non-planar, one short edge (p00-p01).
 PATCH = np.array(
@@ -57,39 +56,16 @@ HART = {
 }
 
 
-def patch_point(uv):
-    u, v = uv
-    c = PATCH
-    return (1 - u) * ((1 - v) * c[0, 0] + v * c[0, 1]) + u * ((1 - v) * c[1, 0] + v * c[1, 1])
+SCENE = ROOT / "experiments" / "scenes" / "patch_light.xml"
 
 
-def write_scene(out, tess):
-    """XML + OBJ of the patch scene; faces ordered so that the emitting side faces down."""
-    folder = out / "scene"
-    folder.mkdir(parents=True, exist_ok=True)
-    t = np.linspace(0, 1, tess + 1)
-    verts = np.array([patch_point((u, v)) for u in t for v in t])
-    idx = lambda i, j: i * (tess + 1) + j + 1  # noqa: E731
-    faces = []
-    for i in range(tess):
-        for j in range(tess):
-            a, b, c, d = idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1)
-            faces += [(a, b, c), (a, c, d)]
-    p0, p1, p2 = (verts[k - 1] for k in faces[0])
-    if np.cross(p1 - p0, p2 - p0)[1] > 0:  # make the normal point down (-y)
-        faces = [(a, c, b) for a, b, c in faces]
-    lines = ["# bilinear patch light of experiments/h_table4.py, tessellated"]
-    lines += [f"v {x:.9f} {y:.9f} {z:.9f}" for x, y, z in verts]
-    lines += [f"f {a} {b} {c}" for a, b, c in faces]
-    (folder / "patch_light.obj").write_text("\n".join(lines) + "\n")
-    xml = (ROOT / "experiments/scenes/triangle_light.xml").read_text()
-    xml = xml.replace("triangle_light.obj", "patch_light.obj")
-    xml = xml.replace(
-        "A triangle light over a diffuse floor",
-        "A bilinear-patch light (tessellated) over a diffuse floor, written by h_table4.py;",
-    )
-    (folder / "patch_light.xml").write_text(xml)
-    return folder / "patch_light.xml"
+def load_scene(settings):
+    """The shipped patch-light scene at the run's resolution; its patch must be ``PATCH``."""
+    scene = asp.render.load_xml(SCENE, width=settings["width"], height=settings["height"])
+    corners = np.asarray(scene.patches.corners, np.float64)
+    if corners.shape != (1, 2, 2, 3) or not np.allclose(corners[0], PATCH, atol=1e-6):
+        raise ValueError(f"{SCENE} must hold exactly the patch h_table4.PATCH")
+    return scene
 
 
 def techniques():
@@ -127,14 +103,12 @@ def techniques():
         ),
         "three-warp approx. cosine": three_warp,
     }
-    light = H.Light(normal=normal, snap=lambda x: patch.point(patch.inverse(x)))
+    light = H.Light(normal=normal)  # the traced hit already lies on the exact patch
     return techs, light
 
 
 def run(settings, seed, out):
-    scene = asp.render.load_xml(
-        write_scene(out, settings["tess"]), width=settings["width"], height=settings["height"]
-    )
+    scene = load_scene(settings)
     techs, light = techniques()
     k_ref, k_run = jax.random.split(jax.random.key(seed))
     ref, ref_var = H.reference(
@@ -152,6 +126,7 @@ def run(settings, seed, out):
             mean_variance_of_mean=float(ref_var.mean()),
         ),
         patch_corners=PATCH.tolist(),
+        scene="experiments/scenes/patch_light.xml (exact bilinear patch)",
         hart=HART,
     )
     return scene, ref, images, data
