@@ -342,7 +342,7 @@ def _add_render(sub):
     p.add_argument("--pixel-center", action="store_true",
                    help="fixed primary hit per pixel (the papers' 2D integrand) instead of "
                         "averaging over the pixel area")
-    p.add_argument("--technique", default="area", choices=["area", "solid_angle"],
+    p.add_argument("--technique", default="area", choices=["area", "solid_angle", "parametric"],
                    help="light sampling technique")
     p.add_argument("--dimension", default="auto", choices=["auto", "light", "lens"],
                    help="which 2D sample the sampler drives")
