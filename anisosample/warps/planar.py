@@ -105,12 +105,27 @@ class Bilinear(AbstractWarp):
         v = self.values
         return _lerp(x, _lerp(y, v[0, 0], v[0, 1]), _lerp(y, v[1, 0], v[1, 1]))
 
-    def sample(self, u):
+    def _sample(self, u):
         u = _check_point("u", u, 2)
         v = self.values
         y = sample_linear(u[1], v[0, 0] + v[1, 0], v[0, 1] + v[1, 1])
-        x = sample_linear(u[0], _lerp(y, v[0, 0], v[0, 1]), _lerp(y, v[1, 0], v[1, 1]))
+        a0, a1 = _lerp(y, v[0, 0], v[0, 1]), _lerp(y, v[1, 0], v[1, 1])  # a(0, y), a(1, y)
+        x = sample_linear(u[0], a0, a1)
+        return x, y, a0, a1
+
+    def sample(self, u):
+        x, y, _, _ = self._sample(u)
         return jnp.stack([x, y])
+
+    def sample_and_pdf(self, u):
+        """``(x, pdf(x))`` in one pass: ``J = 4 a(x) / sum(values)`` from the conditional's end
+        values ``a(0, y), a(1, y)`` that sampling computed anyway (no re-evaluation of ``a``, no
+        domain test: ``x`` is inside by construction). This is the cost H Sec. 4.1 measures."""
+        x, y, a0, a1 = self._sample(u)
+        total = jnp.sum(self.values)
+        ok = total > 0
+        p = jnp.where(ok, _lerp(x, a0, a1) * (4.0 / jnp.where(ok, total, 1.0)), 1.0)
+        return jnp.stack([x, y]), p
 
     def pdf(self, x):
         x = _check_point("x", x, 2)
