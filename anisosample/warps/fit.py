@@ -44,6 +44,8 @@ def _rest(later) -> AbstractWarp | None:
     if isinstance(later, AbstractWarp):
         return later
     later = tuple(later)
+    if len(later) == 1:  # the warp itself, so that fit_pointwise sees its corner_images
+        return later[0]
     return Compose(*later) if later else None
 
 
