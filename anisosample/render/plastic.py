@@ -1,8 +1,8 @@
 """Mitsuba 3's ``roughplastic``: a diffuse base under a rough dielectric coating.
 
-The model (Mitsuba 3 ``roughplastic``, after Weidlich & Wilkie 2007 and Mitsuba 0.5's
-``roughplastic``), with ``wi`` towards the viewer, ``wo`` towards the light, both in the local
-frame of the front normal and above it, ``eta = int_ior / ext_ior`` and ``H`` the half vector:
+The model (Mitsuba 3 ``roughplastic``, ``src/bsdfs/roughplastic.cpp``), with ``wi`` towards
+the viewer, ``wo`` towards the light, both in the local frame of the front normal and above it,
+``eta = int_ior / ext_ior`` and ``H`` the half vector:
 
 ``f cos_o = s F(wi.H, eta) D(H) G(wi, wo, H) / (4 cos_i)
           + rho / (1 - F_int) / (pi eta^2) cos_o T(cos_i) T(cos_o)``
@@ -33,6 +33,8 @@ number both picks the lobe and, rescaled, drives the chosen lobe.
 """
 
 from __future__ import annotations
+
+import functools
 
 import jax.numpy as jnp
 import numpy as np
@@ -128,13 +130,11 @@ def make_params(
     d_mean = float(np.mean(diffuse_reflectance))
     s_mean = float(np.mean(specular_reflectance))
     weight = s_mean / (d_mean + s_mean) if d_mean + s_mean > 0 else 0.5
-    mu = np.maximum(1e-6, np.linspace(0.0, 1.0, RES))
-    trans = rough_transmittance(mu, alpha, eta, dist)
-    internal = 2.0 * float(np.mean(rough_reflectance(mu, alpha, 1.0 / eta, dist) * mu))
+    trans, internal = _tables(alpha, eta, dist)
     return dict(
         alpha=alpha,
         eta=eta,
-        transmittance=tuple(trans.tolist()),
+        transmittance=trans,
         internal=internal,
         spec_weight=weight,
         flags=(NONLINEAR if nonlinear else 0) | (VISIBLE if sample_visible else 0),
@@ -143,6 +143,15 @@ def make_params(
 
 
 # --- precomputation (numpy, float64) ------------------------------------------------------------
+
+
+@functools.lru_cache(maxsize=64)
+def _tables(alpha: float, eta: float, dist: int) -> tuple[tuple, float]:
+    """``(T(mu_i), F_int)``: Mitsuba's ``m_external_transmittance``, ``m_internal_reflectance``."""
+    mu = np.maximum(1e-6, np.linspace(0.0, 1.0, RES))
+    trans = rough_transmittance(mu, alpha, eta, dist)
+    internal = 2.0 * float(np.mean(rough_reflectance(mu, alpha, 1.0 / eta, dist) * mu))
+    return tuple(trans.tolist()), internal
 
 
 def _fresnel_np(cos_i, eta):
