@@ -181,12 +181,13 @@ def test_smooth_limit_internal_reflectance_and_diffuse_albedo():
 
 @pytest.mark.parametrize("distribution", ["ggx", "beckmann"])
 def test_white_furnace_never_creates_energy(distribution):
-    for alpha in (0.01, 0.1, 0.3, 0.8):
+    for alpha in (0.01, 0.2, 0.8):
         ms = _materials(alpha=alpha, distribution=distribution, diffuse_reflectance=0.0)
         md = _materials(alpha=alpha, distribution=distribution, diffuse_reflectance=1.0,
                         specular_reflectance=0.0, nonlinear=True)
         for cos_i in (0.1, 0.5, 1.0):
-            total = _specular_albedo(ms, cos_i, alpha) + _hemisphere_integral(_eval, md, cos_i)
+            total = (_specular_albedo(ms, cos_i, alpha, n=128)
+                     + _hemisphere_integral(_eval, md, cos_i, n=128))
             assert np.all(total <= 1.0 + 1e-3), (alpha, cos_i, total)
             if alpha == 0.01 and cos_i >= 0.5:
                 # Smooth limit: F + (1 - F) * (Stokes ratio with Mitsuba's F_int) ~ 0.98.
