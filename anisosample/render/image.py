@@ -54,12 +54,19 @@ def render(
     chunk: int | None = None,
     chunk_samples: int = 4096,
     progress: bool = True,
+    sampler_options: dict | None = None,
 ) -> RenderResult:
     """Render ``scene`` ``realizations`` times with ``spp`` points per pixel per realization.
 
     ``sampler``: a name from :func:`anisosample.samplers.names` or a callable ``(key, n)``;
     ``spp`` defaults to the scene's sample count; ``mis`` defaults to the XML integrator's
     ``bsdf_samples > 0``. Deterministic for a given ``key``.
+
+    Per-block samplers (W Sec. 5.3-5.4, :mod:`anisosample.render.aligned`): ``sampler="aligned"``
+    or ``"sheared"`` estimates each block's direction first (``sampler_options``: the keywords of
+    :func:`~anisosample.render.aligned.block_sampler`, e.g. ``block_px``, ``samples``, ``table``),
+    or pass a finished :class:`~anisosample.render.aligned.BlockSampler`; each pixel then uses
+    its block's set with its own toroidal shift.
     """
     key = check_key("key", key)
     spp = check_int("spp", scene.spp if spp is None else spp, minimum=1)
@@ -68,7 +75,15 @@ def render(
     if mis is None:
         mis = scene.bsdf_samples > 0
     mis = bool(mis) and dimension == "light"
-    sample_points, sampler_name = _get_sampler(sampler)
+    from .aligned import _render_chunk_sets, _resolve
+
+    blocks = _resolve(scene, sampler, sampler_options, dimension=dimension, technique=technique,
+                     square_aperture=bool(square_aperture))
+    if blocks is None:
+        sample_points, sampler_name = _get_sampler(sampler)
+    else:
+        sampler_name = blocks.name
+        blocks.check_tables(spp)
     w, h = scene.width, scene.height
     npix = w * h
     # A chunk of pixels is vmapped (about ``chunk_samples`` samples: small enough to stay in
@@ -97,7 +112,12 @@ def render(
     ) as pb:
         for r in range(realizations):
             k_pts, k_pix = jax.random.split(jax.random.fold_in(key, r))
-            pts = jnp.asarray(sample_points(k_pts, spp), jnp.float32)
+            if blocks is not None:
+                sets, pixel_set = blocks.point_sets(k_pts, spp)
+                pixel_set = jnp.asarray(pixel_set)
+                pts = sets[0]
+            else:
+                pts = jnp.asarray(sample_points(k_pts, spp), jnp.float32)
             if pts.shape != (spp, 2):
                 raise ValueError(
                     f"sampler {sampler_name!r} returned shape {pts.shape}, expected ({spp}, 2)"
@@ -107,8 +127,12 @@ def render(
                 idx = np.arange(c * chunk * per_call, (c + 1) * chunk * per_call)
                 valid = idx < npix
                 idx = np.where(valid, idx, npix - 1).astype(np.int32)
-                out = _render_chunk(scene, pts, k_pix, jnp.asarray(idx.reshape(per_call, chunk)),
-                                    **opts)
+                if blocks is None:
+                    out = _render_chunk(scene, pts, k_pix,
+                                        jnp.asarray(idx.reshape(per_call, chunk)), **opts)
+                else:
+                    out = _render_chunk_sets(scene, sets, pixel_set, k_pix,
+                                             jnp.asarray(idx.reshape(per_call, chunk)), **opts)
                 est[idx[valid]] = np.asarray(out, np.float64).reshape(-1, 3)[valid]
                 pb.update(1)
             if not np.all(np.isfinite(est)):
@@ -132,6 +156,8 @@ def render(
         width=w,
         height=h,
     )
+    if blocks is not None:
+        settings["blocks"] = blocks.settings()
     return RenderResult(
         mean=mean.reshape(h, w, 3).astype(np.float32),
         variance=var,
