@@ -13,13 +13,14 @@ not depend on which sets were built before it, on which device or host built it,
 interruptions -- a resumed build writes exactly the sets an uninterrupted one writes.
 
 Parallelism. With ``batch=1`` each set is one :func:`~anisosample.synthesize` call (with
-checkpoints inside the set); with ``batch=B`` groups of ``B`` sets of equal direction count run
-as one :func:`~anisosample.synthesis.synthesize_batch` loop (the loss vmapped over the padded
-frequency sets of the group: one compilation per group). Sets or groups are spread over the local
-devices (``jax.local_devices()``), one worker thread per device running under
-``jax.default_device(device)`` (XLA releases the GIL while it computes); on the CPU, test it with
-``XLA_FLAGS=--xla_force_host_platform_device_count=2``. (The sets are not sharded *within* one
-loop with ``jax.sharding``: synthesize owns its loop.) Several hosts: start the same
+checkpoints inside the set), and sets are spread over the local devices
+(``jax.local_devices()``), one worker thread per device running under
+``jax.default_device(device)`` (XLA releases the GIL while it computes). With ``batch=B`` groups of
+``B`` sets of equal direction count run one after the other, each as one
+:func:`~anisosample.synthesis.synthesize_batch` loop (the loss mapped over the padded frequency
+sets of the group: one compilation per group) *sharded* over all the local devices with
+``jax.shard_map`` on a ``jax.sharding.Mesh`` (each device optimizes its slice of the group). On the
+CPU, test either with ``XLA_FLAGS=--xla_force_host_platform_device_count=2``. Several hosts: start the same
 command on every host after ``jax.distributed.initialize(...)`` (coordinator address, number of
 processes, process id; on SLURM/TPU pods it needs no arguments) with a shared ``--out``; host
 ``p`` of ``P`` builds the sets ``i`` with ``i % P == p`` and the last host to finish writes the
@@ -113,19 +114,22 @@ def _build_one(table: _t.Table, index: int, extra, device, checkpoint_every: int
     return extra_meta["seconds"]
 
 
-def _build_group(table: _t.Table, indices, group, device) -> list[float]:
-    """One :func:`synthesize_batch` call for a group of sets with equal direction counts."""
+def _build_group(table: _t.Table, indices, group, devices) -> list[float]:
+    """One :func:`synthesize_batch` call for a group of sets with equal direction counts,
+    sharded over ``devices`` (``jax.shard_map``; one device: no sharding)."""
     from . import synthesis
 
     settings = table.settings
     opts = dict(settings["synthesis"])
     opts.pop("batch", None)
     t0 = time.perf_counter()
-    with jax.default_device(device):
+    with jax.default_device(devices[0]):
         pts, info = synthesis.synthesize_batch(
             _key_for(settings["seed"], indices[0]), table.n,
-            [_t.set_directions(e) for e in group], show_progress=False, return_info=True, **opts,
+            [_t.set_directions(e) for e in group], show_progress=False, return_info=True,
+            devices=devices if len(devices) > 1 else None, **opts,
         )
+    device = ",".join(str(d) for d in devices)
     sec = (time.perf_counter() - t0) / len(group)
     final = np.asarray(info.get("final_loss")).reshape(-1)
     for b, (i, e) in enumerate(zip(indices, group, strict=True)):
@@ -217,7 +221,9 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
             redone whole if any of its sets is missing; set ``b`` of the group starting at
             canonical index ``i`` uses ``split(fold_in(key(seed), i), B)[b]``). ``batch`` is
             part of the table's settings (it changes the sets' keys).
-        devices: the devices to spread sets (or groups) over (default ``jax.local_devices()``).
+        devices: the devices (default ``jax.local_devices()``): ``batch=1`` spreads sets over
+            them, one thread each; ``batch > 1`` shards each group over all of them
+            (results equal the one-device build's to float32 rounding, not bit for bit).
         checkpoint_every: synthesis checkpoint interval in steps (resume granularity).
         synthesis_options: passed to :func:`anisosample.synthesize` (``recipe``, ``steps``, ...).
 
@@ -304,7 +310,9 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
                 bar.update(len(u))
 
     try:
-        if len(devices) == 1 or len(remaining) <= 1:
+        if batch > 1:  # one group at a time, sharded over all the devices
+            worker(devices)
+        elif len(devices) == 1 or len(remaining) <= 1:
             worker(devices[0])
         else:
             threads = [threading.Thread(target=worker, args=(d,), daemon=True)

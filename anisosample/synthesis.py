@@ -389,16 +389,37 @@ def _padded_groups(fsets, dtype):
     return out
 
 
+def _check_devices(devices) -> list:
+    if devices is None:
+        return [None]  # the default device (respects jax.default_device)
+    devs = list(devices)
+    if not devs:
+        raise ValueError("devices must hold at least one device")
+    for i, d in enumerate(devs):
+        if not isinstance(d, jax.Device):
+            raise TypeError(f"devices[{i}] must be a jax.Device, got {type(d).__name__}")
+    if len(set(devs)) != len(devs):
+        raise ValueError(f"devices must be distinct, got {devs}")
+    return devs
+
+
 def synthesize_batch(key, n: int, direction_sets, *, recipe: str = "rate",
                      steps: int | None = None, learning_rate: float | None = None,
                      c: float | None = None, init: str = "jittered", method: str = "nufft3",
-                     show_progress: bool = True, return_info: bool = False, **adam_options):
+                     devices=None, show_progress: bool = True, return_info: bool = False,
+                     **adam_options):
     """Several sets at once: ``direction_sets`` is a list of ``B`` direction lists of equal
     length; returns ``(B, n, 2)``.  One optimizer loop, the loss ``vmap``ped over the sets
     (frequency groups padded to a common size with zero weights), so a batch costs one
     compilation and runs as batched NUFFTs.  Set ``b`` starts from
     ``jax.random.split(key, B)[b]`` and equals ``synthesize(that key, n, direction_sets[b])``
-    up to rounding.  No checkpoints (use :func:`synthesize` for long single runs)."""
+    up to rounding.  No checkpoints (use :func:`synthesize` for long single runs).
+
+    ``devices``: shard the sets over these devices with ``jax.shard_map`` on a one-axis
+    ``jax.sharding.Mesh`` (``"sets"``); each device runs the loop on its own slice of the batch
+    (the sets do not interact, so no collectives). ``B`` is padded to a multiple of the device
+    count with copies of the last set, which are dropped. Default: the default device only. On
+    the CPU, try it with ``XLA_FLAGS=--xla_force_host_platform_device_count=2``."""
     key = check_key("key", key)
     n = check_int("n", n, minimum=2)
     recipe = check_choice("recipe", recipe, RECIPES)
@@ -409,6 +430,7 @@ def synthesize_batch(key, n: int, direction_sets, *, recipe: str = "rate",
         raise ValueError("direction_sets must all have the same number of directions, got "
                          f"{[len(d) for d in sets]}")
     method = check_choice("method", method, ("direct", "nufft3"))
+    devs = _check_devices(devices)
     opts = recipe_defaults(recipe)
     for name, val in adam_options.items():
         if name not in ("b1", "b2", "adam_eps", "final_lr_fraction", "nufft_eps"):
@@ -424,12 +446,16 @@ def synthesize_batch(key, n: int, direction_sets, *, recipe: str = "rate",
     keys = jax.random.split(key, b)
     x_init = np.stack([np.asarray(_initial_points(k, n, init), np.float64) for k in keys])
     fsets = [_freq.design(n, d, opts["design"]) for d in sets]
+    pad = -b % len(devs)  # copies of the last set so that every device gets as many sets
+    x_init = np.concatenate([x_init, np.repeat(x_init[-1:], pad, axis=0)])
+    fsets_padded = fsets + [fsets[-1]] * pad
+    sets_padded = sets + [sets[-1]] * pad
     eps = opts["nufft_eps"]
     spec_sq = recipe == "paper"
     cw = opts["c"]
     with jax.enable_x64(True):
-        groups = _padded_groups(fsets, jnp.float64)
-        th = jnp.asarray(np.deg2rad(np.asarray(sets)), jnp.float64)  # (B, k)
+        groups = _padded_groups(fsets_padded, jnp.float64)
+        th = jnp.asarray(np.deg2rad(np.asarray(sets_padded)), jnp.float64)  # (B, k)
         u = jnp.asarray((np.arange(n) + 0.5) / n - 0.5, jnp.float64)
 
         def loss_one(x, grp, theta):
@@ -447,46 +473,78 @@ def synthesize_batch(key, n: int, direction_sets, *, recipe: str = "rate",
                 val = val + cw * jnp.mean(jnp.sum((srt - tgt) ** 2, axis=1))
             return val
 
-        def total(xb):
+        def total(xb, grps, ths):
             if method == "direct":
-                vals = jax.vmap(loss_one)(xb, groups, th)
+                vals = jax.vmap(loss_one)(xb, grps, ths)
             else:  # jax-finufft 1.3.1's batching rule fails under jax 0.10 (no
                 # batching.not_mapped): map over the sets inside the same jit instead
-                vals = jax.lax.map(lambda a: loss_one(*a), (xb, groups, th))
+                vals = jax.lax.map(lambda a: loss_one(*a), (xb, grps, ths))
             return jnp.sum(vals), vals
 
         lr0 = opts["learning_rate"] / math.sqrt(n)
         decay = opts["final_lr_fraction"] ** (1.0 / max(opts["steps"] - 1, 1))
         wrap = opts["boundary"] == "wrap"
 
-        def one(state, _):
-            x, m, v, t = state
-            (_, vals), g = jax.value_and_grad(total, has_aux=True)(x)
-            lr = lr0 * decay ** t.astype(x.dtype)
-            dx, (m, v) = adam_update(g, (m, v), (t + 1).astype(x.dtype), lr=lr, b1=opts["b1"],
-                                     b2=opts["b2"], eps=opts["adam_eps"])
-            x = x + dx
-            x = x - jnp.floor(x) if wrap else jnp.clip(x, 0.0, 1.0 - 2.0**-53)
-            return (x, m, v, t + 1), vals
+        def run(state, grps, ths, length):
+            def one(st, _):
+                x, m, v, t = st
+                (_, vals), g = jax.value_and_grad(total, has_aux=True)(x, grps, ths)
+                lr = lr0 * decay ** t.astype(x.dtype)
+                dx, (m, v) = adam_update(g, (m, v), (t + 1).astype(x.dtype), lr=lr,
+                                         b1=opts["b1"], b2=opts["b2"], eps=opts["adam_eps"])
+                x = x + dx
+                x = x - jnp.floor(x) if wrap else jnp.clip(x, 0.0, 1.0 - 2.0**-53)
+                return (x, m, v, t + 1), vals
+
+            return jax.lax.scan(one, state, None, length=length)
+
+        def final_values(xb, grps, ths):
+            return total(xb, grps, ths)[1]
+
+        if len(devs) > 1:
+            from jax.sharding import Mesh
+            from jax.sharding import PartitionSpec as P
+
+            mesh = Mesh(np.asarray(devs), ("sets",))
+            per_set, rep = P("sets"), P()
+
+            def sharded(fn, in_specs, out_specs):
+                # check_vma=False: the NUFFT custom calls carry no varying-axis rules; the sets
+                # are independent, so every output is exactly its shard's.
+                return jax.jit(jax.shard_map(fn, mesh=mesh, in_specs=in_specs,
+                                             out_specs=out_specs, check_vma=False))
+
+            make_runner = lambda k: sharded(  # noqa: E731
+                lambda st, g, t: run(st, g, t, k),
+                ((per_set, per_set, per_set, rep), per_set, per_set),
+                ((per_set, per_set, per_set, rep), P(None, "sets")))
+            final_fn = sharded(final_values, (per_set, per_set, per_set), per_set)
+        else:
+            make_runner = lambda k: jax.jit(lambda st, g, t: run(st, g, t, k))  # noqa: E731
+            final_fn = jax.jit(final_values)
 
         chunk = 25
         runners = {}
         x0 = jnp.asarray(x_init)
+        if len(devs) == 1 and devs[0] is not None:
+            x0 = jax.device_put(x0, devs[0])
         state = (x0, jnp.zeros_like(x0), jnp.zeros_like(x0), jnp.asarray(0, jnp.int64))
         history = []
-        bar = _progress(total=opts["steps"], desc=f"synthesize_batch {b} x n={n}",
+        bar = _progress(total=opts["steps"], desc=f"synthesize_batch {b} x n={n}"
+                        + (f" on {len(devs)} devices" if len(devs) > 1 else ""),
                         disable=None if show_progress else True)
         done = 0
         while done < opts["steps"]:
             k = min(chunk, opts["steps"] - done)
             if k not in runners:
-                runners[k] = jax.jit(lambda s, k=k: jax.lax.scan(one, s, None, length=k))
-            state, vals = runners[k](state)
-            history.append(np.asarray(vals))
+                runners[k] = make_runner(k)
+            state, vals = runners[k](state, groups, th)
+            history.append(np.asarray(vals)[:, :b])
             done += k
             bar.update(k)
         bar.close()
-        final = np.asarray(jax.jit(total)(state[0])[1])
+        final = np.asarray(final_fn(state[0], groups, th))[:b]
+        state = (np.asarray(state[0])[:b],) + tuple(state[1:])
     pts = jnp.asarray(np.stack([_to_float32_unit(x) for x in np.asarray(state[0])]))
     if return_info:
         hist = np.concatenate(history + [final[None]], axis=0).T
