@@ -334,7 +334,18 @@ def _run_variance(args):
 def _add_render(sub):
     p = sub.add_parser("render", help="render a Mitsuba-XML scene (direct light, depth of field)")
     p.add_argument("scene", help="Mitsuba 3 XML scene (the supported subset: anisosample.render)")
-    p.add_argument("--sampler", default="random", help="point-set sampler per pixel")
+    p.add_argument("--sampler", default="random",
+                   help="point-set sampler per pixel; 'aligned' (or 'sheared'): per-block sets "
+                        "from a direction estimate per block (W Sec. 5.3-5.4)")
+    p.add_argument("--block", type=int, default=None,
+                   help="aligned/sheared: block side in pixels of the direction estimate "
+                        "(default 16; images that are no multiple are padded)")
+    p.add_argument("--estimation-samples", type=int, default=None,
+                   help="aligned/sheared: grid samples per block side, a multiple of --block "
+                        "(default 96: 36 per pixel at --block 16)")
+    p.add_argument("--direction-map", default=None, metavar="PNG",
+                   help="aligned/sheared: also write the per-block directions as PNG (hue = "
+                        "direction / 180, black = none; one panel per direction)")
     p.add_argument("--spp", type=int, default=None, help="points per pixel (default: the scene's)")
     p.add_argument("--realizations", type=int, default=1,
                    help="independent renders; >1 also writes a per-pixel variance image")
@@ -374,8 +385,9 @@ def _run_render(args):
         params[k.strip()] = v.strip()
     scene = render.load_xml(args.scene, **params)
     reference = io.read_exr(args.reference) if args.reference else None
+    sampler = _block_sampler(args, scene)
     result = render.render(
-        scene, jax.random.key(args.seed), spp=args.spp, sampler=args.sampler,
+        scene, jax.random.key(args.seed), spp=args.spp, sampler=sampler,
         realizations=args.realizations, pixel_center=args.pixel_center,
         dimension=args.dimension, technique=args.technique, mis=args.mis,
     )
@@ -385,6 +397,46 @@ def _run_render(args):
         metadata={"scene": str(args.scene), "seed": args.seed, "params": params},
     )
     print(f"wrote {', '.join(str(w) for w in written)}")
+
+
+def _block_sampler(args, scene):
+    """``--sampler aligned|sheared``: estimate the blocks' directions (printing the cost, W
+    Fig. 10 counts it) and write the direction map; other samplers pass through by name."""
+    from . import tables
+    from .render import aligned
+
+    opts = {k: v for k, v in (("block_px", args.block), ("samples", args.estimation_samples))
+            if v is not None}
+    if args.sampler not in aligned.BLOCK_SAMPLERS:
+        if opts or args.direction_map is not None:
+            raise ValueError("--block, --estimation-samples and --direction-map need --sampler "
+                             f"{' or '.join(aligned.BLOCK_SAMPLERS)}")
+        return args.sampler
+    spp = scene.spp if args.spp is None else args.spp
+    if args.sampler == "aligned" and tables.find_table(3, spp) is None:
+        raise FileNotFoundError(
+            f"--sampler aligned needs a 3-direction table for n = {spp} points (--spp) and none "
+            f"is installed; build it with `anisosample tables build --n {spp} --directions 3`")
+    map_path = None if args.direction_map is None else Path(args.direction_map)
+    if map_path is not None:
+        if map_path.suffix != ".png":
+            raise ValueError(f"--direction-map must end in .png, got {map_path.name}")
+        if map_path.exists() and not args.force:
+            raise FileExistsError(f"{map_path} exists; pass --force to replace it")
+    sampler = aligned.block_sampler(scene, args.sampler, dimension=args.dimension,
+                                    technique=args.technique, progress=True, **opts)
+    sampler.check_tables(spp)
+    est = sampler.estimate
+    by, bx = est.blocks
+    print(f"direction estimate: {by}x{bx} blocks of {est.block_px}x{est.block_px} px, "
+          f"{est.samples}^2 integrand samples each = {est.integrand_samples} samples "
+          f"({est.samples_per_pixel:g} per pixel, {100 * est.samples_per_pixel / spp:.0f}% of "
+          f"--spp {spp}) in {est.seconds:.2f} s; {int(sampler.valid.sum())} of {by * bx} blocks "
+          f"have an extra direction")
+    if map_path is not None:
+        aligned.save_direction_map(map_path, sampler, overwrite=args.force)
+        print(f"wrote the direction map to {map_path}")
+    return sampler
 
 
 # --- registry ----------------------------------------------------------------------------------

@@ -1,0 +1,328 @@
+"""anisosample.render.aligned: per-block direction estimates and per-block point sets in the
+renderer (W Sec. 5.3-5.4), ``render(sampler="aligned")`` and ``anisosample render --sampler
+aligned``.
+
+Truth: the box-edge shadow directions predicted from the Cornell geometry (central projection
+onto the light plane, ``tests/render/test_directions.py``), the pixel integrands evaluated one
+by one, the table sets looked up directly, and the ordinary pmj02bn render of the same scene
+and key (an unbiased estimator of the same pixel values, with the same per-pixel shifts).
+"""
+
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from render.test_directions import LIGHT_HALF, LIGHT_Y, _box_edges
+
+import anisosample.render as R
+from anisosample import cli, io, samplers, tables
+from anisosample.render import aligned
+from anisosample.render.camera import generate_ray
+from anisosample.render.geometry import intersect
+
+CORNELL = Path(__file__).resolve().parents[1] / "experiments" / "scenes" / "cornell.xml"
+SIZE, BLOCK, S, SPP, R_ = 32, 8, 96, 256, 8  # 4x4 blocks of 8x8 px, 12x12 samples per pixel
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return R.load_xml(CORNELL, width=SIZE, height=SIZE)
+
+
+@pytest.fixture(scope="module")
+def est(scene):
+    return aligned.estimate_blocks(scene, BLOCK, S, strength=True)
+
+
+@pytest.fixture(scope="module")
+def renders(scene, est):
+    """The aligned and the pmj02bn render (fixed primary hit, the papers' 2D integrands) with
+    the same key: per pixel, the mean and variance over R_ realizations."""
+    key = jax.random.key(7)
+    sampler = aligned.block_sampler(scene, "aligned", estimate=est)
+    opts = dict(spp=SPP, realizations=R_, pixel_center=True, progress=False)
+    return (sampler, R.render(scene, key, sampler=sampler, **opts),
+            R.render(scene, key, sampler="pmj02bn", **opts))
+
+
+BOXES = ([0.3, 0.6, 0.3], 20, [-0.35, -0.4, -0.3]), ([0.3] * 3, -15, [0.4, -0.7, 0.3])  # xml
+
+
+def _segment_crosses_light(a, b):
+    """Whether the 2D segment ``a -> b`` (light-plane X, Z) meets the open light square
+    (Liang-Barsky clipping)."""
+    t0, t1 = 0.0, 1.0
+    d = b - a
+    for k in range(2):
+        for sign in (-1.0, 1.0):  # sign * (a_k + t d_k) < LIGHT_HALF
+            q, r = sign * d[k], LIGHT_HALF - sign * a[k]
+            if abs(q) < 1e-15:
+                if r <= 0:
+                    return False
+            elif q > 0:
+                t1 = min(t1, r / q)
+            else:
+                t0 = max(t0, r / q)
+    return t1 - t0 > 1e-9
+
+
+def _predicted_directions(p):
+    """Spectral directions (degrees) of the shadow edges inside the light seen from ``p``.
+
+    Each box is convex, so its shadow on the light plane (``y = LIGHT_Y``) is the convex hull
+    of the central projections from ``p`` of its edges' parts above ``p`` (clipped 1e-3 above);
+    the light sample maps the plane isotropically to ``[0, 1)^2``, so a hull side crossing the
+    light is an edge of ``f_q`` at the side's angle + 90 degrees (spectral direction).
+    """
+    from scipy.spatial import ConvexHull
+
+    out = set()
+    for box in BOXES:
+        pts = []
+        for a, b in _box_edges(*box):
+            lo = p[1] + 1e-3
+            if max(a[1], b[1]) <= lo:
+                continue
+            if min(a[1], b[1]) < lo:  # clip to the part above p
+                t = (lo - a[1]) / (b[1] - a[1])
+                c = a + t * (b - a)
+                a, b = (c, b) if a[1] < lo else (a, c)
+            for e in (a, b):
+                q = p + (e - p) * (LIGHT_Y - p[1]) / (e[1] - p[1])
+                pts.append([q[0], q[2]])
+        if len(pts) < 3:
+            continue
+        pts = np.asarray(pts)
+        hull = ConvexHull(pts)
+        for i, j in hull.simplices:
+            if _segment_crosses_light(pts[i], pts[j]):
+                d = pts[j] - pts[i]
+                out.add(round(float((np.degrees(np.arctan2(d[1], d[0])) + 90) % 180), 1))
+    return sorted(out)
+
+
+@jax.jit
+def _hits(scene, pixels):
+    """Primary hit points of the pixel centres ``pixels`` (k, 2) = (column, row)."""
+    size = jnp.array([scene.width, scene.height], jnp.float32)
+
+    def one(q):
+        o, d = generate_ray(scene.camera, (q + 0.5) / size, jnp.array([0.5, 0.5], jnp.float32))
+        return intersect(scene, o, d).p
+
+    return jax.vmap(one)(pixels.astype(jnp.float32))
+
+
+def test_grid_is_the_pixels_integrands(scene, est):
+    grid = aligned.estimation_grid(scene, BLOCK, S)
+    assert grid.shape == (SIZE // BLOCK * S,) * 2 and grid.dtype == np.float32
+    t = S // BLOCK
+    for a, b in [(3, 1), (2, 2)]:
+        block = grid[a * S:(a + 1) * S, b * S:(b + 1) * S]
+        np.testing.assert_array_equal(block, aligned.block_grid_values(scene, (a, b), BLOCK, S))
+        # sample (i, j) of the block is pixel (row0 + i // t, col0 + j // t)'s f at the cell
+        for i, j in [(0, 0), (37, 90), (95, 12)]:
+            f = R.pixel_integrand(scene, (b * BLOCK + j // t, a * BLOCK + i // t))
+            x = jnp.array([(j + 0.5) / S, (i + 0.5) / S], jnp.float32)
+            np.testing.assert_allclose(block[i, j], float(f(x)), rtol=1e-5, atol=1e-7)
+    assert est.blocks == (4, 4) and est.integrand_samples == 16 * S * S
+    assert est.samples_per_pixel == (S // BLOCK) ** 2
+    assert est.strength.shape == (4, 4) and np.all(est.strength >= 0)
+
+
+# Blocks of a 1280^2 Cornell render (W's resolution and 16-pixel blocks) on the floor or the
+# back wall with one box shadow edge across the light (found by scanning every third block).
+EDGE_BLOCKS = [(72, 12), (72, 15), (72, 18), (72, 69), (75, 48), (75, 69), (75, 72), (48, 18),
+               (54, 18), (60, 18)]
+
+
+def test_blocks_with_a_known_shadow_edge_get_its_direction():
+    """W Sec. 5.3 / Fig. 7 at W's scale: each block's strongest direction from its tiled 96^2
+    grid is the shadow edge's direction predicted from the geometry for all its pixels, within
+    3 degrees (1-degree bins; the edge's angle varies by < 0.5 degrees over a block)."""
+    from anisosample import directions
+
+    big = R.load_xml(CORNELL, width=1280, height=1280)
+    grids, expected = [], []
+    for a, b in EDGE_BLOCKS:
+        pix = jnp.array([(b * 16 + j, a * 16 + i) for i in range(0, 16, 5)
+                         for j in range(0, 16, 5)])
+        pred = {tuple(_predicted_directions(q)) for q in np.asarray(_hits(big, pix), np.float64)}
+        assert len(pred) == 1 and len(next(iter(pred))) == 1, ((a, b), pred)
+        expected.append(next(iter(pred))[0])
+        grids.append(aligned.block_grid_values(big, (a, b), 16, 96))
+    # the blocks side by side, through the same per-block estimator estimate_blocks uses
+    est = directions.estimate_blocks(np.concatenate(grids, axis=1), k=2, samples_per_block=96)
+    d, v = aligned.strongest_directions(est)
+    err = np.abs((d[0] - np.asarray(expected) + 90) % 180 - 90)
+    assert np.all(v[0]) and np.all(err <= 3.0), list(zip(EDGE_BLOCKS, d[0], expected, strict=True))
+
+
+def test_point_sets_follow_the_blocks(scene, est):
+    key = jax.random.key(3)
+    d, v = aligned.strongest_directions(est)
+    al = aligned.block_sampler(scene, "aligned", estimate=est)
+    sets, pix = al.point_sets(key, SPP)
+    pmj = samplers.get("pmj02bn")(key, SPP)
+    np.testing.assert_array_equal(np.asarray(sets[0]), np.asarray(pmj))  # the render's pmj02bn
+    pix = pix.reshape(SIZE, SIZE)
+    assert sets.shape == (len(al.table_directions) + 1, SPP, 2)
+    sh = aligned.block_sampler(scene, "sheared", estimate=est)
+    sh_sets, sh_pix = sh.point_sets(key, SPP)
+    sh_pix = sh_pix.reshape(SIZE, SIZE)
+    for a in range(SIZE // BLOCK):
+        for b in range(SIZE // BLOCK):
+            ids = pix[a * BLOCK:(a + 1) * BLOCK, b * BLOCK:(b + 1) * BLOCK]
+            assert np.all(ids == ids[0, 0])  # one set per block
+            got = np.asarray(sets[ids[0, 0]])
+            t = aligned.table_direction(d[a, b]) if v[a, b] else None
+            want = pmj if t is None else tables.lookup((t,), SPP)
+            np.testing.assert_array_equal(got, np.asarray(want))
+            want_sh = pmj if not v[a, b] else samplers.shear(pmj, float(d[a, b]))
+            got_sh = sh_sets[sh_pix[a * BLOCK, b * BLOCK]]
+            np.testing.assert_array_equal(np.asarray(got_sh), np.asarray(want_sh))
+    assert len(al.table_directions) >= 1
+
+
+def test_aligned_render_is_unbiased(renders):
+    """Per pixel the aligned and the pmj02bn mean estimate the same value: their difference,
+    summed over the pixels whose block uses an aligned set, is within 4 standard errors (from
+    both renders' per-pixel variances; pixels are uncorrelated, each has its own shift)."""
+    sampler, al, pm = renders
+    use = _aligned_pixels(sampler)
+    assert use.sum() >= 64
+    for c in range(3):  # per RGB channel
+        ma, mp = al.mean[..., c], pm.mean[..., c]
+        va, vp = al.variance[..., c], pm.variance[..., c]
+        diff = float(np.sum((ma - mp)[use], dtype=np.float64))
+        se = float(np.sqrt(np.sum((va + vp)[use], dtype=np.float64) / R_))
+        assert abs(diff) < 4 * se, (c, diff, se)
+        assert np.sum(va[use]) > 0  # the shifts randomize the aligned pixels
+        ok = use & (va + vp > 0)
+        z2 = (ma - mp)[ok] ** 2 / ((va + vp)[ok] / R_)
+        # per pixel a t-statistic with ~nu = 2(R-1) = 14 degrees of freedom: E t^2 = nu/(nu-2)
+        # = 1.17 (measured: 1.18); a biased pixel estimator would push the mean up
+        assert np.mean(z2) < 1.6, (c, np.mean(z2))
+
+
+def test_aligned_variance_not_above_pmj02bn_on_edge_pixels(renders):
+    """W Figs. 8-9: on the pixels of blocks with an aligned set, the aligned sets' variance is
+    at most pmj02bn's (here clearly below); elsewhere both renders are the same estimator."""
+    sampler, al, pm = renders
+    use = _aligned_pixels(sampler)
+    va, vp = al.variance.sum(-1), pm.variance.sum(-1)  # trace of the RGB covariance
+    ratio = va[use].sum() / vp[use].sum()
+    assert ratio <= 1.0, ratio  # measured 0.87 (W Fig. 8's Cornell: 0.89 over the whole image)
+    # fallback blocks: the same pmj02bn set and the same per-pixel shifts as the pmj02bn render
+    np.testing.assert_allclose(al.mean[~use], pm.mean[~use], rtol=1e-6, atol=1e-7)
+
+
+def _aligned_pixels(sampler):
+    ids = np.array([aligned.table_direction(d) if ok else None for d, ok in
+                    zip(sampler.directions_deg.reshape(-1), sampler.valid.reshape(-1),
+                        strict=True)], object).reshape(sampler.valid.shape)
+    blocks = ids != None  # noqa: E711 (elementwise on an object array)
+    return np.kron(blocks, np.ones((BLOCK, BLOCK), bool))[:SIZE, :SIZE]
+
+
+def test_render_records_the_sampler_and_rejects_bad_options(scene, est):
+    s = aligned.block_sampler(scene, "aligned", estimate=est)
+    rec = s.settings()
+    assert rec["block_px"] == BLOCK and rec["estimation_integrand_samples"] == 16 * S * S
+    with pytest.raises(ValueError, match="sampler_options"):
+        R.render(scene, jax.random.key(0), spp=4, sampler="random",
+                 sampler_options={"block_px": 8}, progress=False)
+    with pytest.raises(FileNotFoundError, match="tables build --n 64"):
+        R.render(scene, jax.random.key(0), spp=64, sampler=s, progress=False)
+    small = R.load_xml(CORNELL, width=16, height=16)
+    with pytest.raises(ValueError, match="32x32 image"):
+        R.render(small, jax.random.key(0), spp=SPP, sampler=s, progress=False)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(block_px=0), "block_px must be >= 1"),
+    (dict(block_px=-4), "block_px must be >= 1"),
+    (dict(samples=0), "samples must be >= 1"),
+    (dict(samples=100), "multiple of block_px=16"),
+    (dict(block_px=4, samples=12), "samples must be >= 15"),
+    (dict(k=3), "k must be <= 2"),
+    (dict(k=0), "k must be >= 1"),
+])
+def test_bad_block_options(scene, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        aligned.estimate_blocks(scene, **kwargs)
+
+
+def test_bad_choices(scene, est):
+    with pytest.raises(ValueError, match="method must be one of"):
+        aligned.block_sampler(scene, "aligned3", estimate=est)
+    with pytest.raises(TypeError, match="block_px must be an integer"):
+        aligned.estimate_blocks(scene, block_px=8.0)
+    with pytest.raises(TypeError, match="estimate must be a BlockEstimate"):
+        aligned.block_sampler(scene, estimate=object())
+    with pytest.raises(ValueError, match="finite"):
+        aligned.table_direction(float("nan"))
+    assert aligned.table_direction(None) is None
+    assert aligned.table_direction(179.6) is None and aligned.table_direction(90.4) is None
+    assert aligned.table_direction(30.49) == 30
+
+
+def test_padding_replicates_the_edge_pixels():
+    """A 20x12 image in 8-pixel blocks is padded to 3x2 blocks; the missing pixels repeat the
+    last column / row."""
+    sc = R.load_xml(CORNELL, width=20, height=12)
+    s = 16
+    grid = aligned.estimation_grid(sc, 8, s)
+    assert grid.shape == (2 * s, 3 * s)
+    t = s // 8
+    # block (1, 2) covers rows 8..15 (12.. padded) and columns 16..23 (20.. padded)
+    blk = grid[s:, 2 * s:]
+    f = R.pixel_integrand(sc, (19, 11))
+    x = jnp.array([(s - 0.5) / s, (s - 0.5) / s], jnp.float32)
+    np.testing.assert_allclose(blk[-1, -1], float(f(x)), rtol=1e-5, atol=1e-7)
+    # grid rows 8..15 of the block belong to pixel rows 12..15, outside the image: row 11's
+    for i in (4 * t, 7 * t + 1):
+        xi = jnp.array([0.5 / s, (i + 0.5) / s], jnp.float32)
+        np.testing.assert_allclose(blk[i, 0], float(R.pixel_integrand(sc, (16, 11))(xi)),
+                                   rtol=1e-5, atol=1e-7)
+
+
+def test_cli_render_aligned(tmp_path, capsys):
+    out, png = tmp_path / "a.exr", tmp_path / "dirs.png"
+    args = ["render", str(CORNELL), "--sampler", "aligned", "--spp", str(SPP), "--realizations",
+            "2", "--pixel-center", "--block", "8", "--estimation-samples", "48",
+            "--set", "width=16", "--set", "height=16", "--direction-map", str(png), "-o",
+            str(out)]
+    assert cli.main(args) == 0
+    text = capsys.readouterr().out
+    assert "2x2 blocks of 8x8 px" in text and "9216 samples" in text and "36 per pixel" in text
+    img = io.read_exr(out)
+    assert img.shape == (16, 16, 3)
+    sc = R.load_xml(CORNELL, width=16, height=16)
+    ref = R.render(sc, jax.random.key(0), spp=SPP, realizations=2, pixel_center=True,
+                   sampler="aligned", sampler_options=dict(block_px=8, samples=48),
+                   progress=False)
+    np.testing.assert_array_equal(img[..., :3], ref.mean)
+    assert (tmp_path / "a_variance.exr").exists()
+    from matplotlib.image import imread
+
+    assert imread(png).shape[:2] == (16, 2 * 16 + 2)  # two panels (k = 2) and a gap
+    assert cli.main(args) == 2  # outputs exist: refused
+    assert "exists" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("extra, match", [
+    (["--sampler", "random", "--block", "8"], "need --sampler aligned or sheared"),
+    (["--sampler", "aligned", "--spp", "64"], "tables build --n 64 --directions 3"),
+    (["--sampler", "aligned", "--spp", str(SPP), "--block", "0"], "block_px must be >= 1"),
+    (["--sampler", "aligned", "--spp", str(SPP), "--block", "8", "--estimation-samples", "20"],
+     "multiple of block_px=8"),
+    (["--sampler", "aligned", "--spp", str(SPP), "--direction-map", "m.jpg"], "end in .png"),
+])
+def test_cli_bad_input(tmp_path, capsys, extra, match):
+    args = ["render", str(CORNELL), "--set", "width=16", "--set", "height=16", "-o",
+            str(tmp_path / "x.exr"), *extra]
+    assert cli.main(args) == 2
+    assert match in capsys.readouterr().err
