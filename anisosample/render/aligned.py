@@ -356,6 +356,7 @@ class BlockSampler:
 
     @property
     def name(self) -> str:
+        """The sampler's name in render settings: the method."""
         return self.method
 
     def _set_ids(self) -> list:
