@@ -289,26 +289,27 @@ def test_padding_replicates_the_edge_pixels():
                                    rtol=1e-5, atol=1e-7)
 
 
-def test_cli_render_aligned(tmp_path, capsys):
+def test_cli_render_aligned(scene, tmp_path, capsys):
     out, png = tmp_path / "a.exr", tmp_path / "dirs.png"
+    # the fixtures' sizes (32^2 pixels, 8-pixel blocks, 96^2 samples): their compilations serve
     args = ["render", str(CORNELL), "--sampler", "aligned", "--spp", str(SPP), "--realizations",
-            "2", "--pixel-center", "--block", "8", "--estimation-samples", "48",
-            "--set", "width=16", "--set", "height=16", "--direction-map", str(png), "-o",
+            "2", "--pixel-center", "--block", "8", "--estimation-samples", "96",
+            "--set", "width=32", "--set", "height=32", "--direction-map", str(png), "-o",
             str(out)]
     assert cli.main(args) == 0
     text = capsys.readouterr().out
-    assert "2x2 blocks of 8x8 px" in text and "9216 samples" in text and "36 per pixel" in text
+    assert "4x4 blocks of 8x8 px" in text and "147456 samples" in text
+    assert "144 per pixel, 56% of --spp 256" in text
     img = io.read_exr(out)
-    assert img.shape == (16, 16, 3)
-    sc = R.load_xml(CORNELL, width=16, height=16)
-    ref = R.render(sc, jax.random.key(0), spp=SPP, realizations=2, pixel_center=True,
-                   sampler="aligned", sampler_options=dict(block_px=8, samples=48),
+    assert img.shape == (SIZE, SIZE, 3)
+    ref = R.render(scene, jax.random.key(0), spp=SPP, realizations=2, pixel_center=True,
+                   sampler="aligned", sampler_options=dict(block_px=8, samples=96),
                    progress=False)
     np.testing.assert_array_equal(img[..., :3], ref.mean)
     assert (tmp_path / "a_variance.exr").exists()
     from matplotlib.image import imread
 
-    assert imread(png).shape[:2] == (16, 2 * 16 + 2)  # two panels (k = 2) and a gap
+    assert imread(png).shape[:2] == (SIZE, 2 * SIZE + 2)  # two panels (k = 2) and a gap
     assert cli.main(args) == 2  # outputs exist: refused
     assert "exists" in capsys.readouterr().err
 
