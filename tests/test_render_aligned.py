@@ -236,6 +236,9 @@ def test_render_records_the_sampler_and_rejects_bad_options(scene, est):
                  sampler_options={"block_px": 8}, progress=False)
     with pytest.raises(FileNotFoundError, match="tables build --n 64"):
         R.render(scene, jax.random.key(0), spp=64, sampler=s, progress=False)
+    with pytest.raises(ValueError, match="not a finished BlockSampler"):
+        R.render(scene, jax.random.key(0), spp=SPP, sampler=s, sampler_options={"k": 1},
+                 progress=False)
     small = R.load_xml(CORNELL, width=16, height=16)
     with pytest.raises(ValueError, match="32x32 image"):
         R.render(small, jax.random.key(0), spp=SPP, sampler=s, progress=False)

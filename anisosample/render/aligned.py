@@ -495,8 +495,9 @@ def _resolve(scene: Scene, sampler, options: dict | None, *, dimension: str, tec
         return block_sampler(scene, sampler, dimension=dimension, technique=technique,
                              square_aperture=square_aperture, **opts)
     if options:
-        raise ValueError(f"sampler_options are for the per-block samplers {list(BLOCK_SAMPLERS)}"
-                         f", not {sampler!r}")
+        what = "a finished BlockSampler" if isinstance(sampler, BlockSampler) else repr(sampler)
+        raise ValueError(f"sampler_options are for the per-block samplers given by name "
+                         f"{list(BLOCK_SAMPLERS)}, not {what}")
     if not isinstance(sampler, BlockSampler):
         return None
     if (sampler.width, sampler.height) != (scene.width, scene.height):
