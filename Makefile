@@ -116,6 +116,8 @@ tables: $(VENV)/.installed
 
 w-aligned-end-to-end: $(VENV)/.installed
 	$(PY) experiments/w_aligned_end_to_end.py --scale $(SCALE)
+	$(PY) experiments/w_aligned_end_to_end.py --scale $(SCALE) --case two-edges
+	$(PY) experiments/w_aligned_end_to_end.py --scale $(SCALE) --case four-edges
 
 clean-venv:
 	rm -rf $(VENV)

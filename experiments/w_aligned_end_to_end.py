@@ -12,6 +12,18 @@ exact integral; slopes are weighted log-log fits with 95 % intervals.
 Target (issue 8): aligned slope <= -1.65 over n = 2^8..2^14 while pmj02bn and sobol-owen stay near
 -1.5.
 
+``--case`` (W Fig. 6's other panels, directions again *estimated*, not given):
+
+* ``one-edge`` (default): the above, 3-direction set.
+* ``two-edges``: a polygon with edges at two random angles (``integrands.edges``); both extra
+  directions are estimated (``k=2``) and the 4-direction set ``{0, 90, a, b}`` is looked up (built
+  on demand into ``OUT/tables``).
+* ``four-edges``: a polygon with four random edges and the 3-direction set of the strongest
+  estimate (``k=1``): more edges than the set covers, where W observes the rate falls back to
+  about -1.5.
+
+Other cases write to ``results/w_aligned_end_to_end_<case>/`` by default.
+
 Writes ``results/w_aligned_end_to_end/w_aligned_end_to_end.png`` and ``.json`` (every plotted
 number, the estimated and true directions, the fits, settings, provenance). Finished curves and
 sets are reused on rerun (``--fresh`` redoes the curves).
@@ -34,18 +46,34 @@ from anisosample import variance as V
 from anisosample.progress import progress
 
 NAME = "w_aligned_end_to_end"
+CASES = {"one-edge": (1, 1), "two-edges": (2, 2), "four-edges": (4, 1)}  # (edges, k estimated)
 SCALES = {
     "small": dict(log2_ns=list(range(8, 15)), realizations=256, patterns=4),
     "paper": dict(log2_ns=list(range(8, 15)), realizations=2048, patterns=16),
 }
 
 
+def _random_edges(rng, count: int) -> list[float]:
+    """``count`` spectral directions >= 10 deg from the axes and >= 15 deg from each other."""
+    while True:
+        a = sorted(float(x) for x in rng.uniform(0.0, 180.0, count))
+        axial = all(min(abs(x - 90.0), x, 180.0 - x) >= 10.0 for x in a)
+        gaps = np.diff(a + [a[0] + 180.0])
+        if axial and gaps.min() >= 15.0:
+            return a
+
+
 def main(argv=None):
     p = common.parser(NAME, __doc__.splitlines()[0])
     p.add_argument("--max-log2n", type=int, default=None, help="stop the sweep at 2^K points")
     p.add_argument("--angle", type=float, default=None,
-                   help="edge normal in degrees (default: drawn from the seed)")
+                   help="edge normal in degrees (default: drawn from the seed; one-edge only)")
+    p.add_argument("--case", choices=list(CASES), default="one-edge",
+                   help="integrand: one edge (3 directions), two edges (4 directions, k=2), "
+                        "four edges (3 directions on more edges than they cover)")
     args = p.parse_args(argv)
+    if args.case != "one-edge" and args.out == common.ROOT / "results" / NAME:
+        args.out = common.ROOT / "results" / f"{NAME}_{args.case.replace('-', '_')}"
     started = time.time()
     cfg = dict(SCALES[args.scale])
     if args.max_log2n is not None:
@@ -54,22 +82,32 @@ def main(argv=None):
     out = args.out
     (out / "curves").mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(args.seed)
-    # a random angle away from the axes (the estimator's documented limit is ~7 degrees)
-    angle = args.angle if args.angle is not None else float(
-        rng.choice([1, -1]) * rng.uniform(10.0, 80.0) % 180.0)
-    f = integrands.HalfPlane.through((0.5, 0.5), angle)
+    n_edges, k = CASES[args.case]
+    if args.case == "one-edge":
+        # a random angle away from the axes (the estimator's documented limit is ~7 degrees)
+        angle = args.angle if args.angle is not None else float(
+            rng.choice([1, -1]) * rng.uniform(10.0, 80.0) % 180.0)
+        f = integrands.HalfPlane.through((0.5, 0.5), angle)
+        edge_angles = [angle]
+    else:
+        edge_angles = _random_edges(rng, n_edges)
+        angle = edge_angles[0]
+        f = integrands.edges(edge_angles)
     key = jax.random.key(args.seed)
 
-    aligned = asp.samplers.get("aligned", integrand=f, k=1, table=out / "tables",
+    aligned = asp.samplers.get("aligned", integrand=f, k=k, table=out / "tables",
                                build_missing=True)
-    print(f"edge normal {angle:.2f} deg; estimated {aligned.estimated_deg}; "
-          f"using {aligned.directions_deg} (canonical {aligned.canonical})")
+    print(f"{args.case}: edge normals {[round(a, 2) for a in edge_angles]} deg; estimated "
+          f"{aligned.estimated_deg}; using {aligned.directions_deg} "
+          f"(canonical {aligned.canonical})")
     samplers = {
         "aligned (estimated)": (aligned, "shift", 1),
         "pmj02bn": ("pmj02bn", "shift", cfg["patterns"]),
         "sobol-owen": ("sobol-owen", "fresh+shift", 1),
     }
     settings = {"scale": args.scale, "seed": args.seed, "ns": ns, "angle": angle, **cfg}
+    if args.case != "one-edge":  # (the one-edge settings stay as they were: reruns reuse them)
+        settings.update(case=args.case, edge_angles=edge_angles)
     curves = {}
     for label, (sampler, mode, patterns) in progress(list(samplers.items()), desc=NAME):
         path = out / "curves" / f"{label.split()[0]}.json"
@@ -96,13 +134,14 @@ def main(argv=None):
         plot.convergence_panel(ax, ns, c["variance"], label=label, slope=fit["slope"],
                                slope_ci=(fit["ci_low"], fit["ci_high"]),
                                lower=c["ci_low"], upper=c["ci_high"])
-    ax.set_title(f"edge at {angle:.1f} deg, estimated {list(aligned.directions_deg)}",
-                 fontsize=9)
+    ax.set_title(f"{args.case}: edges at {', '.join(f'{a:.1f}' for a in edge_angles)} deg, "
+                 f"estimated {list(aligned.directions_deg)}", fontsize=9)
     ax.legend(fontsize=7, loc="lower left")
     pngs = plot.save_figure(fig, out / NAME, formats=("png",))
-    tab = tables.find_table(3, ns[0], root=out / "tables")
+    tab = tables.find_table(len(aligned.directions_deg) + 2, ns[0], root=out / "tables")
     json_path = common.write_record(out, NAME, {
-        "ns": ns, "angle_deg": angle, "estimated_deg": list(aligned.estimated_deg),
+        "ns": ns, "angle_deg": angle, "case": args.case, "edge_angles_deg": edge_angles,
+        "estimated_deg": list(aligned.estimated_deg),
         "used_deg": list(aligned.directions_deg),
         "canonical": {"extra": list(aligned.canonical.extra),
                       "transform": aligned.canonical.transform} if aligned.canonical else None,
