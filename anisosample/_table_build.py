@@ -20,11 +20,16 @@ checkpoints inside the set), and sets are spread over the local devices
 :func:`~anisosample.synthesis.synthesize_batch` loop (the loss mapped over the padded frequency
 sets of the group: one compilation per group) *sharded* over all the local devices with
 ``jax.shard_map`` on a ``jax.sharding.Mesh`` (each device optimizes its slice of the group). On the
-CPU, test either with ``XLA_FLAGS=--xla_force_host_platform_device_count=2``. Several hosts: start the same
-command on every host after ``jax.distributed.initialize(...)`` (coordinator address, number of
-processes, process id; on SLURM/TPU pods it needs no arguments) with a shared ``--out``; host
-``p`` of ``P`` builds the sets ``i`` with ``i % P == p`` and the last host to finish writes the
-checksums (any later ``build`` call also does, and builds nothing if all sets exist).
+CPU, test either with ``XLA_FLAGS=--xla_force_host_platform_device_count=2``.
+
+Several hosts: run the same command on every host with a shared ``--out``, e.g.
+``anisosample tables build --n 4096 --directions 4 --out /shared/d4 --distributed --coordinator
+host0:1234 --num-processes P --process-id p`` (``--distributed`` alone auto-detects SLURM, Open MPI
+and TPU pods). It calls ``jax.distributed.initialize`` before anything touches the XLA backend
+(importing anisosample does not); work unit ``i`` (a set, or a group with ``batch > 1``) is built
+by process ``i % P``, and the last process to finish writes the checksums (any later ``build``
+call also does, and builds nothing if all sets exist). Tested with two processes on one machine
+(a localhost coordinator).
 """
 
 from __future__ import annotations

@@ -233,6 +233,13 @@ def _add_tables(sub):
                    help="sets per optimizer loop (synthesize_batch; 1: synthesize per set)")
     b.add_argument("--distributed", action="store_true",
                    help="call jax.distributed.initialize() first (several hosts, shared --out)")
+    b.add_argument("--coordinator", default=None,
+                   help="with --distributed: coordinator host:port (else auto-detected, e.g. "
+                        "SLURM)")
+    b.add_argument("--num-processes", type=int, default=None,
+                   help="with --distributed: number of processes (hosts)")
+    b.add_argument("--process-id", type=int, default=None,
+                   help="with --distributed: this process's id in 0..num_processes-1")
     i = tsub.add_parser("info", help="describe and verify a table directory")
     i.add_argument("path", help="table directory (holds table.json)")
 
@@ -260,10 +267,22 @@ def _run_tables(args):
               f"(all verified), complete={tab.complete}, seed={tab.settings['seed']}, "
               f"synthesis={tab.settings['synthesis']}")
         return
+    given = [a is not None for a in (args.coordinator, args.num_processes, args.process_id)]
+    if any(given) and not args.distributed:
+        raise ValueError("--coordinator, --num-processes and --process-id need --distributed")
     if args.distributed:
         import jax
 
-        jax.distributed.initialize()
+        if any(given) and not all(given):
+            raise ValueError("--coordinator, --num-processes and --process-id go together")
+        if all(given):
+            if args.num_processes < 1 or not 0 <= args.process_id < args.num_processes:
+                raise ValueError(f"--process-id must lie in 0..{args.num_processes - 1} and "
+                                 f"--num-processes be >= 1, got {args.process_id} of "
+                                 f"{args.num_processes}")
+            jax.distributed.initialize(args.coordinator, args.num_processes, args.process_id)
+        else:
+            jax.distributed.initialize()
     opts = {k: v for k, v in (("recipe", args.recipe), ("steps", args.steps)) if v is not None}
     summary = tables.build(args.n, args.directions, out=args.out, seed=args.seed,
                            sets=_parse_sets(args.sets), checkpoint_every=args.checkpoint_every,

@@ -385,6 +385,40 @@ def test_batched_build_shards_groups_over_two_devices(tmp_path):
     assert not np.array_equal(b.load((10,)), b.load((30,)))
 
 
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def test_build_over_two_processes_with_jax_distributed(tmp_path):
+    """Two processes joined by jax.distributed (a localhost coordinator, as two hosts would be)
+    share one --out: process p builds the sets i with i % 2 == p, the table completes, and every
+    set equals the single-process build."""
+    sets = "0,10,20,45"
+    extras = [(0,), (10,), (20,), (45,)]
+    run_dir, ref_dir = tmp_path / "two_hosts", tmp_path / "one_host"
+    common = ["--n", "32", "--directions", "3", "--sets", sets, "--steps", "6", "--seed", "2",
+              "--out", str(run_dir), "--distributed", "--coordinator",
+              f"127.0.0.1:{_free_port()}", "--num-processes", "2"]
+    procs = []
+    for pid in range(2):
+        cmd, env = _cli([*common, "--process-id", str(pid)])
+        procs.append(subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE,
+                                      stderr=subprocess.PIPE, text=True))
+    outs = [p.communicate(timeout=300) for p in procs]
+    for p, (_, err) in zip(procs, outs, strict=True):
+        assert p.returncode == 0, err
+    built = [o.split("built ")[1].split(" set")[0] for o, _ in outs]
+    assert built == ["2", "2"], outs  # 4 sets, 2 per process
+    tables.build(32, 3, out=ref_dir, sets=extras, steps=6, seed=2, show_progress=False)
+    a, b = tables.open_table(ref_dir), tables.open_table(run_dir)
+    for e in extras:
+        np.testing.assert_array_equal(a.load(e), b.load(e))
+
+
 def test_cli_tables_info_and_errors(tmp_path, capsys):
     from anisosample.cli import main
 

@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from ._vec import dot, norm
 from .patch import closest_patch_hit, intersect_patches, patch_frame
 from .scene import Scene
 
-_INF = jnp.float32(jnp.inf)
+_INF = np.float32(np.inf)  # numpy: importing must not start the XLA backend (jax.distributed)
 
 
 class Hit(eqx.Module):

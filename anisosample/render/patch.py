@@ -40,7 +40,7 @@ from jaxtyping import Array, Float, Int
 from ._vec import cross, dot, norm
 
 METHODS = ("parametric", "area")
-_INF = jnp.float32(jnp.inf)
+_INF = np.float32(np.inf)  # numpy: importing must not start the XLA backend (jax.distributed)
 
 
 class Patches(eqx.Module):
