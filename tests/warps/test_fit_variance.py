@@ -51,7 +51,7 @@ def test_gradient_equals_finite_differences(kind):
     tri = _triangle()
     side = 2 if kind is W.Bilinear else 3
     values = np.random.default_rng(1).uniform(0.5, 2.0, (side, side))
-    grad = jax.grad(lambda v: tuning.chain_variance(kind(v), _cos, [tri], grid=16))(
+    grad = jax.jit(jax.grad(lambda v: tuning.chain_variance(kind(v), _cos, [tri], grid=16)))(
         jnp.asarray(values, jnp.float32)
     )
     y, w = (np.asarray(a, np.float64) for a in tuning.quadrature(16))
@@ -72,17 +72,18 @@ def test_gradient_equals_finite_differences(kind):
     assert abs(np.sum(fd * values)) < 1e-6 * np.abs(fd).max()
 
 
-def _brute_variance(warp, f, exact, res=512):
-    """Var of f/p over u on a res x res midpoint grid of the composed warp's input, by sampling."""
+@functools.partial(jax.jit, static_argnums=(1, 2))
+def _estimates(warp, f, res):
     g = (jnp.arange(res, dtype=jnp.float32) + 0.5) / res
     u = jnp.stack(jnp.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+    x, pdf = jax.vmap(warp.sample_and_pdf)(u)
+    return jax.vmap(f)(x) / pdf
 
-    @jax.jit
-    def est(warp):
-        x, pdf = jax.vmap(warp.sample_and_pdf)(u)
-        return jax.vmap(f)(x) / pdf
 
-    e = np.asarray(est(warp), np.float64)
+def _brute_variance(warp, f, exact, res=256):
+    """Var of f/p over u on a res x res midpoint grid of the composed warp's input, by sampling
+    (float64 moments about the exact mean)."""
+    e = np.asarray(_estimates(warp, f, res), np.float64)
     return float(np.mean((e - exact) ** 2)), float(np.mean(e))
 
 
@@ -135,36 +136,42 @@ def test_min_variance_beats_pointwise_and_least_squares(kind):
     for name, warp in (("pw", pw), ("ls", ls), ("mv", mv)):
         brute[name], mean = _brute_variance(W.compose(warp, tri), _cos, exact)
         assert abs(mean - exact) < 1e-4 * exact  # the grid mean is the integral
-    # The quadrature objective (Gauss 32^2) agrees with the brute force.
-    quad = float(tuning.chain_variance(mv, _cos, [tri]))
-    np.testing.assert_allclose(quad, brute["mv"], rtol=1e-2)
+    # The quadrature objective (Gauss 32^2) agrees with the brute force, whose midpoint-rule error
+    # at 256^2 is below 1% (it moves by 0.1% / 0.5% from 256^2 to 512^2 here).
+    quad = float(jax.jit(lambda w: tuning.chain_variance(w, _cos, [tri]))(mv))
+    np.testing.assert_allclose(quad, brute["mv"], rtol=2e-2)
     assert brute["mv"] <= brute["pw"]
-    # Brute-force error ~1e-5 relative (float32 estimates, midpoint rule); margin 1e-4.
+    # Bilinear: the two optima differ by ~0.2%; the midpoint-rule error is common to both
+    # (same base warp, same grid), so the order holds with a margin of 1e-4.
     assert brute["mv"] <= brute["ls"] * (1 + 1e-4)
 
 
 def test_jit_and_vmap_over_shading_points():
+    """vmap over three shading points; the middle one equals the single fit of _triangle_fits."""
     points = jnp.asarray([[0.0, 0.0, 0.0], [0.3, -0.5, 0.0], [-0.6, 0.4, 0.0]], jnp.float32)
 
     @jax.jit
     def fit_all(ps):
-        return jax.vmap(
-            lambda p: tuning.fit_min_variance(W.Bilinear, _cos, [_triangle(p)], grid=8).values
-        )(ps)
+        def one(p):
+            tri = _triangle(p)
+            pw = W.fit_pointwise(W.Bilinear, _cos, [tri])
+            return tuning.fit_min_variance(W.Bilinear, _cos, [tri], init=pw).values
+
+        return jax.vmap(one)(ps)
 
     batch = np.asarray(fit_all(points))
     assert batch.shape == (3, 2, 2) and np.all(np.isfinite(batch)) and np.all(batch > 0)
-    one = jax.jit(lambda: tuning.fit_min_variance(W.Bilinear, _cos, [_triangle(P)], grid=8))()
-    np.testing.assert_allclose(batch[1], np.asarray(one.values), rtol=1e-4)
+    one = np.asarray(_triangle_fits()["Bilinear"][2].values)
+    np.testing.assert_allclose(batch[1], one, rtol=1e-4)
 
 
 def test_zero_integrand_gives_uniform():
-    zero = jax.jit(
-        lambda: tuning.fit_min_variance(W.Biquadratic, lambda x: jnp.zeros(()), [_triangle()], grid=4)
-    )
-    fit = zero()
+    def zero(x):
+        return jnp.zeros(())
+
+    fit = jax.jit(lambda: tuning.fit_min_variance(W.Bilinear, zero, [_triangle()], grid=4))()
     np.testing.assert_allclose(np.asarray(fit.values), 1.0)
-    assert float(tuning.chain_variance(fit, lambda x: jnp.zeros(()), [_triangle()])) == 0.0
+    assert float(tuning.chain_variance(fit, zero, [_triangle()], grid=4)) == 0.0
 
 
 @pytest.mark.parametrize(
