@@ -36,3 +36,5 @@ from .planar import sample_linear as sample_linear
 from .spherical import SphericalRectangle as SphericalRectangle
 from .spherical import SphericalTriangle as SphericalTriangle
 from .tabulated import Tabulated as Tabulated
+from .tuning import chain_variance as chain_variance
+from .tuning import fit_min_variance as fit_min_variance
