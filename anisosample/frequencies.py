@@ -140,7 +140,7 @@ def canonical_half(freqs) -> np.ndarray:
 
 
 def edge_weights(freqs, directions_deg, spread_deg: float = 0.0,
-                 core_deg: float = 0.0) -> np.ndarray:
+                 core_deg: float = 0.0, offsets_deg=()) -> np.ndarray:
     """``W(v) = sum_d 1 / (|v|^2 (1 + s_d^2))`` with ``s_d = v . d_perp`` (issue 4 design c).
 
     An edge along spectral direction ``d`` has ``P_f ~ |v|^-2`` on its ray and a lattice-scale
@@ -154,6 +154,11 @@ def edge_weights(freqs, directions_deg, spread_deg: float = 0.0,
     ``|s| = t sin(delta)`` (``t = |v.d|``), inside the core, where it gets the full weight
     ``1/|v|^2`` of an aligned edge; outside the core the ``1/(1 + s'^2)`` falloff of the
     edge's own spectrum follows (the robustness requirement of issue 4).
+
+    ``offsets_deg`` (e.g. ``(-1, -0.5, 0.5, 1)``) adds, for each non-axis direction, the weight
+    of an edge at ``theta + o`` for each offset ``o``: ``1/(|v|^2 (1 + s_o^2))`` with ``s_o``
+    measured from that edge's ray, so the loss is the sum of the (W Eq. 5) variances of the
+    aligned edge and of the edges misaligned by each offset.
     """
     v = np.asarray(freqs, dtype=np.float64)
     r2 = np.sum(v * v, axis=1)
@@ -168,6 +173,12 @@ def edge_weights(freqs, directions_deg, spread_deg: float = 0.0,
         if core_deg > 0 and theta not in (0.0, 90.0):  # distance from the flat core
             s = np.maximum(0.0, np.abs(s) - np.abs(v @ d) * tan_c)
         w += 1.0 / (r2 * (1.0 + s * s))
+        if theta in (0.0, 90.0):
+            continue
+        for off in offsets_deg:
+            _, dpo = _unit(theta + off)
+            so = v @ dpo
+            w += 1.0 / (r2 * (1.0 + so * so))
     return w
 
 
@@ -236,6 +247,7 @@ def design(
     disk_radius: float | None = None,
     weight_spread_deg: float | None = None,
     core_deg: float | None = None,
+    offsets_deg=None,
 ) -> FrequencySet:
     """The frequency set (and weights) for ``n`` points and the given spectral directions.
 
@@ -259,17 +271,23 @@ def design(
             p[name] = check_positive_float(name, val, allow_zero=name != "length")
     if p.get("core_deg", 0.0) >= 45.0:
         raise ValueError(f"core_deg must lie in [0, 45), got {p['core_deg']}")
+    if offsets_deg is not None:
+        offs = np.asarray(offsets_deg, np.float64).reshape(-1)
+        if not np.all(np.isfinite(offs)) or np.any(np.abs(offs) >= 45.0) or np.any(offs == 0):
+            raise ValueError(f"offsets_deg must be non-zero angles in (-45, 45), got {offsets_deg}")
+        p["offsets_deg"] = [float(o) for o in offs]
     parts = [wedge(t, p["length"], p["width"], p["angle_deg"]) for t in directions_deg]
     if p["disk_radius"] >= 1.0:
         parts.append(disk(p["disk_radius"]))
     v = canonical_half(np.concatenate(parts))
     if v.shape[0] == 0:
         raise ValueError(f"the frequency set for n={n} and these parameters is empty: {p}")
-    for opt in ("weight_spread_deg", "core_deg"):
+    for opt in ("weight_spread_deg", "core_deg", "offsets_deg"):
         if not p.get(opt):  # 0: the plain weights (kept out of the record)
             p.pop(opt, None)
     w = (edge_weights(v, directions_deg, p.get("weight_spread_deg", 0.0),
-                      p.get("core_deg", 0.0)) if kind == "rate" else np.ones(v.shape[0]))
+                      p.get("core_deg", 0.0), p.get("offsets_deg", ()))
+         if kind == "rate" else np.ones(v.shape[0]))
     params = {"design": kind, "n": n, "directions_deg": list(directions_deg), **p,
               "weights": "edge" if kind == "rate" else "uniform", "size": int(v.shape[0])}
     return _group(v, w, directions_deg, params)

@@ -150,3 +150,31 @@ def test_design_core_option():
     for bad in (-1.0, 45.0, float("nan")):
         with pytest.raises(ValueError, match="core_deg"):
             fr.design(256, [0.0, 90.0, 30.0], core_deg=bad)
+
+
+def test_edge_weights_offsets_are_extra_edges():
+    """offsets_deg: the weight is that of the aligned edge plus one edge at theta + o for each
+    offset (the loss sums their W Eq. 5 variances); the axes get no offsets."""
+    rng = np.random.default_rng(5)
+    v = rng.integers(-400, 400, size=(400, 2))
+    v = v[np.any(v != 0, axis=1)]
+    offs = (-1.0, -0.5, 0.5, 1.0)
+    for theta in (12.0, 30.0, 145.0):
+        want = fr.edge_weights(v, [theta]) + sum(fr.edge_weights(v, [theta + o]) for o in offs)
+        np.testing.assert_allclose(fr.edge_weights(v, [theta], offsets_deg=offs), want,
+                                   rtol=1e-12)
+    np.testing.assert_array_equal(fr.edge_weights(v, [0.0, 90.0], offsets_deg=offs),
+                                  fr.edge_weights(v, [0.0, 90.0]))
+    # an edge misaligned by an offset gets (at least) an aligned edge's weight on its own ray
+    t = np.array([10.0, 100.0, 1000.0])
+    th = math.radians(30.5)
+    ray = t[:, None] * np.array([math.cos(th), math.sin(th)])
+    assert np.all(fr.edge_weights(ray, [30.0], offsets_deg=offs) >= 1.0 / t**2)
+
+
+def test_design_offsets_option():
+    fs = fr.design(1024, [0.0, 90.0, 30.0], offsets_deg=[-1, -0.5, 0.5, 1])
+    assert fs.params["offsets_deg"] == [-1.0, -0.5, 0.5, 1.0]
+    for bad in ([0.0, 1.0], [50.0], [float("inf")]):
+        with pytest.raises(ValueError, match="offsets_deg"):
+            fr.design(256, [0.0, 90.0, 30.0], offsets_deg=bad)
