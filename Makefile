@@ -15,7 +15,8 @@ JOBS   ?= 2
         render-scenes \
         w-fig7 w-fig8 w-fig9 w-fig10 w-fig12 \
         h-shading-points \
-        h-fig2 h-table4 h-table5 beyond-warped-aligned
+        h-fig2 h-table4 h-table5 beyond-warped-aligned \
+        beyond-differentiable-tuning
 
 help:
 	@echo "make demo      set up .venv and run the headline experiment at small scale"
@@ -64,7 +65,8 @@ figures: w-directions-accuracy w-fig5-baselines \
          render-scenes \
          w-fig7 w-fig8 w-fig9 w-fig10 w-fig12 \
          h-shading-points \
-         h-fig2 h-table4 h-table5 beyond-warped-aligned
+         h-fig2 h-table4 h-table5 beyond-warped-aligned \
+         beyond-differentiable-tuning
 	$(PY) docs/fill_numbers.py --write
 	@echo "figures done; docs/reproduction.md now quotes these results (make docs also refreshes docs/api.md)"
 
@@ -83,6 +85,9 @@ h-table5: $(VENV)/.installed
 
 beyond-warped-aligned: $(VENV)/.installed
 	$(PY) experiments/beyond_warped_aligned.py --scale $(SCALE)
+
+beyond-differentiable-tuning: $(VENV)/.installed
+	$(PY) experiments/beyond_differentiable_tuning.py --scale $(SCALE)
 
 w-fig3: $(VENV)/.installed
 	$(PY) experiments/w_fig3.py --scale $(SCALE)
