@@ -11,6 +11,7 @@ Per-block aligned sampling (W Sec. 5.3-5.4): :mod:`anisosample.render.aligned`,
 from . import aligned as aligned
 from .aligned import BlockSampler as BlockSampler
 from .aligned import block_sampler as block_sampler
+from .builder import SceneBuilder as SceneBuilder
 from .image import RenderResult as RenderResult
 from .image import render as render
 from .image import save_result as save_result
@@ -20,6 +21,5 @@ from .integrator import pixel_integrand as pixel_integrand
 from .integrator import radiance as radiance
 from .lights import TECHNIQUES as TECHNIQUES
 from .scene import Scene as Scene
-from .scene import SceneBuilder as SceneBuilder
 from .xml import SceneFormatError as SceneFormatError
 from .xml import load_xml as load_xml

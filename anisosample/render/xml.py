@@ -31,8 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .builder import SceneBuilder
 from .obj import read_obj as _read_obj
-from .scene import Scene, SceneBuilder
+from .scene import Scene
 
 
 class SceneFormatError(ValueError):

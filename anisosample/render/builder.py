@@ -1,0 +1,555 @@
+"""Assembling a :class:`~anisosample.render.scene.Scene` from Python: :class:`SceneBuilder`.
+
+Shapes (rectangles, cubes, triangle meshes, spheres, bilinear patches), materials (``diffuse``,
+``roughconductor``, ``roughplastic``), area and point emitters and a camera are collected in
+Python lists and flattened by :meth:`SceneBuilder.build` into the scene's arrays. The XML loader
+(:func:`anisosample.render.load_xml`) drives the same builder. Conventions as in
+:mod:`anisosample.render.scene` (Mitsuba 3's).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import jax.numpy as jnp
+import numpy as np
+
+from .patch import build_patches, check_corners
+from .scene import (
+    CONDUCTOR,
+    DIFFUSE,
+    LIGHT_PARALLELOGRAM,
+    LIGHT_PATCH,
+    LIGHT_POINT,
+    LIGHT_SPHERE,
+    LIGHT_TRIANGLE,
+    PERSPECTIVE,
+    PLASTIC,
+    THINLENS,
+    Camera,
+    Lights,
+    Materials,
+    Scene,
+    Textures,
+)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v)
+    return v / n if n > 0 else v
+
+
+def _transform_point(m: np.ndarray, p) -> np.ndarray:
+    p = np.asarray(p, np.float64)
+    h = m @ np.append(p, 1.0)
+    return h[:3] / h[3]
+
+
+def _transform_normal(m: np.ndarray, n) -> np.ndarray:
+    return _unit(np.linalg.inv(m[:3, :3]).T @ np.asarray(n, np.float64))
+
+
+@dataclass
+class _Material:
+    kind: int
+    reflectance: tuple = (0.5, 0.5, 0.5)
+    specular: tuple = (1.0, 1.0, 1.0)
+    alpha: float = 0.1
+    eta: tuple = (0.0, 0.0, 0.0)
+    k: tuple = (1.0, 1.0, 1.0)
+    twosided: bool = False
+    transmittance: tuple = (1.0,) * 64  # roughplastic constants (render/plastic.py)
+    internal: float = 0.0
+    spec_weight: float = 0.5
+    flags: int = 0
+    distribution: int = 0
+
+
+@dataclass
+class SceneBuilder:
+    """Collects shapes, materials, emitters and a camera, then :meth:`build` s a :class:`Scene`.
+
+    Shapes take a 4x4 ``to_world`` matrix (numpy, float64) as in Mitsuba 3.
+    """
+
+    _tris: list = field(default_factory=list)  # (p0, p1, p2, n, uv0, uv1, uv2, mat, light)
+    _spheres: list = field(default_factory=list)  # (center, radius, mat, light)
+    _patches: list = field(default_factory=list)  # (corners (2, 2, 3), mat, light)
+    _materials: list = field(default_factory=list)
+    _lights: list = field(default_factory=list)  # dicts
+    _emitters: list = field(default_factory=list)  # (start, count, delta)
+    _textures: list = field(default_factory=list)
+    _camera: dict | None = None
+    spp: int = 64
+    emitter_samples: int = 1
+    bsdf_samples: int = 0
+
+    # materials ----------------------------------------------------------------------------------
+    def diffuse(self, reflectance=(0.5, 0.5, 0.5), *, twosided=False) -> int:
+        """Lambertian BSDF ``reflectance / pi`` (Mitsuba ``diffuse``); returns its index."""
+        self._materials.append(
+            _Material(DIFFUSE, reflectance=tuple(_rgb(reflectance)), twosided=twosided)
+        )
+        return len(self._materials) - 1
+
+    def roughconductor(self, alpha, eta, k, specular=(1.0, 1.0, 1.0), *, twosided=False) -> int:
+        """GGX rough conductor (Mitsuba ``roughconductor``, ``distribution="ggx"``)."""
+        self._materials.append(
+            _Material(
+                CONDUCTOR,
+                specular=tuple(_rgb(specular)),
+                alpha=float(alpha),
+                eta=tuple(_rgb(eta)),
+                k=tuple(_rgb(k)),
+                twosided=twosided,
+            )
+        )
+        return len(self._materials) - 1
+
+    def roughplastic(
+        self,
+        alpha=0.1,
+        *,
+        int_ior=1.49,
+        ext_ior=1.000277,
+        diffuse_reflectance=(0.5, 0.5, 0.5),
+        specular_reflectance=(1.0, 1.0, 1.0),
+        distribution="beckmann",
+        nonlinear=False,
+        sample_visible=True,
+        twosided=False,
+    ) -> int:
+        """Rough plastic (Mitsuba 3 ``roughplastic``; IORs as numbers or Mitsuba's names).
+
+        The defaults are Mitsuba's, including ``distribution="beckmann"`` (pass ``"ggx"``).
+        Raises ``ValueError`` naming a bad parameter (see :func:`plastic.make_params`).
+        """
+        from . import plastic
+
+        p = plastic.make_params(
+            alpha=alpha,
+            int_ior=int_ior,
+            ext_ior=ext_ior,
+            diffuse_reflectance=_rgb(diffuse_reflectance),
+            specular_reflectance=_rgb(specular_reflectance),
+            distribution=distribution,
+            nonlinear=bool(nonlinear),
+            sample_visible=bool(sample_visible),
+        )
+        self._materials.append(
+            _Material(
+                PLASTIC,
+                reflectance=tuple(_rgb(diffuse_reflectance)),
+                specular=tuple(_rgb(specular_reflectance)),
+                alpha=p["alpha"],
+                eta=(p["eta"],) * 3,
+                twosided=twosided,
+                transmittance=p["transmittance"],
+                internal=p["internal"],
+                spec_weight=p["spec_weight"],
+                flags=p["flags"],
+                distribution=p["distribution"],
+            )
+        )
+        return len(self._materials) - 1
+
+    # emitters -----------------------------------------------------------------------------------
+    def texture(self, rgb_image: np.ndarray) -> int:
+        img = np.asarray(rgb_image, np.float32)
+        if img.ndim != 3 or img.shape[2] != 3 or img.shape[0] < 1 or img.shape[1] < 1:
+            raise ValueError(f"texture must have shape (h, w, 3), got {img.shape}")
+        self._textures.append(img)
+        return len(self._textures) - 1
+
+    def _add_emitter(self, prims: list[dict], delta: bool) -> list[int]:
+        start = len(self._lights)
+        areas = np.array([p["area"] for p in prims], np.float64)
+        if not delta:
+            if not np.all(np.isfinite(areas)) or areas.sum() <= 0:
+                raise ValueError(
+                    f"an area emitter must have a positive total area, got {areas.sum()}"
+                )
+            prob = areas / areas.sum()
+        else:
+            prob = np.ones(len(prims))
+        cdf = np.cumsum(prob)
+        cdf[-1] = 1.0
+        e = len(self._emitters)
+        for p, pr, c in zip(prims, prob, cdf, strict=True):
+            self._lights.append({**p, "prob": pr, "cdf": c, "emitter": e})
+        self._emitters.append((start, len(prims), int(delta)))
+        return list(range(start, start + len(prims)))
+
+    def point_light(self, position, intensity) -> None:
+        """Isotropic point light of radiant intensity ``intensity`` (W/sr, RGB)."""
+        self._add_emitter(
+            [
+                _light_dict(
+                    LIGHT_POINT,
+                    np.asarray(position, np.float64),
+                    np.zeros(3),
+                    np.zeros(3),
+                    np.zeros(3),
+                    0.0,
+                    _rgb(intensity),
+                    -1,
+                )
+            ],
+            delta=True,
+        )
+
+    # shapes -------------------------------------------------------------------------------------
+    def rectangle(
+        self, to_world, material: int, *, radiance=None, texture: int = -1, flip_normals=False
+    ) -> None:
+        """Mitsuba ``rectangle``: ``[-1,1]^2`` at z = 0, normal +z, uv = ((x+1)/2, (y+1)/2)."""
+        m = np.asarray(to_world, np.float64)
+        c = _transform_point(m, (-1, -1, 0))
+        e1 = _transform_point(m, (1, -1, 0)) - c
+        e2 = _transform_point(m, (-1, 1, 0)) - c
+        n = _transform_normal(m, (0, 0, 1)) * (-1 if flip_normals else 1)
+        light = -1
+        if radiance is not None or texture >= 0:
+            area = float(np.linalg.norm(np.cross(e1, e2)))
+            if not area > 0:
+                raise ValueError("rectangle emitter has zero area (degenerate to_world)")
+            rad = _rgb(radiance if radiance is not None else (1.0, 1.0, 1.0))
+            (light,) = self._add_emitter(
+                [
+                    _light_dict(
+                        LIGHT_PARALLELOGRAM,
+                        c,
+                        e1,
+                        e2,
+                        n,
+                        area,
+                        rad,
+                        texture,
+                        uv=((0, 0), (1, 0), (0, 1)),
+                    )
+                ],
+                delta=False,
+            )
+        p00, p10, p01, p11 = c, c + e1, c + e2, c + e1 + e2
+        uv = {"00": (0, 0), "10": (1, 0), "01": (0, 1), "11": (1, 1)}
+        self._tris.append((p00, p10, p11, n, uv["00"], uv["10"], uv["11"], material, light))
+        self._tris.append((p00, p11, p01, n, uv["00"], uv["11"], uv["01"], material, light))
+
+    def triangles(
+        self,
+        vertices,
+        faces,
+        material: int,
+        *,
+        uvs=None,
+        radiance=None,
+        texture: int = -1,
+        flip_normals=False,
+    ) -> None:
+        """A triangle mesh (world-space ``vertices`` (v, 3), ``faces`` (f, 3)).
+
+        Face normals are ``(p1 - p0) x (p2 - p0)`` normalised (Mitsuba's geometric normal).
+        An emissive mesh becomes one emitter whose triangles are picked by area.
+        """
+        v = np.asarray(vertices, np.float64)
+        f = np.asarray(faces, np.int64)
+        if uvs is None:
+            uvs = np.zeros((len(v), 2))
+        uvs = np.asarray(uvs, np.float64)
+        entries = []
+        prims = []
+        for tri in f:
+            p0, p1, p2 = v[tri[0]], v[tri[1]], v[tri[2]]
+            cr = np.cross(p1 - p0, p2 - p0)
+            area = 0.5 * float(np.linalg.norm(cr))
+            n = _unit(cr) * (-1 if flip_normals else 1)
+            if area <= 0:
+                continue  # degenerate triangles are never hit; drop them
+            entries.append((p0, p1, p2, n, uvs[tri[0]], uvs[tri[1]], uvs[tri[2]]))
+            prims.append(
+                _light_dict(
+                    LIGHT_TRIANGLE,
+                    p0,
+                    p1 - p0,
+                    p2 - p0,
+                    n,
+                    area,
+                    _rgb(radiance if radiance is not None else (1, 1, 1)),
+                    texture,
+                    uv=(uvs[tri[0]], uvs[tri[1]], uvs[tri[2]]),
+                )
+            )
+        emissive = radiance is not None or texture >= 0
+        if emissive and not prims:
+            raise ValueError("mesh emitter has zero area")
+        lights = self._add_emitter(prims, delta=False) if emissive else [-1] * len(entries)
+        for (p0, p1, p2, n, a, b, c), li in zip(entries, lights, strict=True):
+            self._tris.append((p0, p1, p2, n, a, b, c, material, li))
+
+    def cube(self, to_world, material: int, *, radiance=None, flip_normals=False) -> None:
+        """Mitsuba ``cube``: ``[-1, 1]^3`` with outward normals, as 12 triangles."""
+        m = np.asarray(to_world, np.float64)
+        verts, faces = [], []
+        for axis in range(3):
+            for sign in (-1.0, 1.0):
+                a, b = (axis + 1) % 3, (axis + 2) % 3
+                quad = []
+                for s, t in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+                    p = np.zeros(3)
+                    p[axis], p[a], p[b] = sign, s, t
+                    quad.append(_transform_point(m, p))
+                base = len(verts)
+                verts.extend(quad)
+                n_out = _transform_normal(m, np.eye(3)[axis] * sign)
+                tri = [(0, 1, 2), (0, 2, 3)]
+                cr = np.cross(quad[1] - quad[0], quad[2] - quad[0])
+                if np.dot(cr, n_out) < 0:
+                    tri = [(0, 2, 1), (0, 3, 2)]
+                faces.extend([(base + i, base + j, base + k) for i, j, k in tri])
+        self.triangles(
+            np.array(verts), np.array(faces), material, radiance=radiance, flip_normals=flip_normals
+        )
+
+    def sphere(self, center, radius, material: int, *, radiance=None) -> None:
+        radius = float(radius)
+        if not radius > 0:
+            raise ValueError(f"sphere radius must be > 0, got {radius}")
+        light = -1
+        if radiance is not None:
+            (light,) = self._add_emitter(
+                [
+                    _light_dict(
+                        LIGHT_SPHERE,
+                        np.asarray(center, np.float64),
+                        np.array([radius, 0, 0]),
+                        np.zeros(3),
+                        np.zeros(3),
+                        4 * np.pi * radius**2,
+                        _rgb(radiance),
+                        -1,
+                    )
+                ],
+                delta=False,
+            )
+        self._spheres.append((np.asarray(center, np.float64), radius, material, light))
+
+    def bilinear_patch(self, corners, material: int, *, radiance=None, flip_normals=False) -> None:
+        """A bilinear patch, ``corners[i, j] = p_ij`` (world space, shape (2, 2, 3)), front side
+        along ``p_u x p_v``; ``flip_normals`` swaps ``u`` and ``v`` (render/patch.py, H Sec. 4.2).
+        An emissive patch is one emitter. Raises ``ValueError`` for a degenerate patch."""
+        c, area = check_corners(corners)
+        if flip_normals:
+            c = c.transpose(1, 0, 2)
+        light = -1
+        if radiance is not None:
+            row = _light_dict(LIGHT_PATCH, c[0, 0], c[1, 0] - c[0, 0], c[0, 1] - c[0, 0],
+                              np.zeros(3), area, _rgb(radiance), -1)
+            (light,) = self._add_emitter([{**row, "patch": len(self._patches)}], delta=False)
+        self._patches.append((c, material, light))
+
+    # camera -------------------------------------------------------------------------------------
+    def camera(
+        self,
+        to_world,
+        *,
+        width: int,
+        height: int,
+        fov: float = 45.0,
+        fov_axis: str = "x",
+        aperture_radius: float = 0.0,
+        focus_distance: float = 1.0,
+        thinlens: bool = False,
+    ) -> None:
+        """Mitsuba ``perspective`` / ``thinlens`` sensor (fov in degrees along ``fov_axis``)."""
+        aspect = width / height
+        t = np.tan(np.radians(fov) / 2)
+        if (
+            fov_axis == "y"
+            or (fov_axis == "smaller" and aspect > 1)
+            or (fov_axis == "larger" and aspect < 1)
+        ):
+            t = t * aspect
+        elif fov_axis not in ("x", "smaller", "larger"):
+            raise ValueError(f"fov_axis must be one of x, y, smaller, larger, got {fov_axis!r}")
+        self._camera = dict(
+            to_world=np.asarray(to_world, np.float64),
+            tan=t,
+            aspect=aspect,
+            aperture_radius=aperture_radius,
+            focus_distance=focus_distance,
+            kind=THINLENS if thinlens else PERSPECTIVE,
+            width=int(width),
+            height=int(height),
+        )
+
+    # build --------------------------------------------------------------------------------------
+    def build(self) -> Scene:
+        if self._camera is None:
+            raise ValueError("the scene has no sensor (camera)")
+        if not self._emitters:
+            raise ValueError("the scene has no emitter")
+        f32 = lambda a: jnp.asarray(np.asarray(a, np.float64), jnp.float32)
+        i32 = lambda a: jnp.asarray(np.asarray(a, np.int64), jnp.int32)
+
+        tris = self._tris or [
+            (np.full(3, 1e30),) * 3 + (np.array([0, 0, 1.0]), (0, 0), (0, 0), (0, 0), 0, -1)
+        ]
+        p0 = np.array([t[0] for t in tris])
+        e1 = np.array([t[1] for t in tris]) - p0
+        e2 = np.array([t[2] for t in tris]) - p0
+        if not self._tris:  # a placeholder that nothing hits
+            e1 = np.zeros_like(p0)
+            e2 = np.zeros_like(p0)
+        sph = self._spheres or [(np.full(3, 1e30), 1.0, 0, -1)]
+        sph_r = np.array([s[1] for s in sph])
+        if not self._spheres:
+            sph_r = np.zeros(1)
+
+        mats = self._materials or [_Material(DIFFUSE)]
+        materials = Materials(
+            kind=i32([m.kind for m in mats]),
+            reflectance=f32([m.reflectance for m in mats]),
+            specular=f32([m.specular for m in mats]),
+            alpha=f32([m.alpha for m in mats]),
+            eta=f32([m.eta for m in mats]),
+            k=f32([m.k for m in mats]),
+            twosided=i32([int(m.twosided) for m in mats]),
+            transmittance=f32([m.transmittance for m in mats]),
+            internal=f32([m.internal for m in mats]),
+            spec_weight=f32([m.spec_weight for m in mats]),
+            flags=i32([m.flags for m in mats]),
+            distribution=i32([m.distribution for m in mats]),
+            has_glossy=any(m.kind != DIFFUSE for m in mats),
+            has_plastic=any(m.kind == PLASTIC for m in mats),
+        )
+
+        L = self._lights
+        lights = Lights(
+            kind=i32([x["kind"] for x in L]),
+            p0=f32([x["p0"] for x in L]),
+            e1=f32([x["e1"] for x in L]),
+            e2=f32([x["e2"] for x in L]),
+            normal=f32([x["normal"] for x in L]),
+            area=f32([x["area"] for x in L]),
+            uv0=f32([x["uv"][0] for x in L]),
+            uv1=f32([x["uv"][1] for x in L]),
+            uv2=f32([x["uv"][2] for x in L]),
+            radiance=f32([x["radiance"] for x in L]),
+            texture=i32([x["texture"] for x in L]),
+            prim_prob=f32([x["prob"] for x in L]),
+            prim_cdf=f32([x["cdf"] for x in L]),
+            emitter=i32([x["emitter"] for x in L]),
+            start=i32([e[0] for e in self._emitters]),
+            count=i32([e[1] for e in self._emitters]),
+            delta=i32([e[2] for e in self._emitters]),
+            patch=i32([x.get("patch", -1) for x in L]),
+            n_prims=len(L),
+        )
+
+        if self._textures:
+            hmax = max(t.shape[0] for t in self._textures)
+            wmax = max(t.shape[1] for t in self._textures)
+            data = np.zeros((len(self._textures), hmax, wmax, 3), np.float32)
+            for i, t in enumerate(self._textures):
+                data[i, : t.shape[0], : t.shape[1]] = t
+            size = [(t.shape[1], t.shape[0]) for t in self._textures]
+        else:
+            data, size = np.zeros((1, 1, 1, 3), np.float32), [(1, 1)]
+        textures = Textures(data=jnp.asarray(data), size=i32(size))
+
+        c = self._camera
+        camera = Camera(
+            to_world=f32(c["to_world"]),
+            tan_half_fov_x=f32(c["tan"]),
+            aspect=f32(c["aspect"]),
+            aperture_radius=f32(c["aperture_radius"]),
+            focus_distance=f32(c["focus_distance"]),
+            kind=c["kind"],
+            width=c["width"],
+            height=c["height"],
+        )
+
+        pts = [p0[: len(self._tris)], (p0 + e1)[: len(self._tris)], (p0 + e2)[: len(self._tris)]]
+        pts += [np.array([s[0] for s in self._spheres]).reshape(-1, 3)]
+        pts += [np.array([q[0] for q in self._patches]).reshape(-1, 3)]
+        pts += [np.asarray(c["to_world"][:3, 3])[None]]
+        allp = np.concatenate([p.reshape(-1, 3) for p in pts])
+        scale = float(np.max(np.abs(allp))) if allp.size else 1.0
+
+        return Scene(
+            tri_p0=f32(p0),
+            tri_e1=f32(e1),
+            tri_e2=f32(e2),
+            tri_n=f32([t[3] for t in tris]),
+            tri_uv0=f32([t[4] for t in tris]),
+            tri_uv1=f32([t[5] for t in tris]),
+            tri_uv2=f32([t[6] for t in tris]),
+            tri_material=i32([t[7] for t in tris]),
+            tri_light=i32([t[8] for t in tris]),
+            tri_soa=f32(_plane_rows(p0, e1, e2)),
+            tri_attr=f32(np.concatenate([np.array([t[k] for t in tris], np.float64).reshape(
+                len(tris), -1) for k in (3, 4, 5, 6)], axis=1)),
+            tri_ids=i32([(t[7], t[8]) for t in tris]),
+            sph_center=f32([s[0] for s in sph]),
+            sph_radius=f32(sph_r),
+            sph_material=i32([s[2] for s in sph]),
+            sph_light=i32([s[3] for s in sph]),
+            materials=materials,
+            lights=lights,
+            textures=textures,
+            camera=camera,
+            scale=f32(max(scale, 1.0)),
+            spp=int(self.spp),
+            emitter_samples=int(self.emitter_samples),
+            bsdf_samples=int(self.bsdf_samples),
+            has_spheres=bool(self._spheres),
+            has_textures=bool(self._textures),
+            patches=build_patches(self._patches),
+            has_patches=bool(self._patches),
+        )
+
+
+def _plane_rows(p0, e1, e2) -> np.ndarray:
+    """Per-triangle rows for the plane-based ray/triangle test, structure of arrays (12, t).
+
+    With ``n = e1 x e2`` and the dual edge vectors ``r1 = (e2 x n) / |n|^2``,
+    ``r2 = (n x e1) / |n|^2`` (``r_i . e_j = delta_ij``), a ray meets the plane at
+    ``t = (n.p0 - n.o) / (n.d)`` and the hit ``q`` has barycentrics ``b1 = q.r1 - p0.r1``,
+    ``b2 = q.r2 - p0.r2`` (the precomputed-transform idea of Baldwin & Weber 2016).
+    Degenerate triangles get rows that never report a hit.
+    """
+    n = np.cross(e1, e2)
+    nn = np.sum(n * n, axis=-1)
+    good = nn > 0
+    inv = np.where(good, 1.0 / np.where(good, nn, 1.0), 0.0)[:, None]
+    r1 = np.cross(e2, n) * inv
+    r2 = np.cross(n, e1) * inv
+    rows = np.concatenate([n, np.sum(n * p0, -1, keepdims=True), r1,
+                           np.sum(r1 * p0, -1, keepdims=True), r2,
+                           np.sum(r2 * p0, -1, keepdims=True)], axis=1)
+    rows[~good] = 0.0
+    rows[~good, 7] = 1.0  # b1 = -1: never inside
+    return rows.T
+
+
+def _rgb(v) -> np.ndarray:
+    a = np.asarray(v, np.float64).reshape(-1)
+    if a.size == 1:
+        a = np.repeat(a, 3)
+    if a.size != 3 or not np.all(np.isfinite(a)):
+        raise ValueError(f"expected one or three finite numbers (RGB), got {v!r}")
+    return a
+
+
+def _light_dict(kind, p0, e1, e2, n, area, radiance, texture, uv=((0, 0), (0, 0), (0, 0))):
+    return {
+        "kind": kind,
+        "p0": np.asarray(p0),
+        "e1": np.asarray(e1),
+        "e2": np.asarray(e2),
+        "normal": np.asarray(n),
+        "area": float(area),
+        "radiance": np.asarray(radiance),
+        "texture": int(texture),
+        "uv": tuple(tuple(map(float, x)) for x in uv),
+    }
