@@ -21,9 +21,21 @@ fitted anew at every shading point. Per method and shading point:
 
 Summary: mean variance and its improvement over uniform; geometric means over shading points of
 the variance ratio to the point-wise and least-squares fits of the same kind; the fraction of
-shading points where the minimum-variance fit is at least as good (within 1e-4).
+shading points where the minimum-variance fit is at least as good (within 1e-4), and where the
+least-squares fit is worse than the point-wise one.
+
+Part 2 (``--part synthesis``): a synthesis design scalar. The "rate" recipe (``synthesize``:
+linear spectrum loss on ``frequencies.design``, Adam) for directions 0/90/30 at ``n = 256``,
+with the 30-degree wedge's length ``L`` made continuous (a sigmoid of width ``tau`` on
+``|v . d|`` over a wedge twice as long), ``steps`` Adam steps unrolled from a jittered set (the
+rate recipe's Adam: lr ``0.5 / sqrt(n)`` decaying to 1%, ``b2 = 0.9``, eps ``1e-30``; direct
+sums, float64), and W Eq. 5's variance prediction for a half-plane edge at 30 degrees (closed-form
+``P_f``; disk of radius 64 plus bands of half-width 2 along 0/90/30 out to 1024, no tail).
+``d Var / d L`` at ``L = n^0.8`` by reverse-mode through the unrolled loop, against central
+differences of two syntheses from the same start at ``L +- delta``, per initial set.
 
     python experiments/beyond_differentiable_tuning.py --scale small|paper [--out DIR] [--fresh]
+        [--part all|warps|synthesis]
 """
 
 from __future__ import annotations
@@ -34,9 +46,10 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import parser, reuse_or_compute, write_record
+from common import cached_json, parser, reuse_or_compute, write_record
 from h_shading_points import NORMAL, TRIANGLE, _best_time, lambert_irradiance
 
+import anisosample as asp
 import anisosample.warps as W
 from anisosample.progress import progress
 
@@ -44,6 +57,33 @@ NAME = "beyond_differentiable_tuning"
 SCALES = {
     "small": dict(grid=16, realizations=128, res=128),
     "paper": dict(grid=64, realizations=1024, res=256),
+}
+# Part 2: n points, unrolled Adam steps, initial sets, central-difference half-steps (band-length
+# units), the edge's spectral direction, the sigmoid width of the soft band end, how far the
+# band may grow, and the W Eq. 5 evaluation set (disk radius, band length).
+SYNTHESIS = {
+    "small": dict(
+        n=256,
+        steps=40,
+        seeds=4,
+        deltas=[1e-4, 1e-2, 0.1, 1.0, 8.0],
+        theta=30.0,
+        tau=2.0,
+        max_factor=2.0,
+        eval_radius=64,
+        eval_length=1024,
+    ),
+    "paper": dict(
+        n=256,
+        steps=100,
+        seeds=16,
+        deltas=[1e-4, 1e-2, 0.1, 1.0, 8.0],
+        theta=30.0,
+        tau=2.0,
+        max_factor=2.0,
+        eval_radius=64,
+        eval_length=1024,
+    ),
 }
 _N = jnp.asarray(NORMAL, jnp.float32)
 _VERTS = jnp.asarray(TRIANGLE, jnp.float32)
@@ -155,9 +195,12 @@ def summarize(rows, exact):
             relative_std=float(np.sqrt(np.mean(v)) / np.mean(exact)),
             seconds_per_fit=r["seconds_per_fit"],
         )
-        kind = (
-            "bilinear" if "bilinear" in name else "biquadratic" if "biquadratic" in name else None
-        )
+        kind = next((k for k in ("bilinear", "biquadratic") if k in name), None)
+        if kind and "least squares" in name:
+            ratio = v / np.asarray(rows[f"+ {kind} (point-wise)"]["variance"])
+            s["geomean_ratio_to_point_wise"] = float(np.exp(np.mean(np.log(ratio))))
+            s["max_ratio_to_point_wise"] = float(np.max(ratio))
+            s["fraction_worse_than_point_wise"] = float(np.mean(ratio > 1 + 1e-4))
         if kind and "min variance" in name:
             for ref in ("point-wise", "least squares"):
                 vr = np.asarray(rows[f"+ {kind} ({ref})"]["variance"])
@@ -194,6 +237,152 @@ def run(settings, out, fresh):
         exact=exact.tolist(),
         mean_irradiance=float(exact.mean()),
     )
+
+
+# --- part 2: a synthesis design scalar (W Sec. 4) -----------------------------------------------
+
+
+def _power(x, v):
+    """``P_S(v) = |(1/n) sum_j exp(-2 pi i v . x_j)|^2`` (W Eq. 4) by the direct sum, plain
+    autodiff (no custom VJP), so that it can be differentiated twice."""
+    ph = (2.0 * jnp.pi) * (x @ v.T)
+    c, s = jnp.mean(jnp.cos(ph), 0), jnp.mean(jnp.sin(ph), 0)
+    return c * c + s * s
+
+
+def _relaxed_design(n, theta, max_factor):
+    """The "rate" design for directions 0/90/``theta`` (``frequencies.design``) with the wedge
+    along ``theta`` grown to ``max_factor`` times its length; returns the frequencies, their
+    weights, ``t = |v . d_theta|`` and whether each frequency is only in that long wedge."""
+    from anisosample import frequencies as F
+
+    length = n**0.8
+    fixed = [F.wedge(t, length, 1.5, 2.0) for t in (0.0, 90.0)] + [F.disk(np.sqrt(n))]
+    fixed = F.canonical_half(np.concatenate(fixed))
+    long = F.canonical_half(F.wedge(theta, max_factor * length, 1.5, 2.0))
+    v = F.canonical_half(np.concatenate([fixed, long]))
+    in_fixed = {tuple(r) for r in fixed.tolist()}
+    only_long = np.array([tuple(r) not in in_fixed for r in v.tolist()])
+    w = F.edge_weights(v, (0.0, 90.0, theta))
+    d = np.array([np.cos(np.radians(theta)), np.sin(np.radians(theta))])
+    return v.astype(np.float64), w, np.abs(v @ d), only_long
+
+
+def _eval_set(n, theta, radius, length):
+    """Frequencies for W Eq. 5 (one of each +-v): a disk plus bands of half-width 2 along 0, 90
+    and ``theta`` out to ``length`` (as ``diagnostics.variance_decomposition``, no tail)."""
+    from anisosample import frequencies as F
+
+    parts = [F.disk(radius)] + [F.wedge(t, length, 2.0) for t in (0.0, 90.0, theta)]
+    return F.canonical_half(np.concatenate(parts)).astype(np.float64)
+
+
+def synthesis_gradient(settings):
+    """d(predicted variance)/d(band length) by unrolled Adam vs central finite differences."""
+    from anisosample.synthesis import adam_update
+
+    n, steps, theta, tau = settings["n"], settings["steps"], settings["theta"], settings["tau"]
+    v, w, t, only_long = _relaxed_design(n, theta, settings["max_factor"])
+    edge = asp.integrands.HalfPlane.through((0.5, 0.5), theta)
+    v_eval = _eval_set(n, theta, settings["eval_radius"], settings["eval_length"])
+    pf = 2.0 * edge.power_spectrum(v_eval.astype(np.int64))  # both +-v
+    l0 = float(n**0.8)
+    out = {
+        "n": n,
+        "steps": steps,
+        "theta": theta,
+        "tau": tau,
+        "length0": l0,
+        "frequencies": int(v.shape[0]),
+        "eval_frequencies": int(v_eval.shape[0]),
+    }
+    with jax.enable_x64(True):
+        vj, wj, tj = (jnp.asarray(a, jnp.float64) for a in (v, w, t))
+        lj = jnp.asarray(only_long)
+        vej, pfj = jnp.asarray(v_eval), jnp.asarray(pf)
+        lr0 = 0.5 / np.sqrt(n)  # the "rate" recipe's Adam: lr 0.5/sqrt(n) decaying to 1%
+        decay = 0.01 ** (1.0 / max(steps - 1, 1))
+
+        def synth(length, x0):
+            mask = jnp.where(lj, jax.nn.sigmoid((length - tj) / tau), 1.0)
+            ww = wj * mask
+
+            def loss(x):
+                return n * jnp.sum(ww * _power(x, vj)) / jnp.sum(ww)
+
+            def one(state, k):
+                x, m, s = state
+                g = jax.grad(loss)(x)
+                dx, (m, s) = adam_update(
+                    g,
+                    (m, s),
+                    (k + 1).astype(x.dtype),
+                    lr=lr0 * decay**k,
+                    b1=0.9,
+                    b2=0.9,
+                    eps=1e-30,
+                )
+                x = x + dx
+                return (x - jnp.floor(x), m, s), None
+
+            z = jnp.zeros_like(x0)
+            (x, _, _), _ = jax.lax.scan(one, (x0, z, z), jnp.arange(steps))
+            return x
+
+        def predicted(length, x0):
+            return jnp.sum(pfj * _power(synth(length, x0), vej))
+
+        value_and_grad = jax.jit(jax.value_and_grad(predicted))
+        value = jax.jit(predicted)
+        rows = []
+        for seed in progress(range(settings["seeds"]), desc="synthesis seeds"):
+            x0 = jnp.asarray(
+                asp.samplers.get("jittered")(jax.random.key(1000 + seed), n), jnp.float64
+            )
+            val, grad = value_and_grad(jnp.float64(l0), x0)
+            fd = {}
+            for delta in settings["deltas"]:
+                hi, lo = value(jnp.float64(l0 + delta), x0), value(jnp.float64(l0 - delta), x0)
+                fd[str(delta)] = float((hi - lo) / (2 * delta))
+            rows.append(dict(seed=seed, variance=float(val), gradient=float(grad), fd=fd))
+        # Our truncated W Eq. 5 sum against the library's (diagnostics, float64 NUFFT) on the
+        # first seed's set: the same frequencies, so they must agree to rounding.
+        x_end = jax.jit(synth)(
+            jnp.float64(l0),
+            jnp.asarray(asp.samplers.get("jittered")(jax.random.key(1000), n), jnp.float64),
+        )
+        lib = asp.diagnostics.variance_decomposition(
+            np.asarray(x_end),
+            edge,
+            directions_deg=[theta],
+            disk_radius=settings["eval_radius"],
+            line_length=settings["eval_length"],
+            band=2.0,
+        )
+        out["library_total_seed0"] = float(lib["total"])
+        # The no-warp reference: the initial jittered sets' predicted variance.
+        x_init = jnp.asarray(asp.samplers.get("jittered")(jax.random.key(1000), n), jnp.float64)
+        out["jittered_variance"] = float(jnp.sum(pfj * _power(x_init, vej)))
+    var = np.array([r["variance"] for r in rows])
+    grads = np.array([r["gradient"] for r in rows])
+    out["seeds"] = rows
+    out["mean_variance"] = float(var.mean())
+    out["std_variance_over_seeds"] = float(var.std(ddof=1)) if len(var) > 1 else 0.0
+    out["mean_gradient"] = float(grads.mean())
+    out["std_gradient_over_seeds"] = float(grads.std(ddof=1)) if len(grads) > 1 else 0.0
+    out["fraction_gradient_sign_as_mean"] = float(np.mean(np.sign(grads) == np.sign(grads.mean())))
+    for delta in settings["deltas"]:
+        fd = np.array([r["fd"][str(delta)] for r in rows])
+        rel = np.abs(grads - fd) / np.maximum(np.abs(fd), 1e-300)
+        out[f"median_rel_error_vs_fd_{delta}"] = float(np.median(rel))
+        out[f"fraction_sign_agrees_fd_{delta}"] = float(np.mean(np.sign(grads) == np.sign(fd)))
+    # The widest difference: the slope a tuner stepping by that much would see, its seed-to-seed
+    # spread, and the local gradient measured in its units.
+    wide = np.array([r["fd"][str(settings["deltas"][-1])] for r in rows])
+    out["wide_fd_mean"] = float(wide.mean())
+    out["wide_fd_std"] = float(wide.std(ddof=1)) if len(wide) > 1 else 0.0
+    out["gradient_over_wide_fd"] = float(grads.mean() / wide.mean()) if wide.mean() else 0.0
+    return out
 
 
 def plot(data, settings, out):
@@ -240,11 +429,32 @@ def plot(data, settings, out):
 
 def main(argv=None):
     ap = parser(NAME, __doc__.splitlines()[0])
+    ap.add_argument(
+        "--part",
+        choices=["all", "warps", "synthesis"],
+        default="all",
+        help="warps (part 1), synthesis (part 2) or both (default)",
+    )
     args = ap.parse_args(argv)
     started = time.time()
     settings = dict(SCALES[args.scale], scale=args.scale, seed=args.seed, timing="cpu")
-    data = run(settings, args.out, args.fresh)
-    write_record(args.out, NAME, data, settings, started)
+    syn = dict(SYNTHESIS[args.scale], scale=args.scale)
+    record = cached_json(args.out / f"{NAME}.json", False) or {}
+    if args.part in ("all", "warps") or "summary" not in record:
+        data = run(settings, args.out, args.fresh)
+    else:
+        data = {k: record[k] for k in ("summary", "per_point", "exact", "mean_irradiance")}
+    if args.part in ("all", "synthesis"):
+        data["synthesis"] = reuse_or_compute(
+            args.out / "parts" / "synthesis.json",
+            syn,
+            args.fresh,
+            lambda: synthesis_gradient(syn),
+            field="result",
+        )
+    elif "synthesis" in record:
+        data["synthesis"] = record["synthesis"]
+    write_record(args.out, NAME, data, dict(settings, synthesis=syn), started)
     plot(data, settings, args.out)
     print(f"triangle light, mean irradiance {data['mean_irradiance']:.4f}")
     print(
@@ -253,9 +463,10 @@ def main(argv=None):
     )
     for n, s in data["summary"].items():
         extra = ""
+        if "geomean_ratio_to_point_wise" in s:
+            extra = f" {s['geomean_ratio_to_point_wise']:8.3f}"
         if "geomean_ratio_to_least_squares" in s:
-            extra = (
-                f" {s['geomean_ratio_to_point_wise']:8.3f}"
+            extra += (
                 f" {s['geomean_ratio_to_least_squares']:8.3f}"
                 f" {s['fraction_at_least_as_good_as_least_squares']:5.2f}"
             )
@@ -263,6 +474,27 @@ def main(argv=None):
             f"  {n:44s} {s['mean_variance']:9.3e} {s['variance_improvement']:9.3g}"
             f" {s['mse_improvement']:9.3g} {s['seconds_per_fit']:8.1e}{extra}"
         )
+    if "synthesis" in data:
+        r = data["synthesis"]
+        print(
+            f"\nsynthesis (n={r['n']}, {r['steps']} Adam steps, edge at {r['theta']:g} deg):"
+            f" predicted variance {r['mean_variance']:.3e} +- {r['std_variance_over_seeds']:.1e}"
+            f" over seeds (jittered start {r['jittered_variance']:.3e})"
+        )
+        print(
+            f"  d Var / d length (unrolled): {r['mean_gradient']:.3e} +- "
+            f"{r['std_gradient_over_seeds']:.1e}"
+        )
+        print(
+            f"  widest central difference: {r['wide_fd_mean']:.3e} +- {r['wide_fd_std']:.1e}"
+            f" (local gradient / it: {r['gradient_over_wide_fd']:.3g})"
+        )
+        for d in SYNTHESIS[settings["scale"]]["deltas"]:
+            print(
+                f"  central difference +-{d:g}: median rel. error"
+                f" {r[f'median_rel_error_vs_fd_{d}']:.3g},"
+                f" sign agrees {r[f'fraction_sign_agrees_fd_{d}']:.2f}"
+            )
 
 
 if __name__ == "__main__":
