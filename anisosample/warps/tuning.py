@@ -15,11 +15,18 @@ through sampling, Newton solves or visibility. :func:`fit_min_variance` minimise
 ``theta = log(values)`` with optimistix (Levenberg-Marquardt on residuals whose sum of squares
 is this variance, or BFGS on the scalar).
 
-Compared with :func:`~anisosample.warps.fit_least_squares` (the same second moment as residuals
-on an 8x8 midpoint probe grid, Levenberg-Marquardt), this minimises the variance itself on a finer
-rule (Gauss-Legendre by default: ``J_theta`` is a polynomial of degree <= 2 per axis, so the rule
-integrates it exactly and the discrete variance is the exact variance of a piecewise-smooth ``g``
-up to the rule's error on ``g^2 / J``).
+Compared with :func:`~anisosample.warps.fit_least_squares` (the second moment ``sum g^2 / J`` as
+residuals on an 8x8 midpoint probe grid, Levenberg-Marquardt), this minimises the variance in the
+right-hand form on a finer rule. The form matters more than the rule: the second moment is
+``I^2 (1 + relative variance)`` and a good fit's relative variance is 1e-6..1e-4, so a rule that
+integrates ``J_theta`` to ``1 + e`` (a coarse midpoint grid: ``e ~ 5e-4`` for a bulging
+biquadratic) lets ``sum g^2 / J`` fall by ``~ e I^2`` -- more than the whole variance -- by
+raising ``J`` at the probes; ``sum w (g / J - I)^2 J`` charges for that (it equals
+``sum w g^2 / J - I^2 (2 - sum w J)``), its errors scale with the variance itself, and its
+residuals vanish at a perfect fit, where Gauss-Newton converges fast. The default
+Gauss-Legendre rule integrates ``J_theta`` (degree <= 2 per axis) exactly, so the discrete
+variance is the exact variance up to the rule's error on ``g^2 / J``
+(``experiments/beyond_differentiable_tuning.py`` measures both effects).
 """
 
 from __future__ import annotations
@@ -142,8 +149,9 @@ def fit_min_variance(
       (Gauss-Newton converges fast there; ``fit_least_squares``' second-moment residuals do not
       vanish at its optimum);
     * ``solver="bfgs"``: ``optx.BFGS`` on the scalar variance and its autodiff gradient
-      (slower to converge here: its backtracking line search needs many more steps on the
-      ill-conditioned Bezier parameters).
+      (slower on the ill-conditioned Bezier parameters: for a biquadratic target through the
+      identity, 128 BFGS steps left a relative variance of 1.9e-6 where Levenberg-Marquardt
+      reached 7e-15 in 27 steps).
 
     ``throw=False``, so it ``jit``s and ``vmap``s over shading points; a run that hits
     ``max_steps`` returns its last iterate, and the start is kept if it was better. An integrand
