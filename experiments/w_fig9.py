@@ -42,8 +42,8 @@ from anisosample.progress import progress
 
 NAME = "w_fig9"
 SCALES = {
-    # small: a 64^2 image, 16-pixel blocks, the 4x4 pixels at the block centre, up to 2^10 spp
-    "small": dict(size=128, block_px=16, region_px=4, log2_ns=[8, 9, 10], realizations=64),
+    # small: a 128^2 image, 16-pixel blocks, the 4x4 pixels at the block centre, 2^8..2^12 spp
+    "small": dict(size=128, block_px=16, region_px=4, log2_ns=[8, 9, 10, 11, 12], realizations=256),
     # paper: W's 1280^2 image, 16x16-pixel blocks, the whole block, 2^8..2^12 spp (GPU)
     "paper": dict(size=1280, block_px=16, region_px=16, log2_ns=[8, 9, 10, 11, 12],
                   realizations=128),
