@@ -7,15 +7,22 @@ warp's closed-form density depends on ``theta``, so the variance is differentiab
 minimised directly (``warps.fit_min_variance``: Gauss-Legendre 32^2 quadrature in PSS,
 Levenberg-Marquardt on residuals whose sum of squares is the variance, or BFGS on the scalar).
 
-Setting as ``h_shading_points`` (H Sec. 4.1): irradiance at a grid of shading points on the plane
-z = 0 under a unit-radiance triangle light, no visibility or MIS, integrand = the cosine at the
-shading point (the whole integrand behind uniform solid-angle sampling, Arvo 1995). Warps are
-fitted anew at every shading point. Per method and shading point:
+Setting as ``h_shading_points`` (H Secs. 4.1-4.2): irradiance at a grid of shading points on the
+plane z = 0, no visibility or MIS, warps fitted anew at every shading point, under
+
+* a unit-radiance triangle light: integrand = the cosine at the shading point (the whole
+  integrand behind uniform solid-angle sampling, Arvo 1995); bilinear and biquadratic warps;
+* the twisted bilinear-patch light: the whole integrand (1/r^2 and both cosines) behind the
+  bilinear approximate-area warp (H Sec. 4.2), a biquadratic warp fitted to it in front
+  (point-wise, least squares, minimum variance), next to H's three-warp chain.
+
+Per method and shading point:
 
 * ``variance``: the one-sample variance through sampling on a ``res x res`` midpoint grid of PSS
-  inputs (H Algorithm 1, Newton solves included; moments about Lambert's closed form) -- an
+  inputs (H Algorithm 1, Newton solves included; moments about the exact irradiance: Lambert's
+  closed form, 96^2 Gauss-Legendre over the patch) -- an
   independent check of the objective, not the objective itself;
-* ``mse``: MSE of one-sample estimates over ``realizations`` random keys against Lambert;
+* ``mse``: MSE of one-sample estimates over ``realizations`` random keys against the exact value;
 * ``seconds_per_fit``: best-of-5 process CPU time of fitting all shading points (jit, vmap),
   divided by their number.
 
@@ -47,7 +54,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from common import cached_json, parser, reuse_or_compute, write_record
-from h_shading_points import NORMAL, TRIANGLE, _best_time, lambert_irradiance
+from h_shading_points import (
+    NORMAL,
+    TRIANGLE,
+    _best_time,
+    _patch_factors,
+    lambert_irradiance,
+    patch_irradiance,
+)
 
 import anisosample as asp
 import anisosample.warps as W
@@ -132,40 +146,82 @@ def methods():
     }
 
 
+def patch_methods():
+    """name -> (shading point -> composed warp) for the bilinear-patch light (H Sec. 4.2): the
+    whole integrand (1/r^2, the light's cosine and the receiver's) behind the bilinear
+    approximate-area warp; "+ biquadratic" warps fitted to it in front of that."""
+
+    def area(p):
+        patch = _patch_factors(p)[0]
+        return [W.Bilinear(patch.corner_area_elements()), patch]
+
+    def three_warp(p):
+        patch, geometry, cos_r, _ = _patch_factors(p)
+        w_area = W.Bilinear(patch.corner_area_elements())
+        w_geom = W.fit_pointwise(W.Biquadratic, geometry, [w_area, patch])
+        w_cos = W.fit_pointwise(W.Biquadratic, cos_r, [w_geom, w_area, patch])
+        return W.compose(w_cos, w_geom, w_area, patch)
+
+    def pw(p):
+        f = _patch_factors(p)[3]
+        return W.compose(W.fit_pointwise(W.Biquadratic, f, area(p)), *area(p))
+
+    def ls(p):
+        f = _patch_factors(p)[3]
+        init = W.fit_pointwise(W.Biquadratic, f, area(p))
+        return W.compose(W.fit_least_squares(W.Biquadratic, f, area(p), init=init), *area(p))
+
+    def mv(p):
+        f = _patch_factors(p)[3]
+        init = W.fit_pointwise(W.Biquadratic, f, area(p))
+        return W.compose(W.fit_min_variance(W.Biquadratic, f, area(p), init=init), *area(p))
+
+    return {
+        "uniform parametric": lambda p: _patch_factors(p)[0],
+        "bilinear approx. area": lambda p: W.compose(*area(p)),
+        "three-warp approx. cosine": three_warp,
+        "+ biquadratic (point-wise)": pw,
+        "+ biquadratic (least squares)": ls,
+        "+ biquadratic (min variance)": mv,
+    }
+
+
 def _midpoints(res):
     g = (np.arange(res, dtype=np.float32) + 0.5) / res
     return jnp.asarray(np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2))
 
 
-def measure(make, points, exact, keys, res):
-    """Per shading point: brute-force variance, one-sample MSE; seconds per fit."""
+def measure(make, integrand, points, exact, keys, res):
+    """Per shading point: brute-force variance, one-sample MSE; seconds per fit.
+    ``integrand(p)`` is the integrand at shading point ``p`` (one output point -> scalar)."""
     fit = jax.jit(jax.vmap(make))
     warps = fit(points)
     u = _midpoints(res)
     exact32 = jnp.asarray(exact, jnp.float32)
 
+    def ratio(warp, p, uu):
+        x, pdf = jax.vmap(warp.sample_and_pdf)(uu)
+        fx = jax.vmap(integrand(p))(x)
+        return jnp.where(pdf > 0, fx / jnp.where(pdf > 0, pdf, 1.0), 0.0)
+
     @jax.jit
-    def grid_moments(warps, exact32):
-        def one(warp, i):
-            x, pdf = jax.vmap(warp.sample_and_pdf)(u)
-            e = jax.vmap(_cos)(x) / pdf
-            d = e - i  # about the exact mean: no cancellation
+    def grid_moments(warps, points, exact32):
+        def one(warp, p, i):
+            d = ratio(warp, p, u) - i  # about the exact mean: no cancellation
             return jnp.mean(d), jnp.mean(d * d)
 
-        return jax.lax.map(lambda a: one(*a), (warps, exact32))
+        return jax.lax.map(lambda a: one(*a), (warps, points, exact32))
 
-    bias_grid, var = (np.asarray(a, np.float64) for a in grid_moments(warps, exact32))
+    bias_grid, var = (np.asarray(a, np.float64) for a in grid_moments(warps, points, exact32))
 
     @jax.jit
-    def estimates(warps, keys):
-        def one(warp, ks):
-            uu = jax.vmap(lambda k: jax.random.uniform(k, (2,)))(ks)
-            x, pdf = jax.vmap(warp.sample_and_pdf)(uu)
-            return jax.vmap(_cos)(x) / pdf
+    def estimates(warps, points, keys):
+        def one(warp, p, ks):
+            return ratio(warp, p, jax.vmap(lambda k: jax.random.uniform(k, (2,)))(ks))
 
-        return jax.vmap(one)(warps, keys)
+        return jax.vmap(one)(warps, points, keys)
 
-    est = np.asarray(estimates(warps, keys), np.float64)
+    est = np.asarray(estimates(warps, points, keys), np.float64)
     err = est - exact[:, None]
     seconds = _best_time(fit, points) / points.shape[0]
     return dict(
@@ -182,7 +238,7 @@ def _slug(name):
 
 
 def summarize(rows, exact):
-    first = rows["uniform solid angle"]
+    first = next(iter(rows.values()))
     v0 = np.mean(first["variance"])
     summary = {}
     for name, r in rows.items():
@@ -219,24 +275,33 @@ def run(settings, out, fresh):
     X, Y = np.meshgrid(xs, xs, indexing="xy")
     pts64 = np.stack([X.ravel(), Y.ravel(), np.zeros(g * g)], -1)
     points = jnp.asarray(pts64, jnp.float32)
-    exact = lambert_irradiance(pts64)
     keys = jax.random.split(jax.random.key(settings["seed"]), (g * g, settings["realizations"]))
-    rows = {}
-    table = methods()
-    for name, make in progress(table.items(), desc="methods", total=len(table)):
-        rows[name] = reuse_or_compute(
-            out / "parts" / f"{_slug(name)}.json",
-            dict(settings, method=name),
-            fresh,
-            lambda make=make: measure(make, points, exact, keys, settings["res"]),
-            field="row",
-        )
-    return dict(
-        summary=summarize(rows, exact),
-        per_point=rows,
-        exact=exact.tolist(),
-        mean_irradiance=float(exact.mean()),
+    cases = (
+        ("triangle", methods(), lambda p: _cos, lambert_irradiance, ""),
+        ("patch", patch_methods(), lambda p: _patch_factors(p)[3], patch_irradiance, "patch_"),
     )
+    data = {}
+    for light, table, integrand, reference, prefix in cases:
+        exact = reference(pts64)
+        rows = {}
+        for name, make in progress(table.items(), desc=light, total=len(table)):
+            rows[name] = reuse_or_compute(
+                out / "parts" / f"{prefix}{_slug(name)}.json",
+                dict(settings, light=light, method=name),
+                fresh,
+                lambda make=make, f=integrand, e=exact: measure(
+                    make, f, points, e, keys, settings["res"]
+                ),
+                field="row",
+            )
+        data[light] = dict(
+            summary=summarize(rows, exact),
+            per_point=rows,
+            exact=exact.tolist(),
+            mean_irradiance=float(exact.mean()),
+        )
+    # The triangle's numbers at the top level (the report quotes them there).
+    return dict(data.pop("triangle"), patch=data["patch"])
 
 
 # --- part 2: a synthesis design scalar (W Sec. 4) -----------------------------------------------
@@ -354,7 +419,7 @@ def synthesis_gradient(settings):
         lib = asp.diagnostics.variance_decomposition(
             np.asarray(x_end),
             edge,
-            directions_deg=[theta],
+            directions_deg=[0.0, 90.0, theta],
             disk_radius=settings["eval_radius"],
             line_length=settings["eval_length"],
             band=2.0,
@@ -388,17 +453,20 @@ def synthesis_gradient(settings):
 def plot(data, settings, out):
     from anisosample import plot as aplot
 
-    fig, axes = aplot.new_figure(1, 3, size=4.0)
-    ax = axes[0][0]
-    summ = data["summary"]
-    names = list(summ)
-    y = np.arange(len(names))
-    ax.barh(y, [summ[n]["variance_improvement"] for n in names], color="tab:blue")
-    ax.set_yticks(y, names, fontsize=6)
-    ax.set_xscale("log")
-    ax.invert_yaxis()
-    ax.set_xlabel("variance improvement over uniform solid angle")
-    ax.grid(True, axis="x", alpha=0.3)
+    fig, axes = aplot.new_figure(1, 4, size=4.0)
+    panels = [("triangle light", data["summary"])]
+    if "patch" in data:
+        panels.append(("bilinear-patch light (whole integrand)", data["patch"]["summary"]))
+    for ax, (title, summ) in zip(axes[0][:2], panels, strict=False):
+        names = list(summ)
+        y = np.arange(len(names))
+        ax.barh(y, [summ[n]["variance_improvement"] for n in names], color="tab:blue")
+        ax.set_yticks(y, names, fontsize=6)
+        ax.set_xscale("log")
+        ax.invert_yaxis()
+        ax.set_xlabel("variance improvement over the first method", fontsize=8)
+        ax.set_title(title, fontsize=8)
+        ax.grid(True, axis="x", alpha=0.3)
     g = settings["grid"]
     rows = data["per_point"]
     logs = {
@@ -409,7 +477,7 @@ def plot(data, settings, out):
         for kind in ("bilinear", "biquadratic")
     }
     lim = max(1.0, float(np.ceil(max(np.max(np.abs(v)) for v in logs.values()))))
-    for ax, (kind, lg) in zip(axes[0][1:], logs.items(), strict=True):
+    for ax, (kind, lg) in zip(axes[0][2:], logs.items(), strict=True):
         im = ax.imshow(
             lg.reshape(g, g),
             origin="lower",
@@ -419,7 +487,8 @@ def plot(data, settings, out):
             vmax=lim,
         )
         ax.set_title(
-            f"{kind}, per shading point:\nlog10 Var(min variance) / Var(least squares)", fontsize=8
+            f"triangle, {kind}, per shading point:\nlog10 Var(min variance) / Var(least squares)",
+            fontsize=8,
         )
         ax.set_xlabel("shading point x")
         ax.set_ylabel("shading point y")
@@ -443,7 +512,8 @@ def main(argv=None):
     if args.part in ("all", "warps") or "summary" not in record:
         data = run(settings, args.out, args.fresh)
     else:
-        data = {k: record[k] for k in ("summary", "per_point", "exact", "mean_irradiance")}
+        keep = ("summary", "per_point", "exact", "mean_irradiance", "patch")
+        data = {k: record[k] for k in keep if k in record}
     if args.part in ("all", "synthesis"):
         data["synthesis"] = reuse_or_compute(
             args.out / "parts" / "synthesis.json",
@@ -456,24 +526,27 @@ def main(argv=None):
         data["synthesis"] = record["synthesis"]
     write_record(args.out, NAME, data, dict(settings, synthesis=syn), started)
     plot(data, settings, args.out)
-    print(f"triangle light, mean irradiance {data['mean_irradiance']:.4f}")
-    print(
-        f"  {'method':44s} {'mean var':>9s} {'var impr.':>9s} {'MSE impr.':>9s} {'s/fit':>8s}"
-        f" {'/pw (gm)':>8s} {'/ls (gm)':>8s} {'>=ls':>5s}"
-    )
-    for n, s in data["summary"].items():
-        extra = ""
-        if "geomean_ratio_to_point_wise" in s:
-            extra = f" {s['geomean_ratio_to_point_wise']:8.3f}"
-        if "geomean_ratio_to_least_squares" in s:
-            extra += (
-                f" {s['geomean_ratio_to_least_squares']:8.3f}"
-                f" {s['fraction_at_least_as_good_as_least_squares']:5.2f}"
-            )
+    for light, part in (("triangle", data), ("patch", data.get("patch"))):
+        if part is None:
+            continue
+        print(f"\n{light} light, mean irradiance {part['mean_irradiance']:.4f}")
         print(
-            f"  {n:44s} {s['mean_variance']:9.3e} {s['variance_improvement']:9.3g}"
-            f" {s['mse_improvement']:9.3g} {s['seconds_per_fit']:8.1e}{extra}"
+            f"  {'method':44s} {'mean var':>9s} {'var impr.':>9s} {'MSE impr.':>9s} {'s/fit':>8s}"
+            f" {'/pw (gm)':>8s} {'/ls (gm)':>8s} {'>=ls':>5s}"
         )
+        for n, s in part["summary"].items():
+            extra = ""
+            if "geomean_ratio_to_point_wise" in s:
+                extra = f" {s['geomean_ratio_to_point_wise']:8.3f}"
+            if "geomean_ratio_to_least_squares" in s:
+                extra += (
+                    f" {s['geomean_ratio_to_least_squares']:8.3f}"
+                    f" {s['fraction_at_least_as_good_as_least_squares']:5.2f}"
+                )
+            print(
+                f"  {n:44s} {s['mean_variance']:9.3e} {s['variance_improvement']:9.3g}"
+                f" {s['mse_improvement']:9.3g} {s['seconds_per_fit']:8.1e}{extra}"
+            )
     if "synthesis" in data:
         r = data["synthesis"]
         print(
