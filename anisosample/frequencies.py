@@ -19,8 +19,18 @@ Two documented designs (:func:`design`):
     wedges of length ``n^0.8``, half-width ``max(1.5, t tan 2deg)`` along *every* direction given
     (axes included), plus an isotropic disk ``|v| <= sqrt(n)``, weighted by
     ``W(v) = sum_d 1 / (|v|^2 (1 + s_d^2))`` — the weights follow the energy of an edge's
-    spectrum (``|v|^-2`` on its ray) and fall off across the ray.  This is the design that
-    reached a variance slope of about -1.8 in the prototypes recorded in issue 4 (b, c).
+    spectrum (``|v|^-2`` on its ray) and fall off across the ray — plus, for each non-axis
+    direction, the same weight for edges misaligned by ``ROBUST_OFFSETS_DEG`` (+-0.25, +-0.5,
+    +-0.75, +-1 deg; :func:`edge_weights` ``offsets_deg``).  The loss then sums the W Eq. 5
+    variances of the aligned edge and of eight misaligned ones (W Sec. 7 proposes choosing the
+    frequencies by evaluating the variance on test integrands), so a set made for ``theta``
+    keeps the rate on edges up to 1 deg off (tables round to integer degrees; direction
+    estimates err by about a degree).  Measured over ``n = 2^8..2^14`` (one set per n, edge at
+    30 deg, ``results/w_fig6/robust_dense``): slope -1.75 aligned, -1.76..-1.78 at +-0.25,
+    +-0.5, +-0.75, +-1 deg, -1.69..-1.70 between the lines (+-0.125, +-0.375), -1.60 at
+    +-1.5 and -1.47 at +-2; without the offsets (``offsets_deg=()``): -1.81 aligned, -1.64 at
+    +-0.5, -1.59 at +-1 (``results/w_fig6/robust_old``).  The axes get no offsets: the
+    square's border is exactly axis-aligned.
 ``"paper"``
     W Sec. 4.1 / 6.1 as far as the paper states it: wedges of length ``3 sqrt(n)`` and half-width
     ``max(1, t tan 2deg)``, uniform weights.  This reproduces the paper's counts closely
@@ -42,6 +52,7 @@ import numpy as np
 from ._validate import check_choice, check_directions_deg, check_int, check_positive_float
 
 DESIGNS = ("rate", "paper")
+ROBUST_OFFSETS_DEG = (-1.0, -0.75, -0.5, -0.25, 0.25, 0.5, 0.75, 1.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -252,16 +263,19 @@ def design(
     """The frequency set (and weights) for ``n`` points and the given spectral directions.
 
     ``kind="rate"``: wedges of length ``n^0.8``, half-width ``max(1.5, t tan 2deg)``, disk of
-    radius ``sqrt(n)``, weights :func:`edge_weights`.  ``kind="paper"``: wedges of length
-    ``3 sqrt(n)``, half-width ``max(1, t tan 2deg)``, no disk, uniform weights (W Sec. 4.1).
-    Any of ``length``, ``width``, ``angle_deg``, ``disk_radius`` (0 for none) overrides the
-    design's value.
+    radius ``sqrt(n)``, weights :func:`edge_weights` with ``offsets_deg=ROBUST_OFFSETS_DEG``
+    (pass ``offsets_deg=()`` for the aligned-only weights of issue 4 design c).
+    ``kind="paper"``: wedges of length ``3 sqrt(n)``, half-width ``max(1, t tan 2deg)``, no
+    disk, uniform weights (W Sec. 4.1).  Any of ``length``, ``width``, ``angle_deg``,
+    ``disk_radius`` (0 for none) overrides the design's value; ``weight_spread_deg``,
+    ``core_deg`` and ``offsets_deg`` are passed to :func:`edge_weights` (``"rate"`` only).
     """
     n = check_int("n", n, minimum=2)
     directions_deg = check_directions_deg("directions_deg", directions_deg)
     kind = check_choice("kind", kind, DESIGNS)
     if kind == "rate":
-        p = {"length": n**0.8, "width": 1.5, "angle_deg": 2.0, "disk_radius": math.sqrt(n)}
+        p = {"length": n**0.8, "width": 1.5, "angle_deg": 2.0, "disk_radius": math.sqrt(n),
+             "offsets_deg": list(ROBUST_OFFSETS_DEG)}
     else:
         p = {"length": 3.0 * math.sqrt(n), "width": 1.0, "angle_deg": 2.0, "disk_radius": 0.0}
     for name, val in (("length", length), ("width", width), ("angle_deg", angle_deg),

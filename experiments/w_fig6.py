@@ -112,7 +112,8 @@ def main(argv=None):
                          " (frequencies.edge_weights); 0 = none; use its own --out")
     ap.add_argument("--offsets-deg", default=None,
                     help="frequency design option: extra weight lines at theta + each offset,"
-                         " e.g. -1,-0.5,0.5,1 (frequencies.edge_weights); use its own --out")
+                         " e.g. -1,-0.5,0.5,1, or 'none' (frequencies.edge_weights);"
+                         " use its own --out")
     ap.add_argument("--misaligned-deltas", default=None,
                     help="override the misalignment offsets (deg), e.g. -2,-1,-0.5,0.5,1,2")
     ap.add_argument("--no-multi-edge", action="store_true",
@@ -126,8 +127,9 @@ def main(argv=None):
         fopts["weight_spread_deg"] = args.weight_spread_deg
     if args.core_deg is not None:
         fopts["core_deg"] = args.core_deg
-    if args.offsets_deg:
-        fopts["offsets_deg"] = [float(t) for t in args.offsets_deg.split(",")]
+    if args.offsets_deg:  # "none": no offsets (the aligned-only weights)
+        fopts["offsets_deg"] = ([] if args.offsets_deg == "none"
+                                else [float(t) for t in args.offsets_deg.split(",")])
     fopts = fopts or None
     cfg["frequency_options"] = fopts
     baselines = [] if args.baselines == "none" else args.baselines.split(",")

@@ -178,3 +178,15 @@ def test_design_offsets_option():
     for bad in ([0.0, 1.0], [50.0], [float("inf")]):
         with pytest.raises(ValueError, match="offsets_deg"):
             fr.design(256, [0.0, 90.0, 30.0], offsets_deg=bad)
+
+
+def test_rate_design_defaults_to_robust_offsets():
+    v = fr.design(1024, [0.0, 90.0, 30.0])
+    assert v.params["offsets_deg"] == list(fr.ROBUST_OFFSETS_DEG)
+    assert fr.ROBUST_OFFSETS_DEG == (-1.0, -0.75, -0.5, -0.25, 0.25, 0.5, 0.75, 1.0)
+    canon = fr.canonical_half_rows(v.freqs)
+    np.testing.assert_allclose(v.weights, fr.edge_weights(canon, [0.0, 90.0, 30.0],
+                                                          offsets_deg=fr.ROBUST_OFFSETS_DEG))
+    plain = fr.design(1024, [0.0, 90.0, 30.0], offsets_deg=())
+    assert "offsets_deg" not in plain.params
+    np.testing.assert_allclose(plain.weights, fr.edge_weights(canon, [0.0, 90.0, 30.0]))
