@@ -9,6 +9,15 @@ Cases (integrands from ``anisosample.integrands.edges``; the square's border add
   -1.5, the paper's observation);
 * ``misaligned``: the set made for theta on edges at theta + delta (the robustness curve).
 
+The robustness study of issue 4 (``frequencies.ROBUST_OFFSETS_DEG``; one set per n) ran
+
+    python experiments/w_fig6.py --out results/w_fig6/robust_dense --log2-ns 8,9,10,11,12,13,14 \
+        --seeds 1 --one-edge 30,67,12,145 --no-multi-edge --baselines none \
+        --offsets-deg=-1,-0.75,-0.5,-0.25,0.25,0.5,0.75,1 --misaligned-deltas=-2,-1.5,-1,...,2
+
+and the same with ``--offsets-deg none --out results/w_fig6/robust_old`` (the weights before);
+``--compare DIR`` overlays another run's misalignment curve.
+
 Our sets are fixed sets (several seeds per n) randomized by toroidal shifts; baselines use their
 own randomization plus a shift.  Writes ``results/w_fig6/w_fig6.png`` and ``w_fig6.json`` (every
 plotted number, slopes with 95 % intervals, settings, provenance).  Reuses finished sets and
@@ -118,6 +127,9 @@ def main(argv=None):
                     help="override the misalignment offsets (deg), e.g. -2,-1,-0.5,0.5,1,2")
     ap.add_argument("--no-multi-edge", action="store_true",
                     help="skip the two-/four-edge cases (keep one edge and the misalignment)")
+    ap.add_argument("--compare", action="append", default=None,
+                    help="another run's --out whose misalignment curve is overlaid (repeatable)")
+    ap.add_argument("--label", default=None, help="legend label of this run's curve")
     ap.add_argument("--baselines", default=",".join(BASELINES),
                     help="comma list of baselines to compare with, or 'none'")
     args = ap.parse_args(argv)
@@ -232,7 +244,16 @@ def main(argv=None):
         s = [results["misalignment"]["slope_by_delta"][f"{x:+g}"]["slope"] for x in d]
         lo = [results["misalignment"]["slope_by_delta"][f"{x:+g}"]["ci_low"] for x in d]
         hi = [results["misalignment"]["slope_by_delta"][f"{x:+g}"]["ci_high"] for x in d]
-        ax.errorbar(d, s, yerr=[np.subtract(s, lo), np.subtract(hi, s)], fmt="-o", ms=3)
+        ax.errorbar(d, s, yerr=[np.subtract(s, lo), np.subtract(hi, s)], fmt="-o", ms=3,
+                    label=args.label or "this run")
+        for other in args.compare or []:  # overlay another run's curve (e.g. the old design)
+            om = json.loads((Path(other) / "w_fig6.json").read_text())["misalignment"]
+            od = sorted(om["slope_by_delta"], key=float)
+            ax.plot([float(x) for x in od], [om["slope_by_delta"][x]["slope"] for x in od],
+                    "--s", ms=3, label=Path(other).name)
+        if args.compare:
+            ax.legend(fontsize=7)
+        ax.axhline(-1.65, color="gray", lw=0.5, ls="--")
         ax.axhline(-1.70, color="gray", lw=0.5)
         ax.axhline(-1.5, color="gray", lw=0.5, ls=":")
         ax.set_xlabel("edge misalignment (deg)")
