@@ -23,6 +23,7 @@ from ._base import AbstractWarp, _check_point
 from ._solve import newton_bisection
 
 _ONE_MINUS_EPS = float(ONE_MINUS_EPSILON)
+_TINY = 1e-30  # a normal float32
 
 
 def _lerp(t, a, b):
@@ -33,17 +34,20 @@ def _lerp(t, a, b):
 
 
 def sample_linear(u, a, b):
-    """Sample ``x`` in ``[0, 1)`` with density ``∝ (1 - x) a + x b`` (``a, b >= 0``).
+    """Sample ``x`` in ``[0, 1)`` with density ``∝ (1 - x) a + x b`` (``a, b >= 0``, ``u >= 0``).
 
     Uses the rationalised root ``x = u (a + b) / (a + sqrt(lerp(u, a^2, b^2)))`` instead of H
     Table 3's ``h(u, a, b) = (a - sqrt(lerp(u, a^2, b^2))) / (a - b)``, which is 0/0 at ``a = b``
-    and loses ``eps / |a - b|`` relative accuracy near it. ``a = b = 0`` gives ``x = u``.
+    and loses ``eps / |a - b|`` relative accuracy near it. The denominator vanishes only where
+    ``x = u`` is the answer (``a = b = 0``, or ``a = 0`` at ``u = 0``); adding ``_TINY`` (1e-30)
+    to both ``a + b`` and the denominator gives exactly that without a branch (elsewhere the
+    denominator is ``>= a``, or ``sqrt(u) b`` when ``a = 0``: above 1e-10 for ``u >= 2^-24`` and
+    values ``>= 1e-6``, so the change is far below float32 rounding). Branch-free because it is
+    the whole cost of the bilinear warp (H Sec. 4.1; ``experiments/bench_warps.py``).
     """
-    s = a + b
-    denom = a + jnp.sqrt(jnp.maximum(_lerp(u, a * a, b * b), 0.0))
-    ok = (s > 0) & (denom > 0)
-    x = jnp.where(ok, u * s / jnp.where(ok, denom, 1.0), jnp.where(s > 0, 0.0, u))
-    return jnp.clip(x, 0.0, _ONE_MINUS_EPS)
+    q = jnp.maximum(a * a + u * (b * b - a * a), 0.0)
+    x = u * (a + b + _TINY) / (a + jnp.sqrt(q) + _TINY)
+    return jnp.minimum(x, _ONE_MINUS_EPS)
 
 
 def linear_pdf(x, a, b):

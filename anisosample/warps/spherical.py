@@ -234,15 +234,13 @@ class SphericalRectangle(AbstractWarp):
         return jnp.stack([xu, jnp.clip(yv, y0, y1), z0])
 
     def corner_images(self):
-        """``sample`` at the PSS corners, ``[i, j]`` at ``u = (i, j)``: the corner directions."""
-        x0, x1, y0, y1, z0 = self.bounds
-        c = jnp.stack(
-            [
-                jnp.stack([jnp.stack([x0, y0, z0]), jnp.stack([x0, y1, z0])]),
-                jnp.stack([jnp.stack([x1, y0, z0]), jnp.stack([x1, y1, z0])]),
-            ]
-        )
-        return safe_normalize(c) @ self.frame
+        """``sample`` at the PSS corners, ``[i, j]`` at ``u = (i, j)``: the corner directions,
+        ``corner + i edge_u + j edge_v`` seen from ``origin`` (world space, no frame rotation:
+        this is what a per-shading-point fit (H Eq. 9) evaluates its factor at)."""
+        d = self.corner - self.origin
+        c = jnp.stack([jnp.stack([d, d + self.edge_v]),
+                       jnp.stack([d + self.edge_u, d + self.edge_u + self.edge_v])])
+        return safe_normalize(c)
 
     def sample_point(self, u):
         """The point on the rectangle (world space) that ``sample(u)`` points at."""
