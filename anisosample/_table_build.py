@@ -72,11 +72,19 @@ def _settings(n: int, kind: int, seed: int, synthesis: dict) -> dict:
 
 
 def _resolved(synthesis: dict) -> dict:
+    from . import frequencies as _freq
     from . import synthesis as _synthesis
 
     recipe = synthesis.get("recipe", "rate")
-    return dict(sorted({**_synthesis.recipe_defaults(recipe), "recipe": recipe,
-                        **synthesis}.items()))
+    resolved = {**_synthesis.recipe_defaults(recipe), "recipe": recipe, **synthesis}
+    # The frequency design's formulas (wedge length, width, weights' offsets, ...) evaluated at a
+    # probe size: a change of the design changes the fingerprint, so a table of the old design
+    # is not resumed with sets of the new one.
+    probe = _freq.design(1024, (0.0, 90.0, 45.0), resolved.get("design", "rate"),
+                         **dict(resolved.get("frequency_options") or {})).params
+    resolved["frequency_design_at_n1024"] = {k: v for k, v in probe.items()
+                                             if k not in ("n", "directions_deg")}
+    return dict(sorted(resolved.items()))
 
 
 def _key_for(seed: int, index: int):
