@@ -18,8 +18,8 @@ Supported (everything else is an error naming the tag and line):
 * emitters ``area`` (constant ``radiance`` or an EXR ``bitmap`` texture) and ``point``;
 * sensors ``perspective`` and ``thinlens`` with an ``hdrfilm`` and a ``box`` ``rfilter``;
   the sampler's ``sample_count`` becomes the default spp;
-* integrator ``direct`` (``emitter_samples``, ``bsdf_samples``; ``bsdf_samples > 0`` turns on
-  MIS with one BSDF sample per light sample).
+* integrator ``direct`` (``emitter_samples`` = 1, ``bsdf_samples`` 0 or 1; ``bsdf_samples = 1``
+  turns on MIS with one BSDF sample per light sample; other counts are refused: raise spp).
 """
 
 from __future__ import annotations
@@ -620,8 +620,14 @@ def load_xml(path, **params) -> Scene:
             s = props.get("shading_samples", 1)
             b.emitter_samples = props.get("emitter_samples", s)
             b.bsdf_samples = props.get("bsdf_samples", s)
-            if b.emitter_samples < 1 or b.bsdf_samples < 0:
-                raise ctx.err(c, "emitter_samples must be >= 1 and bsdf_samples >= 0 here")
+            if b.emitter_samples != 1 or b.bsdf_samples not in (0, 1):
+                # Each pixel sample is one point of the sampler under study (one light sample,
+                # W Eq. 8 / H Sec. 4): more emitter or BSDF samples per pixel sample would not
+                # change the converged image, only hide the sampler; raise spp instead.
+                raise ctx.err(c, "emitter_samples must be 1 and bsdf_samples 0 or 1 here (one "
+                                 "light sample and at most one BSDF sample per pixel sample; "
+                                 "raise the sample count instead), got "
+                                 f"{b.emitter_samples} and {b.bsdf_samples}")
         else:
             raise ctx.err(c, "unsupported element")
     if integrators == 0:

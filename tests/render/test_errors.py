@@ -130,3 +130,18 @@ def test_zero_area_mesh_light(tmp_path):
     <emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>"""
     with pytest.raises(R.SceneFormatError, match=r":8: <shape type=\"obj\">: mesh emitter has"):
         R.load_xml(_write(tmp_path, MINIMAL.format(body=body)))
+
+
+@pytest.mark.parametrize("counts", ['emitter_samples" value="4', 'bsdf_samples" value="2',
+                                    'shading_samples" value="8'])
+def test_sample_counts_other_than_one_are_refused(tmp_path, counts):
+    """More light/BSDF samples per pixel sample would silently hide the sampler under study."""
+    text = MINIMAL.format(body=LIGHT).replace(
+        '<integrator type="direct"/>',
+        f'<integrator type="direct"><integer name="{counts}"/></integrator>')
+    with pytest.raises(R.SceneFormatError, match=r"s\.xml:2: .*emitter_samples must be 1"):
+        R.load_xml(_write(tmp_path, text))
+    ok = MINIMAL.format(body=LIGHT).replace(
+        '<integrator type="direct"/>',
+        '<integrator type="direct"><integer name="bsdf_samples" value="0"/></integrator>')
+    assert R.load_xml(_write(tmp_path, ok, "ok.xml")).bsdf_samples == 0
