@@ -20,18 +20,21 @@ Two documented designs (:func:`design`):
     (axes included), plus an isotropic disk ``|v| <= sqrt(n)``, weighted by
     ``W(v) = sum_d 1 / (|v|^2 (1 + s_d^2))`` — the weights follow the energy of an edge's
     spectrum (``|v|^-2`` on its ray) and fall off across the ray — plus, for each non-axis
-    direction, the same weight for edges misaligned by ``ROBUST_OFFSETS_DEG`` (every 0.125 deg
-    from -1 to 1; :func:`edge_weights` ``offsets_deg``).  The loss then sums the W Eq. 5
-    variances of the aligned edge and of sixteen misaligned ones (W Sec. 7 proposes choosing the
+    direction, the same weight for edges misaligned by ``ROBUST_OFFSETS_DEG`` (+-0.25, +-0.5,
+    +-0.75, +-1 deg; :func:`edge_weights` ``offsets_deg``).  The loss then sums the W Eq. 5
+    variances of the aligned edge and of eight misaligned ones (W Sec. 7 proposes choosing the
     frequencies by evaluating the variance on test integrands), so a set made for ``theta``
     keeps the rate on edges up to 1 deg off (tables round to integer degrees; direction
-    estimates err by about a degree).  Measured over ``n = 2^8..2^14`` (one set per n,
-    ``results/w_fig6/robust_dense125``): the 30-deg set gives slopes -1.76..-1.78 on edges at
-    every delta in [-1, 1] (steps of 0.125; aligned -1.77), -1.62/-1.63 at +-1.5 and
-    -1.47/-1.49 at +-2.  Lines every 0.25 deg (``robust_dense``) left dips to -1.69..-1.71
-    halfway between lines; without offsets (``offsets_deg=()``, ``robust_old``): -1.81
-    aligned, -1.64 at +-0.5, -1.59 at +-1.  The axes get no offsets: the
-    square's border is exactly axis-aligned.
+    estimates err by about a degree).  Measured over ``n = 2^8..2^14`` (one set per n, edge at
+    30 deg, ``results/w_fig6/robust_dense``): slope -1.75 aligned, -1.76..-1.78 at +-0.25,
+    +-0.5, +-0.75, +-1 deg, -1.69..-1.70 between the lines (+-0.125, +-0.375), -1.60 at
+    +-1.5 and -1.47 at +-2; without the offsets (``offsets_deg=()``): -1.81 aligned, -1.64 at
+    +-0.5, -1.59 at +-1 (``results/w_fig6/robust_old``).  Lines every 0.125 deg
+    (``offsets_deg=[k / 8 for k in range(-8, 9) if k]``, ``results/w_fig6/robust_dense125``) close
+    the dips: -1.76..-1.78 at every delta in [-1, 1], aligned -1.77, one edge at
+    30/67/12/145 deg -1.77/-1.78/-1.80/-1.77 (not the default only because the shipped tables
+    were built with the 0.25 spacing).  The axes get no offsets: the square's border is
+    exactly axis-aligned.
 ``"paper"``
     W Sec. 4.1 / 6.1 as far as the paper states it: wedges of length ``3 sqrt(n)`` and half-width
     ``max(1, t tan 2deg)``, uniform weights.  This reproduces the paper's counts closely
@@ -53,7 +56,7 @@ import numpy as np
 from ._validate import check_choice, check_directions_deg, check_int, check_positive_float
 
 DESIGNS = ("rate", "paper")
-ROBUST_OFFSETS_DEG = tuple(k / 8.0 for k in range(-8, 9) if k)  # -1, -0.875, ..., 1
+ROBUST_OFFSETS_DEG = (-1.0, -0.75, -0.5, -0.25, 0.25, 0.5, 0.75, 1.0)
 
 
 @dataclass(frozen=True, eq=False)

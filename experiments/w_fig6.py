@@ -16,7 +16,7 @@ The robustness study of issue 4 (``frequencies.ROBUST_OFFSETS_DEG``; one set per
         --offsets-deg=-1,-0.75,-0.5,-0.25,0.25,0.5,0.75,1 --misaligned-deltas=-2,-1.5,-1,...,2
 
 and the same with ``--offsets-deg none --out results/w_fig6/robust_old`` (the weights before)
-and with offsets every 0.125 deg (``--out results/w_fig6/robust_dense125``, the default now);
+and with offsets every 0.125 deg (``--out results/w_fig6/robust_dense125``, a measured alternative);
 ``w_fig6_seeds2.*`` hold the 30-deg curves with ``--seeds 2``;
 ``--compare DIR`` overlays another run's misalignment curve.
 
