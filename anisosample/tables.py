@@ -32,10 +32,14 @@ the tables shipped in ``anisosample/data/tables``, and the user cache
 ``anisosample tables build`` writes by default.
 
 Shipped: the 46-set 3-direction tables for ``n = 256`` (380 kB) and the paper's ``n = 4096``
-(1.8 MB; built in 7 min 25 s on this project's 2-core development machine with
-``anisosample tables build --n 4096 --directions 3``, see ``experiments/bench_tables.py``). Other
-``n`` and the 4,141-set 4-direction table are built on demand into the user cache (``lookup(...,
-build_missing=True)`` or the CLI), ideally on a GPU or several devices.
+(1.7 MB). ``n = 4096`` uses the default (robust) weights of :mod:`anisosample.frequencies`
+(46 sets in 8 min on this project's 2-core machine, ``experiments/bench_tables.py``); ``n = 256``
+keeps the aligned-only weights (``offsets_deg=()``): at 256 points the robust weights measured
+worse in the renderer (aligned / pmj02bn variance on the edge pixels of a Cornell crop 1.23
+instead of 0.87) and shallower along the requested lines (0.117 of white instead of 0.066), while
+the offset lines lie inside the band there anyway. Other ``n`` and the 4,141-set 4-direction table
+are built on demand with the defaults into the user cache (``lookup(..., build_missing=True)`` or
+the CLI), ideally on a GPU or several devices.
 
 The aligned sampler (W Sec. 5.4): estimate the integrand's extra directions
 (:func:`anisosample.directions.estimate`), round them to integer degrees, look the set up, fall
