@@ -61,6 +61,7 @@ from h_shading_points import (
     _patch_factors,
     lambert_irradiance,
     patch_irradiance,
+    triangle_methods,
 )
 
 import anisosample as asp
@@ -112,17 +113,11 @@ def _base(p):
 
 
 def methods():
-    """name -> (shading point -> composed warp)."""
-
-    def pw(kind):
-        return lambda p: W.compose(W.fit_pointwise(kind, _cos, [_base(p)]), _base(p))
-
-    def ls(kind):
-        def make(p):
-            init = W.fit_pointwise(kind, _cos, [_base(p)])
-            return W.compose(W.fit_least_squares(kind, _cos, [_base(p)], init=init), _base(p))
-
-        return make
+    """name -> (shading point -> composed warp): h_shading_points' triangle-light methods (uniform,
+    point-wise, least squares) plus the variance-minimising fits."""
+    shared, _ = triangle_methods()
+    keep = ("uniform solid angle", "+ bilinear (point-wise)", "+ biquadratic (point-wise)",
+            "+ bilinear (least squares)", "+ biquadratic (least squares)")
 
     def mv(kind, **options):
         def make(p):
@@ -133,11 +128,7 @@ def methods():
         return make
 
     return {
-        "uniform solid angle": _base,
-        "+ bilinear (point-wise)": pw(W.Bilinear),
-        "+ biquadratic (point-wise)": pw(W.Biquadratic),
-        "+ bilinear (least squares)": ls(W.Bilinear),
-        "+ biquadratic (least squares)": ls(W.Biquadratic),
+        **{name: shared[name] for name in keep},
         "+ bilinear (min variance)": mv(W.Bilinear),
         "+ biquadratic (min variance)": mv(W.Biquadratic),
         # Ablations: the same objective on least squares' 8x8 midpoint probes; BFGS instead of LM.
