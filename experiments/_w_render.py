@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import common
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -30,6 +31,7 @@ import numpy as np
 import anisosample as asp
 from anisosample import render
 from anisosample import variance as V
+from anisosample.progress import progress
 from anisosample.render import aligned
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -171,3 +173,25 @@ __all__ = [
     "block_sets", "pixel_variance", "region_pixels", "pick_block", "block_samples",
     "direction_rgb", "asp",
 ]
+
+
+def scene_parser(name: str, doc: str):
+    """The experiments' parser plus ``--scenes`` (W Figs. 7-9)."""
+    p = common.parser(name, doc)
+    p.add_argument("--scenes", default=",".join(SCENES),
+                   help="comma-separated scenes (default: all shipped)")
+    return p
+
+
+def run_scenes(name: str, args, cfg: dict, run_scene):
+    """``run_scene(scene, cfg, key, out, fresh)`` for every shipped scene named in
+    ``args.scenes`` (key ``fold_in(key(seed), i)``), with progress; missing scenes are reported
+    and skipped. Returns ``(results, missing)``."""
+    present, missing = available_scenes(args.scenes.split(","))
+    for s in missing:
+        print(f"{s}: experiments/scenes/{SCENES[s]['xml']} is not shipped; skipped")
+    (args.out / "scenes").mkdir(parents=True, exist_ok=True)
+    key = jax.random.key(args.seed)
+    results = {s: run_scene(s, cfg, jax.random.fold_in(key, i), args.out, args.fresh)
+               for i, s in enumerate(progress(present, desc=name))}
+    return results, missing

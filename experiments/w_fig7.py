@@ -28,14 +28,12 @@ import numpy as np
 
 import anisosample as asp
 from anisosample import plot, render
-from anisosample.progress import progress
 
 NAME = "w_fig7"
 SCALES = {
     "small": dict(size=128, block_px=16, samples=96, preview_spp=16),
     "paper": dict(size=1280, block_px=16, samples=96, preview_spp=64),
 }
-ALL_SCENES = ("cornell", "blinds", "attic", "dof")
 
 
 def run_scene(name, cfg, key, out, fresh):
@@ -109,19 +107,10 @@ def figure(results, out, cfg):
 
 
 def main(argv=None):
-    p = common.parser(NAME, __doc__.splitlines()[0])
-    p.add_argument("--scenes", default=",".join(ALL_SCENES),
-                   help="comma-separated scenes (default: all shipped)")
-    args = p.parse_args(argv)
+    args = W.scene_parser(NAME, __doc__.splitlines()[0]).parse_args(argv)
     started = time.time()
     cfg = SCALES[args.scale]
-    present, missing = W.available_scenes(args.scenes.split(","))
-    for s in missing:
-        print(f"{s}: experiments/scenes/{W.SCENES[s]['xml']} is not shipped; skipped")
-    (args.out / "scenes").mkdir(parents=True, exist_ok=True)
-    key = jax.random.key(args.seed)
-    results = {s: run_scene(s, cfg, jax.random.fold_in(key, i), args.out, args.fresh)
-               for i, s in enumerate(progress(present, desc=NAME))}
+    results, missing = W.run_scenes(NAME, args, cfg, run_scene)
     pngs = figure(results, args.out, cfg)
     json_path = common.write_record(args.out, NAME, {"scenes": results, "missing_scenes": missing},
                                     {**cfg, "scale": args.scale, "seed": args.seed}, started)

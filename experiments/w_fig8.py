@@ -44,7 +44,6 @@ SCALES = {
     "small": dict(size=32, block_px=8, spp=256, realizations=16),
     "paper": dict(size=128, block_px=16, spp=4096, realizations=32),
 }
-ALL_SCENES = ("cornell", "blinds", "attic", "dof")
 
 
 def _slug(m: str) -> str:
@@ -122,19 +121,10 @@ def figure(results, out):
 
 
 def main(argv=None):
-    p = common.parser(NAME, __doc__.splitlines()[0])
-    p.add_argument("--scenes", default=",".join(ALL_SCENES),
-                   help="comma-separated scenes (default: all shipped)")
-    args = p.parse_args(argv)
+    args = W.scene_parser(NAME, __doc__.splitlines()[0]).parse_args(argv)
     started = time.time()
     cfg = SCALES[args.scale]
-    present, missing = W.available_scenes(args.scenes.split(","))
-    for s in missing:
-        print(f"{s}: experiments/scenes/{W.SCENES[s]['xml']} is not shipped; skipped")
-    (args.out / "scenes").mkdir(parents=True, exist_ok=True)
-    key = jax.random.key(args.seed)
-    results = {s: run_scene(s, cfg, jax.random.fold_in(key, i), args.out, args.fresh)
-               for i, s in enumerate(progress(present, desc=NAME))}
+    results, missing = W.run_scenes(NAME, args, cfg, run_scene)
     pngs = figure(results, args.out)
     images = {s: {m: np.round(asp.io.read_exr(args.out / f"{s}_{_slug(m)}_variance.exr")
                               .astype(float), 15).tolist() for m in W.METHODS} for s in results}

@@ -48,7 +48,6 @@ SCALES = {
     "paper": dict(size=1280, block_px=16, region_px=16, log2_ns=[8, 9, 10, 11, 12],
                   realizations=128),
 }
-ALL_SCENES = ("cornell", "blinds", "attic", "dof")
 
 
 def run_scene(name, cfg, key, out, fresh):
@@ -142,19 +141,10 @@ def figure(results, out):
 
 
 def main(argv=None):
-    p = common.parser(NAME, __doc__.splitlines()[0])
-    p.add_argument("--scenes", default=",".join(ALL_SCENES),
-                   help="comma-separated scenes (default: all shipped)")
-    args = p.parse_args(argv)
+    args = W.scene_parser(NAME, __doc__.splitlines()[0]).parse_args(argv)
     started = time.time()
     cfg = SCALES[args.scale]
-    present, missing = W.available_scenes(args.scenes.split(","))
-    for s in missing:
-        print(f"{s}: experiments/scenes/{W.SCENES[s]['xml']} is not shipped; skipped")
-    (args.out / "scenes").mkdir(parents=True, exist_ok=True)
-    key = jax.random.key(args.seed)
-    results = {s: run_scene(s, cfg, jax.random.fold_in(key, i), args.out, args.fresh)
-               for i, s in enumerate(progress(present, desc=NAME))}
+    results, missing = W.run_scenes(NAME, args, cfg, run_scene)
     pngs = figure(results, args.out)
     data = {"scenes": results, "missing_scenes": missing}
     json_path = common.write_record(args.out, NAME, data, {**cfg, "scale": args.scale,
