@@ -29,6 +29,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from common import cached_json
 
 import anisosample as asp
 from anisosample.progress import progress
@@ -333,3 +334,16 @@ def save_exrs(out, scene, ref, images: dict):
     for n, img in images.items():
         slug = "".join(c if c.isalnum() else "_" for c in n).strip("_")
         asp.io.write_exr(out / f"mse_{slug}.exr", img.reshape(h, w), overwrite=True)
+
+
+def image_settings(name: str, args, scales: dict) -> tuple[dict, dict | None]:
+    """The image experiments' settings (one light and one BSDF sample, MIS, pixel centres,
+    ``jax.random.uniform``) and the finished record under ``args.out`` when it was made with the
+    same settings (rerun reuse; ``--fresh`` ignores it)."""
+    settings = dict(scales[args.scale], scale=args.scale, seed=args.seed, mis=True,
+                    sampler="random (jax.random.uniform)", pixel="centre")
+    record = cached_json(args.out / f"{name}.json", args.fresh)
+    if record is not None and record.get("settings") == settings:
+        print(f"reusing {args.out / (name + '.json')}")
+        return settings, record
+    return settings, None

@@ -37,7 +37,7 @@ import _h_render as H
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import ROOT, cached_json, parser, write_record
+from common import ROOT, parser, write_record
 
 import anisosample as asp
 import anisosample.warps as W
@@ -141,11 +141,8 @@ def main(argv=None):
     ap = parser(NAME, __doc__.splitlines()[0])
     args = ap.parse_args(argv)
     started = time.time()
-    settings = dict(SCALES[args.scale], scale=args.scale, seed=args.seed, mis=True,
-                    sampler="random (jax.random.uniform)", pixel="centre")
-    record = cached_json(args.out / f"{NAME}.json", args.fresh)
-    if record is not None and record.get("settings") == settings:
-        print(f"reusing {args.out / (NAME + '.json')}")
+    settings, record = H.image_settings(NAME, args, SCALES)
+    if record is not None:
         variants = record["variants"]
     else:
         args.out.mkdir(parents=True, exist_ok=True)
