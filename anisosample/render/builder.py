@@ -72,7 +72,9 @@ class SceneBuilder:
     Shapes take a 4x4 ``to_world`` matrix (numpy, float64) as in Mitsuba 3.
     """
 
-    _tris: list = field(default_factory=list)  # (p0, p1, p2, n, uv0, uv1, uv2, mat, light)
+    # Planar primitives p0 + a e1 + b e2: (p0, p1, p2, n, uv0, uv1, uv2, mat, light, para) with
+    # p1 = p0 + e1, p2 = p0 + e2; a triangle (a + b <= 1) or, if ``para``, a parallelogram.
+    _tris: list = field(default_factory=list)
     _spheres: list = field(default_factory=list)  # (center, radius, mat, light)
     _patches: list = field(default_factory=list)  # (corners (2, 2, 3), mat, light)
     _materials: list = field(default_factory=list)
@@ -230,10 +232,8 @@ class SceneBuilder:
                 ],
                 delta=False,
             )
-        p00, p10, p01, p11 = c, c + e1, c + e2, c + e1 + e2
-        uv = {"00": (0, 0), "10": (1, 0), "01": (0, 1), "11": (1, 1)}
-        self._tris.append((p00, p10, p11, n, uv["00"], uv["10"], uv["11"], material, light))
-        self._tris.append((p00, p11, p01, n, uv["00"], uv["11"], uv["01"], material, light))
+        # One parallelogram primitive (Mitsuba splits it into two triangles; one test is cheaper).
+        self._tris.append((c, c + e1, c + e2, n, (0, 0), (1, 0), (0, 1), material, light, True))
 
     def triangles(
         self,
@@ -284,30 +284,40 @@ class SceneBuilder:
             raise ValueError("mesh emitter has zero area")
         lights = self._add_emitter(prims, delta=False) if emissive else [-1] * len(entries)
         for (p0, p1, p2, n, a, b, c), li in zip(entries, lights, strict=True):
-            self._tris.append((p0, p1, p2, n, a, b, c, material, li))
+            self._tris.append((p0, p1, p2, n, a, b, c, material, li, False))
 
     def cube(self, to_world, material: int, *, radiance=None, flip_normals=False) -> None:
-        """Mitsuba ``cube``: ``[-1, 1]^3`` with outward normals, as 12 triangles."""
+        """Mitsuba ``cube``: ``[-1, 1]^3`` with outward normals.
+
+        Six parallelogram faces; an emissive cube is 12 triangles (one emitter picked by area, as
+        Mitsuba's triangle mesh).
+        """
         m = np.asarray(to_world, np.float64)
-        verts, faces = [], []
+        faces = []  # (p0, e1, e2) with e1 x e2 along the outward normal
         for axis in range(3):
             for sign in (-1.0, 1.0):
                 a, b = (axis + 1) % 3, (axis + 2) % 3
-                quad = []
-                for s, t in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
-                    p = np.zeros(3)
-                    p[axis], p[a], p[b] = sign, s, t
-                    quad.append(_transform_point(m, p))
-                base = len(verts)
-                verts.extend(quad)
-                n_out = _transform_normal(m, np.eye(3)[axis] * sign)
-                tri = [(0, 1, 2), (0, 2, 3)]
-                cr = np.cross(quad[1] - quad[0], quad[2] - quad[0])
-                if np.dot(cr, n_out) < 0:
-                    tri = [(0, 2, 1), (0, 3, 2)]
-                faces.extend([(base + i, base + j, base + k) for i, j, k in tri])
+                corner = np.zeros(3)
+                corner[axis], corner[a], corner[b] = sign, -1.0, -1.0
+                p0 = _transform_point(m, corner)
+                e1 = _transform_point(m, corner + 2 * np.eye(3)[a]) - p0
+                e2 = _transform_point(m, corner + 2 * np.eye(3)[b]) - p0
+                if np.dot(np.cross(e1, e2), _transform_normal(m, np.eye(3)[axis] * sign)) < 0:
+                    e1, e2 = e2, e1
+                faces.append((p0, e1, e2))
+        if radiance is None:
+            for p0, e1, e2 in faces:
+                cr = np.cross(e1, e2)
+                if np.linalg.norm(cr) > 0:
+                    n = _unit(cr) * (-1 if flip_normals else 1)
+                    self._tris.append((p0, p0 + e1, p0 + e2, n, (0, 0), (0, 0), (0, 0), material,
+                                       -1, True))
+            return
+        verts = [v for p0, e1, e2 in faces for v in (p0, p0 + e1, p0 + e1 + e2, p0 + e2)]
+        tris = [(4 * f + i, 4 * f + j, 4 * f + k) for f in range(6) for i, j, k in ((0, 1, 2),
+                                                                                     (0, 2, 3))]
         self.triangles(
-            np.array(verts), np.array(faces), material, radiance=radiance, flip_normals=flip_normals
+            np.array(verts), np.array(tris), material, radiance=radiance, flip_normals=flip_normals
         )
 
     def sphere(self, center, radius, material: int, *, radiance=None) -> None:
@@ -392,7 +402,7 @@ class SceneBuilder:
         i32 = lambda a: jnp.asarray(np.asarray(a, np.int64), jnp.int32)
 
         tris = self._tris or [
-            (np.full(3, 1e30),) * 3 + (np.array([0, 0, 1.0]), (0, 0), (0, 0), (0, 0), 0, -1)
+            (np.full(3, 1e30),) * 3 + (np.array([0, 0, 1.0]), (0, 0), (0, 0), (0, 0), 0, -1, False)
         ]
         p0 = np.array([t[0] for t in tris])
         e1 = np.array([t[1] for t in tris]) - p0
@@ -469,7 +479,9 @@ class SceneBuilder:
             height=c["height"],
         )
 
+        para = np.array([t[9] for t in tris], bool)
         pts = [p0[: len(self._tris)], (p0 + e1)[: len(self._tris)], (p0 + e2)[: len(self._tris)]]
+        pts += [(p0 + e1 + e2)[: len(self._tris)][para[: len(self._tris)]]]
         pts += [np.array([s[0] for s in self._spheres]).reshape(-1, 3)]
         pts += [np.array([q[0] for q in self._patches]).reshape(-1, 3)]
         pts += [np.asarray(c["to_world"][:3, 3])[None]]
@@ -486,7 +498,7 @@ class SceneBuilder:
             tri_uv2=f32([t[6] for t in tris]),
             tri_material=i32([t[7] for t in tris]),
             tri_light=i32([t[8] for t in tris]),
-            tri_soa=f32(_plane_rows(p0, e1, e2)),
+            tri_soa=f32(_plane_rows(p0, e1, e2, para)),
             tri_attr=f32(np.concatenate([np.array([t[k] for t in tris], np.float64).reshape(
                 len(tris), -1) for k in (3, 4, 5, 6)], axis=1)),
             tri_ids=i32([(t[7], t[8]) for t in tris]),
@@ -509,14 +521,15 @@ class SceneBuilder:
         )
 
 
-def _plane_rows(p0, e1, e2) -> np.ndarray:
-    """Per-triangle rows for the plane-based ray/triangle test, structure of arrays (12, t).
+def _plane_rows(p0, e1, e2, para) -> np.ndarray:
+    """Per-primitive rows for the plane-based ray/triangle test, structure of arrays (13, t).
 
     With ``n = e1 x e2`` and the dual edge vectors ``r1 = (e2 x n) / |n|^2``,
     ``r2 = (n x e1) / |n|^2`` (``r_i . e_j = delta_ij``), a ray meets the plane at
     ``t = (n.p0 - n.o) / (n.d)`` and the hit ``q`` has barycentrics ``b1 = q.r1 - p0.r1``,
     ``b2 = q.r2 - p0.r2`` (the precomputed-transform idea of Baldwin & Weber 2016).
-    Degenerate triangles get rows that never report a hit.
+    Row 12 is 1 for a parallelogram (hit: ``0 <= b1, b2 <= 1``), 0 for a triangle
+    (``b1 + b2 <= 1``). Degenerate primitives get rows that never report a hit.
     """
     n = np.cross(e1, e2)
     nn = np.sum(n * n, axis=-1)
@@ -526,7 +539,8 @@ def _plane_rows(p0, e1, e2) -> np.ndarray:
     r2 = np.cross(n, e1) * inv
     rows = np.concatenate([n, np.sum(n * p0, -1, keepdims=True), r1,
                            np.sum(r1 * p0, -1, keepdims=True), r2,
-                           np.sum(r2 * p0, -1, keepdims=True)], axis=1)
+                           np.sum(r2 * p0, -1, keepdims=True),
+                           np.asarray(para, np.float64)[:, None]], axis=1)
     rows[~good] = 0.0
     rows[~good, 7] = 1.0  # b1 = -1: never inside
     return rows.T

@@ -34,9 +34,13 @@ class Hit(eqx.Module):
 
 
 def _triangle_t(scene: Scene, o, d):
-    """Distances to every triangle (inf where missed) and barycentrics ``(b1, b2)``."""
-    # Plane-based test on precomputed rows (scene._plane_rows), structure of arrays so that
-    # every line below is a vectorised op over all triangles.
+    """Distances to every planar primitive (inf where missed) and coordinates ``(b1, b2)``.
+
+    Triangles hit where ``b1, b2 >= 0, b1 + b2 <= 1``; parallelograms (row 12 = 1) where
+    ``0 <= b1, b2 <= 1``.
+    """
+    # Plane-based test on precomputed rows (builder._plane_rows), structure of arrays so that
+    # every line below is a vectorised op over all primitives.
     r = scene.tri_soa
     denom = d[0] * r[0] + d[1] * r[1] + d[2] * r[2]
     ok = denom != 0
@@ -44,7 +48,7 @@ def _triangle_t(scene: Scene, o, d):
     qx, qy, qz = o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]
     b1 = qx * r[4] + qy * r[5] + qz * r[6] - r[7]
     b2 = qx * r[8] + qy * r[9] + qz * r[10] - r[11]
-    hit = ok & (b1 >= 0) & (b2 >= 0) & (b1 + b2 <= 1)
+    hit = ok & (b1 >= 0) & (b2 >= 0) & (jnp.where(r[12] > 0, jnp.maximum(b1, b2), b1 + b2) <= 1)
     return jnp.where(hit, t, _INF), b1, b2
 
 

@@ -1,7 +1,8 @@
 """The scene: a PyTree of arrays that the JAX ray caster traces (intersection, BSDFs, lights).
 
-Geometry is flattened to what the kernels need: triangles (rectangles, cubes and OBJ meshes
-become triangles, as in Mitsuba 3), analytic spheres, bilinear patches, a table of materials, a
+Geometry is flattened to what the kernels need: planar primitives (OBJ meshes become
+triangles; rectangles and cube faces one parallelogram each, where Mitsuba 3 uses two triangles),
+analytic spheres, bilinear patches, a table of materials, a
 table of light primitives (parallelograms, triangles, spheres, bilinear patches, points) grouped
 into emitters, and one camera.
 Use :class:`~anisosample.render.builder.SceneBuilder` to assemble a scene from Python, or
@@ -110,7 +111,7 @@ class Lights(eqx.Module):
 class Scene(eqx.Module):
     """A scene as a PyTree of arrays (see the module docstring)."""
 
-    # Triangles: p0 + a e1 + b e2.
+    # Planar primitives p0 + a e1 + b e2: triangles (a + b <= 1) and parallelograms (a, b <= 1).
     tri_p0: Float[Array, "t 3"]
     tri_e1: Float[Array, "t 3"]
     tri_e2: Float[Array, "t 3"]
@@ -120,7 +121,7 @@ class Scene(eqx.Module):
     tri_uv2: Float[Array, "t 2"]
     tri_material: Int[Array, " t"]
     tri_light: Int[Array, " t"]  # index into lights (light primitive), -1 if not emissive
-    tri_soa: Float[Array, "12 t"]  # plane-based test rows: n, n.p0, r1, p0.r1, r2, p0.r2
+    tri_soa: Float[Array, "13 t"]  # plane test rows: n, n.p0, r1, p0.r1, r2, p0.r2, parallelogram
     tri_attr: Float[Array, "t 9"]  # n, uv0, uv1, uv2 packed: one gather per hit
     tri_ids: Int[Array, "t 2"]  # material, light packed
     # Spheres.

@@ -161,3 +161,26 @@ def test_pss_warp_in_front_of_the_light_keeps_the_integral():
     a, b = np.asarray(plain(x)), np.asarray(warped(x))
     assert b.mean() == pytest.approx(a.mean(), rel=1e-3)
     assert b.std() < a.std()
+
+
+def test_hashed_uniforms_are_uniform_and_independent():
+    """The film/BSDF random numbers (lowbias32 of a counter): moments, a KS test per coordinate,
+    no correlation between the coordinates or between two pixels' streams."""
+    from scipy import stats
+
+    from anisosample.render.integrator import _uniform
+
+    n = 1 << 16
+    a = np.asarray(_uniform(jax.random.key(1), n), np.float64)
+    b = np.asarray(_uniform(jax.random.key(2), n), np.float64)
+    assert a.shape == (n, 2) and a.min() >= 0 and a.max() < 1
+    se = np.sqrt(1 / 12 / n)
+    for u in (a[:, 0], a[:, 1], b[:, 0]):
+        assert abs(u.mean() - 0.5) < 5 * se
+        assert abs(u.var() - 1 / 12) < 5 * np.sqrt(1 / 180 / n)
+        assert stats.kstest(u, "uniform").pvalue > 1e-4
+    for x, y in ((a[:, 0], a[:, 1]), (a[:, 0], b[:, 0]), (a[:-1, 0], a[1:, 0])):
+        assert abs(np.corrcoef(x, y)[0, 1]) < 5 / np.sqrt(n)
+    # 2D uniformity: chi-square over a 16x16 grid.
+    counts = np.histogram2d(a[:, 0], a[:, 1], bins=16, range=[[0, 1], [0, 1]])[0].ravel()
+    assert stats.chisquare(counts).pvalue > 1e-4
