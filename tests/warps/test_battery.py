@@ -173,7 +173,8 @@ def test_large_batches_match_small_ones(name, factory, kind):
     vmapped rows in the renderer (see ``anisosample/render/_vec.py``): a batch of 2^13 must give
     what chunks of 64 give, for sampling, pdf and inverse of every 3D warp. The two programs
     vectorize (and contract multiply-adds) differently, so they agree to float32 rounding
-    (measured <= 6e-6 absolute, on 0.03% of the entries at most); the miscompile gave O(1) errors."""
+    (measured <= 6e-6 absolute, on 0.03% of the entries at most); the miscompile gave O(1)
+    errors."""
     u = jnp.asarray(_U_RAND[: 2**13])
     (xb, pb), (xs, ps), bb, bs = _big_and_chunked(factory(), u)
     np.testing.assert_allclose(np.asarray(xb), np.asarray(xs), rtol=0, atol=1e-4)
