@@ -19,10 +19,16 @@ Sec. 1) is done per direction group of a :class:`~anisosample.frequencies.Freque
               the phase ``v.x`` is invariant under rotating both ``v`` and ``x``, and in rotated
               coordinates a long thin wedge has a small bounding box, so the cost grows with the
               wedge's length, not with the square that contains it;
-``"nufft1"``  a type-1 NUFFT on the group's bounding grid (adjoint: type 2), for short wide
-              sets that fill their box;
-``"auto"``    per group: direct when ``n m <= 2^21``, nufft1 when the group fills at least a
-              quarter of its bounding grid, else nufft3.
+``"nufft1"``  type-1 NUFFTs (adjoint: type 2) on a few small grids per group: the group is cut
+              into runs along its direction, each run gets the bounding box of its frequencies
+              in a unimodular integer basis ``v = M u`` whose first vector follows the
+              direction (``exp(-2 pi i v.x) = exp(-2 pi i u.(M^T x mod 1))`` holds exactly for
+              integer ``u``), centred by a phase on the strengths. The grids of a wedge total
+              about twice its area at any angle, and only the ``n`` points are spread, so this
+              is the fast path (at n = 2^16 one gradient is several times cheaper than
+              ``"nufft3"``: ``experiments/bench_synthesis.py``);
+``"auto"``    per group: direct when ``n m <= 2^21``, nufft1 when its grids total at most
+              ``8 m`` points (every wedge/disk design), else nufft3.
 
 Both have a custom VJP with the closed-form gradient (``point_synthesis.md`` Sec. 2)
 ``dP(v)/dx_j = (4 pi / n) Im(conj(F(v)) exp(-2 pi i v.x_j)) v``, so the backward pass of any
@@ -35,6 +41,7 @@ from __future__ import annotations
 
 import functools
 import math
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -112,35 +119,126 @@ def _nufft_adjoint(x, v, a, r, eps):
     return nufft3(a, vr[:, 0], vr[:, 1], xr[:, 0], xr[:, 1], iflag=-1, eps=eps)
 
 
-def _box(v):
-    """Half-widths of the bounding grid of integer frequencies v (float array)."""
-    return int(np.abs(np.asarray(v)).max(axis=0)[0]), int(np.abs(np.asarray(v)).max(axis=0)[1])
+class _Box(NamedTuple):
+    """One type-1 grid: integer frequencies ``v = M u`` with ``u - c`` in ``[-r, r]^2``.
+
+    ``M`` (row-major ``m``) is unimodular (integer, ``|det| = 1``), so ``x' = M^T x mod 1`` is
+    again a point set on the torus and ``exp(-2 pi i v.x) = exp(-2 pi i u.x')``: a wedge along a
+    direction close to the lattice vector ``a = M e_1`` becomes a thin axis-aligned strip in
+    ``u``. The centre ``c`` is a phase modulation of the strengths, so a half-plane wedge does
+    not pay for the empty half of a box centred on 0.
+    """
+
+    m: tuple[int, int, int, int]
+    c: tuple[int, int]
+    r: tuple[int, int]
 
 
-def _nufft1_forward(x, v, box):
-    """n F(v) by a type-1 NUFFT onto the bounding grid, then a gather."""
+def _unimodular_bases(theta_deg: float, lattice: bool) -> list[np.ndarray]:
+    """Candidate ``M`` (columns ``a, b``): the identity and, if ``lattice``, one basis per
+    continued-fraction convergent ``p/q`` of the direction's slope, ``a = (q, p)`` (or
+    ``(p, q)`` past 45 degrees), ``b`` the previous convergent made as orthogonal to ``a`` as
+    integer shifts ``b + j a`` allow (convergents give ``|det(a, b)| = 1``)."""
+    out = [np.eye(2, dtype=np.int64)]
+    if not lattice:
+        return out
+    th = math.radians(theta_deg)
+    d = (math.cos(th), math.sin(th))
+    swap = abs(d[1]) > abs(d[0])
+    slope = d[0] / d[1] if swap else d[1] / d[0]
+    (p0, q0), (p1, q1) = (1, 0), (math.floor(slope), 1)
+    frac = slope - math.floor(slope)
+    while q1 <= 256:
+        a, b = np.array([q1, p1]), np.array([q0, p0])
+        if swap:
+            a, b = a[::-1], b[::-1]
+        b = b - round(float(b @ a) / float(a @ a)) * a
+        m = np.stack([a, b], axis=1)
+        if abs(round(np.linalg.det(m))) == 1:
+            out.append(m)
+        if frac < 1e-12:
+            break
+        frac = 1.0 / frac
+        k = math.floor(frac)
+        frac -= k
+        (p0, q0), (p1, q1) = (p1, q1), (k * p1 + p0, k * q1 + q0)
+    return out
+
+
+_MAX_SEGMENTS = 8
+
+
+def _nufft1_plan(fg: np.ndarray, theta_deg: float, n: int, lattice: bool):
+    """Split a group into at most ``_MAX_SEGMENTS`` runs along its direction, each with its own
+    :class:`_Box` under one unimodular basis, minimising the total grid size (plus ``2 n`` per
+    transform). Returns ``(order, [(start, stop, box), ...])``: segment ``k`` holds
+    ``fg[order[start:stop]]``. The boxes of a wedge then total about twice its area, wherever
+    it points (a box around the whole wedge at 30 degrees is ~20 times its area at n = 2^16)."""
+    th = math.radians(theta_deg)
+    order = np.argsort(fg @ np.array([math.cos(th), math.sin(th)]), kind="stable")
+    v = fg[order].astype(np.int64)
+    m = len(v)
+    best = None
+    for mat in _unimodular_bases(theta_deg, lattice):
+        inv = np.round(np.linalg.inv(mat)).astype(np.int64)
+        u = v @ inv.T
+        for k in range(1, min(_MAX_SEGMENTS, m) + 1):
+            cuts = np.linspace(0, m, k + 1).round().astype(np.int64)
+            lo = np.minimum.reduceat(u, cuts[:-1], axis=0)
+            hi = np.maximum.reduceat(u, cuts[:-1], axis=0)
+            c = (lo + hi) // 2
+            r = np.maximum(hi - c, c - lo)
+            cost = float(np.sum(np.prod(2 * r + 1, axis=1))) + 2.0 * n * k
+            if best is None or cost < best[0]:
+                best = (cost, mat, cuts, c, r)
+    _, mat, cuts, c, r = best
+    segs = [(int(cuts[i]), int(cuts[i + 1]),
+             _Box(tuple(int(e) for e in mat.reshape(-1)), (int(c[i, 0]), int(c[i, 1])),
+                  (int(r[i, 0]), int(r[i, 1]))))
+            for i in range(len(cuts) - 1)]
+    return order, segs
+
+
+def _box_area(segs) -> int:
+    return sum((2 * b.r[0] + 1) * (2 * b.r[1] + 1) for _, _, b in segs)
+
+
+def _nufft1_setup(x, v, box: _Box, eps):
+    """Points on the box's lattice, the centre's phase per point, grid indices, NUFFT options."""
+    from jax_finufft.options import Opts
+
+    m = jnp.asarray(np.asarray(box.m, np.float64).reshape(2, 2), x.dtype)
+    xp = x @ m  # x'_j = M^T x_j
+    xp = xp - jnp.floor(xp)
+    ph = xp @ jnp.asarray(box.c, x.dtype)
+    ph = -2.0 * jnp.pi * (ph - jnp.round(ph))
+    shift = jax.lax.complex(jnp.cos(ph), jnp.sin(ph))
+    inv = np.round(np.linalg.inv(np.asarray(box.m, np.float64).reshape(2, 2)))
+    u = jnp.round(v @ jnp.asarray(inv.T, v.dtype)).astype(jnp.int32)
+    idx = (u[:, 0] - box.c[0] + box.r[0], u[:, 1] - box.c[1] + box.r[1])
+    shape = (2 * box.r[0] + 1, 2 * box.r[1] + 1)
+    # sigma = 1.25 shrinks the fine grid 2.6x; type 1/2 only spread the n points, so the wider
+    # kernel it needs costs little. FINUFFT supports it down to eps ~ 1e-9.
+    opts = Opts(upsampfac=1.25) if eps >= 1e-9 else None
+    return (xp - 0.5) * (2.0 * jnp.pi), shift, idx, shape, opts
+
+
+def _nufft1_forward(x, v, box: _Box, eps):
+    """n F(v) by a type-1 NUFFT onto the box's grid, then a gather."""
     from jax_finufft import nufft1
 
-    rx, ry = box
-    xs = (x - 0.5) * (2.0 * jnp.pi)
-    c = jnp.ones(x.shape[0], dtype=_cdtype(x.dtype))
-    grid = nufft1((2 * rx + 1, 2 * ry + 1), c, xs[:, 0], xs[:, 1], iflag=-1,
-                  eps=1e-12 if x.dtype == jnp.float64 else 1e-6)
-    iv = v.astype(jnp.int32)
-    return grid[iv[:, 0] + rx, iv[:, 1] + ry]
+    xs, shift, idx, shape, opts = _nufft1_setup(x, v, box, eps)
+    grid = nufft1(shape, shift, xs[:, 0], xs[:, 1], iflag=-1, eps=eps, opts=opts)
+    return grid[idx]
 
 
-def _nufft1_adjoint(x, v, a, box):
-    """sum_v a_v exp(-2 pi i v.(x_j - 1/2)) by a scatter onto the grid and a type-2 NUFFT."""
+def _nufft1_adjoint(x, v, a, box: _Box, eps):
+    """sum_v a_v exp(-2 pi i v.x_j) by a scatter onto the box's grid and a type-2 NUFFT."""
     from jax_finufft import nufft2
 
-    rx, ry = box
-    iv = v.astype(jnp.int32)
-    grid = jnp.zeros((a.shape[0], 2 * rx + 1, 2 * ry + 1), a.dtype)
-    grid = grid.at[:, iv[:, 0] + rx, iv[:, 1] + ry].add(a)
-    xs = (x - 0.5) * (2.0 * jnp.pi)
-    return nufft2(grid, xs[:, 0], xs[:, 1], iflag=-1,
-                  eps=1e-12 if x.dtype == jnp.float64 else 1e-6)
+    xs, shift, idx, shape, opts = _nufft1_setup(x, v, box, eps)
+    grid = jnp.zeros((a.shape[0], *shape), a.dtype).at[:, idx[0], idx[1]].add(a)
+    return nufft2(grid, xs[:, 0], xs[:, 1], iflag=-1, eps=eps, opts=opts) * shift[None, :]
 
 
 @functools.partial(jax.custom_vjp, nondiff_argnums=(3, 4))
@@ -153,8 +251,8 @@ def _power_fwd(x, v, r, method, eps):
     n = x.shape[0]
     if method == "direct":
         fn = _direct_forward(x, v)
-    elif isinstance(method, tuple):  # ("nufft1", rx, ry)
-        fn = _nufft1_forward(x, v, method[1:])
+    elif isinstance(method, _Box):
+        fn = _nufft1_forward(x, v, method, eps)
     else:
         fn = _nufft_forward(x, v, r, eps)
     f = fn / n
@@ -168,8 +266,8 @@ def _power_bwd(method, eps, res, g):
     a = (g.astype(f.dtype) * jnp.conj(f))[None, :] * v.T.astype(f.dtype)  # (2, m)
     if method == "direct":
         s = _direct_adjoint(x, v, a)
-    elif isinstance(method, tuple):  # centring cancels as for type 3
-        s = _nufft1_adjoint(x, v, a, method[1:])
+    elif isinstance(method, _Box):  # the grid's phase convention cancels as for type 3
+        s = _nufft1_adjoint(x, v, a, method, eps)
     else:
         s = _nufft_adjoint(x, v, a, r, eps)  # centring cancels in conj(F) e_j
     grad = (4.0 * jnp.pi / n) * jnp.imag(s).T.astype(x.dtype)
@@ -196,26 +294,29 @@ def _resolve_method(method, n, m):
     return check_choice("method", method, METHODS)
 
 
-def _group_method(method, n, fg):
-    """``auto``: the direct sum for small work; a type-1 NUFFT on the bounding grid when the
-    group fills it (short, wide sets such as a disk); else the rotated type-3 NUFFT."""
-    if method != "auto":
-        return method
+def _group_plan(method, n, fg, theta, dtype):
+    """``(how, order, segments)`` for one group. ``auto``: the direct sum for small work, else
+    type-1 grids (:func:`_nufft1_plan`) when their boxes total at most ``8 m`` (wedges and disks
+    along any direction: about ``2 m``), else the rotated type-3 NUFFT. Unimodular bases other
+    than the identity need float64 (``x' = M^T x`` multiplies the rounding error by ``|M|``)."""
     m = fg.shape[0]
-    if n * m <= _DIRECT_LIMIT:
-        return "direct"
-    rx, ry = np.abs(fg).max(axis=0)
-    box = (2 * int(rx) + 1) * (2 * int(ry) + 1)
-    return "nufft1" if box <= 4 * m else "nufft3"
+    if method == "auto" and n * m <= _DIRECT_LIMIT:
+        return "direct", None, None
+    if method in ("auto", "nufft1"):
+        order, segs = _nufft1_plan(fg, theta, n, lattice=dtype == jnp.float64)
+        if method == "nufft1" or _box_area(segs) <= 8 * m:
+            return "nufft1", order, segs
+        return "nufft3", None, None
+    return method, None, None
 
 
 def grouped_power_spectrum(points, fset: FrequencySet, *, method="auto", eps=None):
     """``P_S`` on every frequency of ``fset`` (its order), differentiable w.r.t. ``points``.
 
-    ``method``: ``"direct"``, ``"nufft1"`` (type 1 on the group's bounding grid),
-    ``"nufft3"`` (type 3 rotated to the group's
-    direction) or ``"auto"`` (chosen per group by :func:`_group_method`).  ``eps`` is the
-    type-3 tolerance (default 1e-9 in float64, 1e-6 in float32).
+    ``method``: ``"direct"``, ``"nufft1"`` (type 1 on lattice-aligned grids, see the module
+    docstring), ``"nufft3"`` (type 3 rotated to the group's direction) or ``"auto"`` (chosen
+    per group by :func:`_group_plan`).  ``eps`` is the NUFFT tolerance (default 1e-9 in
+    float64, 1e-6 in float32).
     """
     n = points.shape[0]
     method = _resolve_method(method, n, len(fset))
@@ -223,11 +324,17 @@ def grouped_power_spectrum(points, fset: FrequencySet, *, method="auto", eps=Non
         eps = 1e-9 if points.dtype == jnp.float64 else 1e-6
     out = []
     for theta, fg, _ in fset.groups():
-        how = _group_method(method, n, fg)
-        if how == "nufft1":
-            how = ("nufft1", *_box(fg))
-        v = jnp.asarray(fg, dtype=points.dtype)
-        out.append(_power(points, v, _rot(theta, points.dtype), how, eps))
+        how, order, segs = _group_plan(method, n, fg, theta, points.dtype)
+        rot = _rot(theta, points.dtype)
+        if how != "nufft1":
+            out.append(_power(points, jnp.asarray(fg, points.dtype), rot, how, eps))
+            continue
+        vs = fg[order]
+        p = jnp.concatenate([_power(points, jnp.asarray(vs[a:b], points.dtype), rot, box, eps)
+                             for a, b, box in segs])
+        # The barrier keeps XLA from constant-folding this gather's transpose when the loss is
+        # linear in P (a constant cotangent scattered by constant indices: seconds at 2^16).
+        out.append(p[jax.lax.optimization_barrier(jnp.asarray(np.argsort(order), jnp.int32))])
     return jnp.concatenate(out)
 
 
