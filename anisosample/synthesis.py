@@ -192,7 +192,8 @@ def synthesize(
             :func:`recipe_defaults`); ``c >= 0`` weighs the SW term (W Eq. 10).
         spectrum_weight: weight of the spectrum term (0 leaves SW alone, W Fig. 3 b).
         init: a sampler name for the initial set (default ``"jittered"``).
-        method: spectrum evaluation, ``"auto" | "direct" | "nufft3"``.
+        method: spectrum evaluation, ``"auto" | "direct" | "nufft1" | "nufft3"`` (see
+            :mod:`anisosample.losses`; ``auto`` takes the lattice-aligned type-1 grids).
         frequency_options: overrides for :func:`anisosample.frequencies.design`.
         checkpoint: ``.npz`` path; saved every ``checkpoint_every`` steps, resumed if present.
         callback: ``callback(step, loss)`` after each chunk (may raise to stop).
@@ -412,7 +413,8 @@ def synthesize_batch(key, n: int, direction_sets, *, recipe: str = "rate",
     """Several sets at once: ``direction_sets`` is a list of ``B`` direction lists of equal
     length; returns ``(B, n, 2)``.  One optimizer loop, the loss ``vmap``ped over the sets
     (frequency groups padded to a common size with zero weights), so a batch costs one
-    compilation and runs as batched NUFFTs.  Set ``b`` starts from
+    compilation and runs as batched type-3 NUFFTs (the sets' directions differ, so the
+    lattice-aligned grids of :func:`synthesize` do not batch).  Set ``b`` starts from
     ``jax.random.split(key, B)[b]`` and equals ``synthesize(that key, n, direction_sets[b])``
     up to rounding.  No checkpoints (use :func:`synthesize` for long single runs).
 
