@@ -218,8 +218,10 @@ def _nufft1_setup(x, v, box: _Box, eps):
     idx = (u[:, 0] - box.c[0] + box.r[0], u[:, 1] - box.c[1] + box.r[1])
     shape = (2 * box.r[0] + 1, 2 * box.r[1] + 1)
     # sigma = 1.25 shrinks the fine grid 2.6x; type 1/2 only spread the n points, so the wider
-    # kernel it needs costs little. FINUFFT supports it down to eps ~ 1e-9.
-    opts = Opts(upsampfac=1.25) if eps >= 1e-9 else None
+    # kernel it needs costs little. CPU FINUFFT supports it down to eps ~ 1e-9; on a GPU the
+    # library's own choice stands.
+    small_sigma = eps >= 1e-9 and jax.default_backend() == "cpu"
+    opts = Opts(upsampfac=1.25) if small_sigma else None
     return (xp - 0.5) * (2.0 * jnp.pi), shift, idx, shape, opts
 
 
