@@ -110,8 +110,8 @@ w-directions-accuracy: $(VENV)/.installed
 	$(PY) experiments/w_directions_accuracy.py --scale $(SCALE)
 
 # The paper's shipped aligned-set table, n = 4096 (W Sec. 5.4; resumable: rerun after an
-# interruption; a finished table is verified and left alone; a rebuild takes 8 min on a quiet
-# 2-core machine, see experiments/bench_tables.py). The shipped n = 256 table keeps the
+# interruption; a finished table is verified and left alone; a rebuild takes about 5 min on a
+# quiet 2-core machine: 6.6 s per set, experiments/bench_tables.py --full). The shipped n = 256 table keeps the
 # aligned-only weights (see anisosample/tables.py). Other sizes: `anisosample tables build --n N`
 # into the user cache; 4-direction: `--directions 4`.
 TABLE_N ?= 4096

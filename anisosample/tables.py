@@ -33,7 +33,8 @@ the tables shipped in ``anisosample/data/tables``, and the user cache
 
 Shipped: the 46-set 3-direction tables for ``n = 256`` (380 kB) and the paper's ``n = 4096``
 (1.7 MB). ``n = 4096`` uses the default (robust) weights of :mod:`anisosample.frequencies`
-(46 sets in 8 min on this project's 2-core machine, ``experiments/bench_tables.py``); ``n = 256``
+(built with the rotated type-3 NUFFT of the time; ``experiments/bench_tables.py --full`` now
+projects 5.1 min for the 46 sets on this project's 2-core machine); ``n = 256``
 keeps the aligned-only weights (``offsets_deg=()``): at 256 points the robust weights measured
 worse in the renderer (aligned / pmj02bn variance on the edge pixels of a Cornell crop 1.23
 instead of 0.87) and shallower along the requested lines (0.117 of white instead of 0.066), while
