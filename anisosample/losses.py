@@ -23,8 +23,9 @@ Sec. 1) is done per direction group of a :class:`~anisosample.frequencies.Freque
               into runs along its direction, each run gets the bounding box of its frequencies
               in a unimodular integer basis ``v = M u`` whose first vector follows the
               direction (``exp(-2 pi i v.x) = exp(-2 pi i u.(M^T x mod 1))`` holds exactly for
-              integer ``u``), centred by a phase on the strengths. The grids of a wedge total
-              about twice its area at any angle, and only the ``n`` points are spread, so this
+              integer ``u``), centred by a phase on the strengths. The grids of a group total
+              1.5-2.6 times its frequency count (n = 2^16 at 0, 90 and 30 degrees), and only
+              the ``n`` points are spread, so this
               is the fast path (at n = 2^16 one gradient is several times cheaper than
               ``"nufft3"``: ``experiments/bench_synthesis.py``);
 ``"auto"``    per group: direct when ``n m <= 2^21``, nufft1 when its grids total at most
@@ -172,8 +173,9 @@ def _nufft1_plan(fg: np.ndarray, theta_deg: float, n: int, lattice: bool):
     """Split a group into at most ``_MAX_SEGMENTS`` runs along its direction, each with its own
     :class:`_Box` under one unimodular basis, minimising the total grid size (plus ``2 n`` per
     transform). Returns ``(order, [(start, stop, box), ...])``: segment ``k`` holds
-    ``fg[order[start:stop]]``. The boxes of a wedge then total about twice its area, wherever
-    it points (a box around the whole wedge at 30 degrees is ~20 times its area at n = 2^16)."""
+    ``fg[order[start:stop]]``. The boxes of the rate design's groups then total 1.5-2.6 times
+    their frequency count at n = 2^16 (0, 90, 30 degrees; one centred box around the 30-degree
+    group in the standard basis would be about 26 times)."""
     th = math.radians(theta_deg)
     order = np.argsort(fg @ np.array([math.cos(th), math.sin(th)]), kind="stable")
     v = fg[order].astype(np.int64)
