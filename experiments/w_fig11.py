@@ -5,7 +5,9 @@ are that half-plane convolved with a Gaussian of sigma = 2.83 and 8.5 pixels of 
 (``integrands.SmoothedEdge``, sigma = 2.83/2048 and 8.5/2048 of the unit square, exact
 integrals). The blur cuts the 30-degree ray of the spectrum off at ``|v| ~ 1/(2 pi sigma)``, so
 the asymptotic rate stops depending on that direction (W Sec. 6.3); the square's border stays a
-discontinuity on the torus. Samplers and randomizations as in ``w_fig6_baselines.py``.
+discontinuity on the torus. Samplers and randomizations as in ``w_fig6_baselines.py``, plus our
+aligned 3-direction sets ``{0, 90, 30}`` (two synthesized sets per ``n``, toroidal shifts, as in
+``w_fig6.py``; cached in ``<out>/sets``).
 
 Writes ``results/w_fig11/w_fig11.png`` (integrands on top, log-log curves with fitted slopes and
 95 % intervals below) and ``w_fig11.json`` (every plotted number, settings, provenance). Finished
@@ -22,7 +24,8 @@ import common
 import jax
 import jax.numpy as jnp
 import numpy as np
-from w_fig6_baselines import JITTABLE, SCALES, Memo, measure
+from w_fig6 import our_sets, variance_of_sets
+from w_fig6_baselines import JITTABLE, SCALES, Memo, measure, summarize
 
 import anisosample as asp
 from anisosample import integrands, plot
@@ -32,6 +35,8 @@ NAME = "w_fig11"
 THETA = 30.0
 SIGMAS_PX = [2.83, 8.5]
 GRID = 2048
+OURS = f"aligned (ours, 0/90/{THETA:g})"
+SEEDS = 2  # our fixed sets per n
 
 
 def integrand_cases():
@@ -56,16 +61,29 @@ def main(argv=None):
         Memo(asp.samplers.get("sheared", base="pmj02bn", direction_deg=THETA)), "shift")
     cases = integrand_cases()
     results: dict[str, dict] = {}
-    tasks = [(label, s) for label in cases for s in samplers]
+    sets = {}
+
+    def ours(f):
+        if not sets:  # synthesized (or loaded) once, for every integrand
+            with progress(total=len(ns) * SEEDS, desc=f"{NAME} sets") as bar:
+                sets.update(our_sets(out, [0.0, 90.0, THETA], ns, SEEDS, bar))
+        rows = variance_of_sets(f, sets, ns, SEEDS, cfg["realizations"],
+                                jax.random.fold_in(key, 11))
+        return summarize(rows, ns, cfg, "shift", SEEDS)
+
+    tasks = [(label, s) for label in cases for s in [*samplers, OURS]]
     for label, sname in progress(tasks, desc=NAME):
         f = cases[label]
-        sampler, mode = samplers[sname]
-        slug = f"{label}__{sname}".replace(" ", "_").replace("=", "")
+        slug = f"{label}__{sname}".replace(" ", "_").replace("=", "").replace("/", "-")
         path = out / "curves" / f"{slug}.json"
         settings = {"scale": args.scale, "seed": args.seed, "ns": ns, **cfg}
-        curve = common.reuse_or_compute(
-            path, settings, args.fresh,
-            lambda f=f, sampler=sampler, mode=mode: measure(f, sampler, mode, ns, key, cfg))
+        if sname == OURS:
+            compute = lambda f=f: ours(f)  # noqa: E731
+        else:
+            sampler, mode = samplers[sname]
+            compute = lambda f=f, sampler=sampler, mode=mode: measure(  # noqa: E731
+                f, sampler, mode, ns, key, cfg)
+        curve = common.reuse_or_compute(path, settings, args.fresh, compute)
         entry = results.setdefault(label, {
             "integrand": type(f).__name__, "normal_deg": THETA, "integral": f.integral,
             "sigma": getattr(f, "sigma", 0.0), "samplers": {}})

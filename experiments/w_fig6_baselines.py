@@ -76,6 +76,11 @@ def measure(f, sampler, mode, ns, key, cfg):
     patterns = cfg["patterns"] if mode == "shift" else 1
     rows = [V.estimate_variance(f, sampler, n, key, cfg["realizations"], f.integral,
                                 randomization=mode, patterns=patterns) for n in ns]
+    return summarize(rows, ns, cfg, mode, patterns)
+
+
+def summarize(rows, ns, cfg, mode, patterns):
+    """The curve record of one sampler: variances with intervals, slope fitted from fit_min_n."""
     fit_ns = [n for n in ns if n >= cfg["fit_min_n"]]
     sel = [i for i, n in enumerate(ns) if n >= cfg["fit_min_n"]]
     fit = V.fit_slope(fit_ns, [rows[i].variance for i in sel], [rows[i].std_error for i in sel])
