@@ -44,7 +44,8 @@ def _uniform(key, n: int) -> Float[Array, "n 2"]:
     """``n`` independent uniform 2D points from one key: a counter hashed with lowbias32.
 
     One threefry draw seeds the pixel; each coordinate is then ``hash(seed ^ hash(counter))``,
-    about a tenth of threefry's cost per number. Used for the dimensions a render does not study
+    two multiply-xorshift rounds instead of threefry's twenty. Used for the dimensions a render
+    does not study
     (film position, the other of lens/light, the BSDF sample), as Mitsuba's independent sampler
     uses PCG32 rather than a cryptographic generator.
     """
