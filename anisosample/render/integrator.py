@@ -45,9 +45,8 @@ def _uniform(key, n: int) -> Float[Array, "n 2"]:
 
     One threefry draw seeds the pixel; each coordinate is then ``hash(seed ^ hash(counter))``,
     two multiply-xorshift rounds instead of threefry's twenty. Used for the dimensions a render
-    does not study
-    (film position, the other of lens/light, the BSDF sample), as Mitsuba's independent sampler
-    uses PCG32 rather than a cryptographic generator.
+    does not study (film position, the other of lens/light, the BSDF sample), as Mitsuba's
+    independent sampler uses PCG32 rather than a cryptographic generator.
     """
     from ..samplers import _hash_u32
 
