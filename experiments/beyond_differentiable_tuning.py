@@ -61,6 +61,7 @@ from h_shading_points import (
     _patch_factors,
     lambert_irradiance,
     patch_irradiance,
+    patch_three_warp,
     triangle_methods,
 )
 
@@ -88,18 +89,8 @@ SYNTHESIS = {
         eval_radius=64,
         eval_length=1024,
     ),
-    "paper": dict(
-        n=256,
-        steps=100,
-        seeds=16,
-        deltas=[1e-4, 1e-2, 0.1, 1.0, 8.0],
-        theta=30.0,
-        tau=2.0,
-        max_factor=2.0,
-        eval_radius=64,
-        eval_length=1024,
-    ),
 }
+SYNTHESIS["paper"] = {**SYNTHESIS["small"], "steps": 100, "seeds": 16}
 _N = jnp.asarray(NORMAL, jnp.float32)
 _VERTS = jnp.asarray(TRIANGLE, jnp.float32)
 
@@ -146,13 +137,6 @@ def patch_methods():
         patch = _patch_factors(p)[0]
         return [W.Bilinear(patch.corner_area_elements()), patch]
 
-    def three_warp(p):
-        patch, geometry, cos_r, _ = _patch_factors(p)
-        w_area = W.Bilinear(patch.corner_area_elements())
-        w_geom = W.fit_pointwise(W.Biquadratic, geometry, [w_area, patch])
-        w_cos = W.fit_pointwise(W.Biquadratic, cos_r, [w_geom, w_area, patch])
-        return W.compose(w_cos, w_geom, w_area, patch)
-
     def pw(p):
         f = _patch_factors(p)[3]
         return W.compose(W.fit_pointwise(W.Biquadratic, f, area(p)), *area(p))
@@ -170,7 +154,7 @@ def patch_methods():
     return {
         "uniform parametric": lambda p: _patch_factors(p)[0],
         "bilinear approx. area": lambda p: W.compose(*area(p)),
-        "three-warp approx. cosine": three_warp,
+        "three-warp approx. cosine": patch_three_warp,
         "+ biquadratic (point-wise)": pw,
         "+ biquadratic (least squares)": ls,
         "+ biquadratic (min variance)": mv,

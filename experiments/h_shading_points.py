@@ -154,6 +154,16 @@ def _patch_factors(p):
     return patch, geometry, cos_r, f
 
 
+def patch_three_warp(p):
+    """H Sec. 4.2's three-warp chain at shading point ``p``: the bilinear approximate-area warp,
+    a biquadratic fitted to the geometric factor behind it, one fitted to the receiver's cosine."""
+    patch, geometry, cos_r, _ = _patch_factors(p)
+    w_area = W.Bilinear(patch.corner_area_elements())
+    w_geom = W.fit_pointwise(W.Biquadratic, geometry, [w_area, patch])
+    w_cos = W.fit_pointwise(W.Biquadratic, cos_r, [w_geom, w_area, patch])
+    return W.compose(w_cos, w_geom, w_area, patch)
+
+
 def patch_methods():
     def uniform(p):
         return _patch_factors(p)[0]
@@ -165,13 +175,6 @@ def patch_methods():
         patch = _patch_factors(p)[0]
         q = W.fit_pointwise(W.Biquadratic, lambda x: patch.area_element(patch.inverse(x)), [patch])
         return W.compose(q, patch)
-
-    def three_warp(p):
-        patch, geometry, cos_r, _ = _patch_factors(p)
-        w_area = W.Bilinear(patch.corner_area_elements())
-        w_geom = W.fit_pointwise(W.Biquadratic, geometry, [w_area, patch])
-        w_cos = W.fit_pointwise(W.Biquadratic, cos_r, [w_geom, w_area, patch])
-        return W.compose(w_cos, w_geom, w_area, patch)
 
     def area_lsq(p):
         patch, _, _, f = _patch_factors(p)
@@ -187,7 +190,7 @@ def patch_methods():
         "uniform parametric": uniform,
         "bilinear approx. area": area_bilinear,
         "biquadratic approx. area": area_biquadratic,
-        "three-warp approx. cosine": three_warp,
+        "three-warp approx. cosine": patch_three_warp,
         "area + biquadratic (least squares)": area_lsq,
         "tabulated 32x32": tabulated,
     }, (lambda p: _patch_factors(p)[3])
