@@ -2,7 +2,13 @@
 
 Each subcommand is a pair of functions: ``_add_NAME(subparsers)`` declares its arguments and
 ``_run_NAME(args)`` does the work by calling the library. Errors from the library (bad input,
-missing files, refusing to overwrite) become a one-line message and a non-zero exit status.
+missing or damaged files, refusing to overwrite, too large a request) become a one-line message
+and exit status 2; so do argparse's own errors.
+
+Building the parser imports neither JAX nor NumPy, so ``anisosample --help`` and every
+subcommand's ``--help`` answer at once: ``_add_NAME`` takes its lists of names from
+``anisosample._names`` and imports the library only inside ``_run_NAME``
+(``tests/test_cli.py::test_help_does_not_import_jax`` holds this).
 """
 
 from __future__ import annotations
@@ -34,10 +40,10 @@ def _float_list(text: str) -> list[float]:
 
 
 def _add_points(sub):
-    from . import samplers
+    from ._names import BASELINES, DIRECTIONAL_SAMPLERS
 
     p = sub.add_parser("points", help="generate a point set with a baseline sampler")
-    p.add_argument("sampler", help=f"one of: {', '.join(samplers.names())}")
+    p.add_argument("sampler", help=f"one of: {', '.join(BASELINES + DIRECTIONAL_SAMPLERS)}")
     p.add_argument("-n", type=int, required=True, help="number of points")
     p.add_argument("--seed", type=int, default=0, help="integer seed of the JAX key")
     p.add_argument("--shift", action="store_true", help="apply a random toroidal shift")
@@ -296,12 +302,12 @@ def _run_tables(args):
 
 
 def _add_variance(sub):
-    from . import integrands, samplers
+    from ._names import BASELINES, DIRECTIONAL_SAMPLERS, INTEGRAND_SPEC_HELP
 
     p = sub.add_parser("variance", help="estimator variance vs n on an analytic integrand")
-    p.add_argument("--integrand", required=True, help=integrands.SPEC_HELP)
+    p.add_argument("--integrand", required=True, help=INTEGRAND_SPEC_HELP)
     p.add_argument("--sampler", default="random,jittered,sobol-owen,pmj02bn",
-                   help=f"comma-separated; any of: {', '.join(samplers.names())}")
+                   help=f"comma-separated; any of: {', '.join(BASELINES + DIRECTIONAL_SAMPLERS)}")
     p.add_argument("--n", type=_int_list, default=[64, 256, 1024], help="comma-separated sizes")
     p.add_argument("--realizations", type=int, default=1024)
     p.add_argument("--randomization", default="auto",
@@ -471,32 +477,78 @@ _COMMANDS = {
 }
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from . import __version__
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser with one-line errors: ``PROG: error: MESSAGE (see PROG --help)`` and
+    exit status 2, without the usage block argparse prints above it."""
 
-    parser = argparse.ArgumentParser(
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+class _VersionAction(argparse.Action):
+    """``--version``, reading the package metadata only when asked."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS,
+                 help="show the version and exit"):
+        super().__init__(option_strings, dest, nargs=0, default=default, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from . import __version__
+
+        parser.exit(0, f"anisosample {__version__}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
         prog="anisosample",
         description="Anisotropic sampling patterns and product-sampling warps (JAX).",
     )
-    parser.add_argument("--version", action="version", version=f"anisosample {__version__}")
+    parser.add_argument("--version", action=_VersionAction)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add, _ in _COMMANDS.values():
         add(sub)
     return parser
 
 
+_USER_ERRORS = (ValueError, TypeError, KeyError, OSError, MemoryError, RuntimeError, EOFError)
+"""What bad input raises in the library: wrong values, missing/damaged/unwritable files, requests
+too large to allocate, checks inside jit (``eqx.error_if`` raises a RuntimeError). ``OSError``
+covers FileExistsError and FileNotFoundError; a damaged ``.npz`` (``zipfile.BadZipFile``) is
+turned into a ValueError naming the file by :mod:`anisosample.io`, and caught here as well."""
+
+
+def _one_line(exc: BaseException) -> str:
+    """The first line of an exception's message (equinox's runtime errors add a paragraph of
+    advice below it), or the exception's type if it has no message."""
+    text = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    if not lines:
+        return type(exc).__name__
+    first = lines[0]
+    if isinstance(exc, MemoryError | RuntimeError) and type(exc).__name__ not in first:
+        first = f"{type(exc).__name__}: {first}"
+    return first
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit status:
+    0 on success, 2 for bad input (one line on stderr), 130 when interrupted."""
+    import zipfile
+
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version and argparse's errors end here
+        return exc.code if isinstance(exc.code, int) else 2
     _, run = _COMMANDS[args.command]
+    name = args.command + (f" {args.tables_command}" if args.command == "tables" else "")
     try:
         run(args)
-    except (ValueError, TypeError, FileExistsError, FileNotFoundError, KeyError) as exc:
-        msg = str(exc).strip("'\"") or type(exc).__name__
-        print(f"anisosample {args.command}: error: {msg}", file=sys.stderr)
+    except (*_USER_ERRORS, zipfile.BadZipFile) as exc:
+        print(f"anisosample {name}: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"anisosample {args.command}: interrupted", file=sys.stderr)
+        print(f"anisosample {name}: interrupted", file=sys.stderr)
         return 130
     return 0
 

@@ -22,12 +22,11 @@ _METADATA_KEY = "__metadata__"
 
 
 def package_version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
+    """The installed package version (``anisosample.__version__``; ``0+unknown`` from a source
+    tree that was not installed)."""
+    from . import __version__
 
-    try:
-        return version("anisosample")
-    except PackageNotFoundError:  # running from a source tree without installing
-        return "0+unknown"
+    return __version__
 
 
 def provenance() -> dict[str, Any]:

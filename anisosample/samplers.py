@@ -25,6 +25,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._names import BASELINES
 from ._validate import ONE_MINUS_EPSILON, check_int, check_key, check_points
 
 __all__ = [
@@ -44,8 +45,6 @@ __all__ = [
     "grid_shape",
 ]
 
-BASELINES = ("random", "jittered", "cmj", "sobol-owen", "pmj02", "pmj02bn")
-"""The baseline samplers, which take no options (``get(name)(key, n)``)."""
 
 MAX_LOG2_N = 24
 """Nets are exact up to 2^24 points: float32 carries 24 bits of each coordinate."""

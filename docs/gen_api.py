@@ -155,6 +155,8 @@ def describe(modname: str, name: str, obj) -> list[str]:
 
 def generate() -> str:
     pkg = importlib.import_module(PACKAGE)
+    for name in dir(pkg):  # resolve the package's lazy (PEP 562) attributes
+        getattr(pkg, name)
     out = [
         "# API reference",
         "",

@@ -4,15 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._names import INTEGRAND_SPEC_HELP
 from ._base import Integrand
 from ._polygons import HalfPlane, Polygon, edges
 from ._smooth import Disk, GaussianBump, SmoothedEdge, Textured, smooth_texture
 
-SPEC_HELP = (
-    "edges:T1[,T2,..]  |  halfplane:PHI,OFFSET  |  polygon:X0,Y0,X1,Y1,X2,Y2[,..]  |  "
-    "disk[:CX,CY,R]  |  bump[:CX,CY,SIGMA]  |  smoothed:PHI,SIGMA (edge through the centre)  |  "
-    "textured-<any of these>"
-)
+SPEC_HELP = INTEGRAND_SPEC_HELP
 
 
 def from_spec(spec: str) -> Integrand:

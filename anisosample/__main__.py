@@ -1,0 +1,7 @@
+"""``python -m anisosample``: the command line (:mod:`anisosample.cli`)."""
+
+import sys
+
+from .cli import main
+
+sys.exit(main())
