@@ -10,6 +10,7 @@ Per-block aligned sampling (W Sec. 5.3-5.4): :mod:`anisosample.render.aligned`,
 
 from . import aligned as aligned
 from . import mitsuba_compat as mitsuba_compat
+from . import pixel_classes as pixel_classes
 from .aligned import BlockSampler as BlockSampler
 from .aligned import block_sampler as block_sampler
 from .builder import SceneBuilder as SceneBuilder
