@@ -9,6 +9,7 @@ behave exactly as eager re-exports would.
 """
 
 from importlib import import_module as _import_module
+from importlib.util import find_spec as _find_spec
 from typing import TYPE_CHECKING as _TYPE_CHECKING
 
 if _TYPE_CHECKING:  # the explicit re-exports, for type checkers and readers
@@ -50,6 +51,8 @@ def _package_version() -> str:
 def __getattr__(name: str):
     if name in _SUBMODULES:
         return _import_module(f".{name}", __name__)  # the import binds it as an attribute
+    if not name.startswith("_") and _find_spec(f"{__name__}.{name}") is not None:
+        return _import_module(f".{name}", __name__)  # a module added since this list
     if name in _FUNCTIONS:
         value = getattr(_import_module(f".{_FUNCTIONS[name]}", __name__), name)
     elif name == "__version__":

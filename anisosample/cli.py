@@ -38,39 +38,97 @@ def _float_list(text: str) -> list[float]:
 
 # --- points ------------------------------------------------------------------------------------
 
+_POINT_OUTPUTS = (".npy", ".npz", ".txt", ".csv", ".png")
+
+
+def _add_directional_options(p):
+    """``--directions`` (aligned) and ``--direction``/``--base`` (sheared), shared by the
+    subcommands that make samplers by name."""
+    p.add_argument("--directions", type=_float_list, default=None,
+                   help="aligned: the set's spectral directions in degrees, e.g. 0,90,30 (the "
+                        "axes are always in a table's sets; others are rounded to integers)")
+    p.add_argument("--direction", type=float, default=None,
+                   help="sheared: the spectral direction in degrees [0, 180) to shear to")
+    p.add_argument("--base", default="pmj02bn",
+                   help="sheared: the baseline sampler that is sheared (default pmj02bn)")
+
 
 def _add_points(sub):
     from ._names import BASELINES, DIRECTIONAL_SAMPLERS
 
-    p = sub.add_parser("points", help="generate a point set with a baseline sampler")
+    p = sub.add_parser("points", help="generate a point set with a baseline, aligned or sheared "
+                                      "sampler")
     p.add_argument("sampler", help=f"one of: {', '.join(BASELINES + DIRECTIONAL_SAMPLERS)}")
     p.add_argument("-n", type=int, required=True, help="number of points")
     p.add_argument("--seed", type=int, default=0, help="integer seed of the JAX key")
     p.add_argument("--shift", action="store_true", help="apply a random toroidal shift")
-    p.add_argument("-o", "--output", required=True, help="output .npy or .npz")
+    _add_directional_options(p)
+    p.add_argument("-o", "--output", required=True,
+                   help="output .npy, .npz (with metadata), .txt ('x y' a line), .csv ('x,y' a "
+                        "line) or .png (a scatter plot of the set)")
     p.add_argument("--force", action="store_true", help="overwrite an existing output")
 
 
-def _run_points(args):
-    import jax
+def _make_sampler(name, args, option="--sampler", *, only=True):
+    """The sampler ``name`` with the directional options of ``args``: ``aligned`` needs
+    ``--directions``, ``sheared`` needs ``--direction``; a baseline takes neither (when it is
+    the ``only`` sampler named, giving them is an error)."""
+    from . import samplers
 
-    from . import io, samplers
+    given = [flag for flag, value in (("--directions", args.directions),
+                                      ("--direction", args.direction)) if value is not None]
+    if name == "aligned":
+        if args.directions is None:
+            raise ValueError(f"{option} aligned needs --directions, the set's spectral "
+                             "directions in degrees, e.g. --directions 0,90,30")
+        return samplers.get("aligned", directions_deg=args.directions)
+    if name == "sheared":
+        if args.direction is None:
+            raise ValueError(f"{option} sheared needs --direction, the spectral direction in "
+                             "degrees [0, 180) to shear to, e.g. --direction 30")
+        return samplers.get("sheared", base=args.base, direction_deg=args.direction)
+    sampler = samplers.get(name)  # an unknown name lists the known ones
+    if given and only:
+        raise ValueError(f"{' and '.join(given)} {'apply' if len(given) > 1 else 'applies'} to "
+                         f"the aligned or sheared sampler, not to {name!r}")
+    return sampler
+
+
+def _run_points(args):
+    from . import io
 
     out = Path(args.output)
-    if out.suffix not in (".npy", ".npz"):
-        raise ValueError(f"--output must end in .npy or .npz, got {out.name}")
+    if out.suffix.lower() not in _POINT_OUTPUTS:
+        raise ValueError(f"--output must end in {', '.join(_POINT_OUTPUTS)}, got {out.name}")
+    if out.exists() and not args.force:
+        raise FileExistsError(f"{out} exists; pass --force to replace it")
+    if args.base != "pmj02bn" and args.sampler != "sheared":
+        raise ValueError(f"--base applies to the sheared sampler, not to {args.sampler!r}")
+
+    import jax
+
+    from . import samplers
+
+    sampler = _make_sampler(args.sampler, args, option="points")
     key = jax.random.key(args.seed)
-    sampler = samplers.get(args.sampler)
     k_pts, k_shift = jax.random.split(key)
     pts = sampler(k_pts, args.n)
     if args.shift:
         pts = samplers.toroidal_shift(k_shift, pts)
-    if out.suffix == ".npy":
-        io.save_npy(out, pts, overwrite=args.force)
+    meta = {"sampler": args.sampler, "name": sampler.name, "n": args.n, "seed": args.seed,
+            "shift": args.shift}
+    if args.sampler == "aligned":
+        meta["directions_deg"] = [0, 90, *sampler.directions_deg]
+    if args.sampler == "sheared":
+        meta.update(base=args.base, direction_deg=args.direction)
+    if out.suffix.lower() == ".png":
+        from . import plot
+
+        plot.save_points_figure(out, pts, title=f"{sampler.name}, n = {args.n}",
+                                overwrite=args.force)
     else:
-        meta = {"sampler": args.sampler, "n": args.n, "seed": args.seed, "shift": args.shift}
-        io.save_npz(out, {"points": pts}, meta, overwrite=args.force)
-    print(f"wrote {args.n} {args.sampler} points to {out}")
+        io.save_points(out, pts, meta, overwrite=args.force)
+    print(f"wrote {args.n} {sampler.name} points to {out}")
 
 
 # --- spectrum ----------------------------------------------------------------------------------
@@ -316,6 +374,7 @@ def _add_variance(sub):
     p.add_argument("--patterns", type=int, default=1,
                    help="fixed sets per n for randomization 'shift'")
     p.add_argument("--seed", type=int, default=0, help="integer seed of the JAX key")
+    _add_directional_options(p)
     p.add_argument("-o", "--output", default="variance.json", help="output JSON")
     p.add_argument("--force", action="store_true", help="overwrite an existing output")
 
@@ -333,7 +392,20 @@ def _run_variance(args):
         raise FileExistsError(f"{out} exists; pass --force to overwrite it")
     f = integrands.from_spec(args.integrand)
     names = [s.strip() for s in args.sampler.split(",") if s.strip()]
-    result = V.convergence(f, names, args.n, jax.random.key(args.seed), args.realizations,
+    if not names:
+        raise ValueError("--sampler must name at least one sampler")
+    if len(set(names)) != len(names):
+        raise ValueError(f"--sampler names a sampler twice: {args.sampler!r}")
+    if args.base != "pmj02bn" and "sheared" not in names:
+        raise ValueError("--base applies to the sheared sampler, which --sampler does not name")
+    chosen = {name: _make_sampler(name, args, only=False) for name in names}
+    unused = [flag for flag, value, owner in (("--directions", args.directions, "aligned"),
+                                              ("--direction", args.direction, "sheared"))
+              if value is not None and owner not in names]
+    if unused:
+        raise ValueError(f"{' and '.join(unused)} given but --sampler names neither aligned nor "
+                         "sheared")
+    result = V.convergence(f, chosen, args.n, jax.random.key(args.seed), args.realizations,
                            exact=f.integral, randomization=args.randomization,
                            patterns=args.patterns, progress=True)
     width = max(16, *(len(s) + 2 for s in names))
@@ -347,7 +419,11 @@ def _run_variance(args):
         for s in names))
     record = {"integrand": args.integrand, "integral": f.integral, "seed": args.seed,
               "realizations": args.realizations, "patterns": args.patterns,
-              "randomization": args.randomization, **result.as_dict(),
+              "randomization": args.randomization,
+              "sampler_options": {name: {"directions_deg": args.directions} if name == "aligned"
+                                  else {"direction_deg": args.direction, "base": args.base}
+                                  for name in names if name in ("aligned", "sheared")},
+              **result.as_dict(),
               "provenance": io.provenance()}
     io.save_json(out, record, overwrite=args.force)
     print(f"wrote {out}")

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["new_figure", "spectrum_panel", "convergence_panel", "save_figure"]
+__all__ = ["new_figure", "spectrum_panel", "points_panel", "convergence_panel", "save_figure",
+           "save_points_figure"]
 
 
 def _plt():
@@ -71,6 +72,30 @@ def spectrum_panel(
     return im
 
 
+def points_panel(ax, points, *, title: str | None = None, color: str = "k",
+                 marker_size: float | None = None):
+    """Scatter a point set ``(n, 2)`` on the unit square, ``y`` upwards, equal aspect.
+
+    The marker area shrinks with ``n`` (``marker_size`` overrides it, in points^2) so that the
+    set's structure stays visible from 16 to 2^16 points.
+    """
+    p = np.asarray(points, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 2:
+        raise ValueError(f"points must have shape (n, 2), got {p.shape}")
+    n = p.shape[0]
+    size = marker_size if marker_size is not None else float(np.clip(2000.0 / max(n, 1), 0.05, 16))
+    art = ax.scatter(p[:, 0], p[:, 1], s=size, c=color, linewidths=0)
+    ax.set_xlim(0.0, 1.0)
+    ax.set_ylim(0.0, 1.0)
+    ax.set_aspect("equal")
+    ax.set_xticks([0.0, 0.5, 1.0])
+    ax.set_yticks([0.0, 0.5, 1.0])
+    ax.tick_params(labelsize=7)
+    if title:
+        ax.set_title(title, fontsize=9)
+    return art
+
+
 def convergence_panel(
     ax,
     ns,
@@ -102,10 +127,12 @@ def convergence_panel(
     return line
 
 
-def save_figure(fig, path, *, formats: Sequence[str] = ("png",), dpi: int = 150) -> list[Path]:
+def save_figure(fig, path, *, formats: Sequence[str] = ("png",), dpi: int = 150,
+                overwrite: bool = True) -> list[Path]:
     """Save ``fig`` as ``path`` with each suffix in ``formats`` (atomic), and close it.
 
-    Experiment scripts own their ``results/<name>/`` folder and rewrite their figures there.
+    Experiment scripts own their ``results/<name>/`` folder and rewrite their figures there
+    (``overwrite=True``, the default); user-facing callers pass ``overwrite=False``.
     """
     from .io import atomic_path
 
@@ -114,8 +141,24 @@ def save_figure(fig, path, *, formats: Sequence[str] = ("png",), dpi: int = 150)
     base = Path(path)
     for fmt in formats:
         p = base.with_suffix("." + fmt)
-        with atomic_path(p, overwrite=True) as tmp:
+        with atomic_path(p, overwrite=overwrite) as tmp:
             fig.savefig(tmp, format=fmt, dpi=dpi, bbox_inches="tight")
         out.append(p)
     plt.close(fig)
+    return out
+
+
+def save_points_figure(path, points, *, title: str | None = None, size: float = 4.0,
+                       overwrite: bool = False) -> Path:
+    """Draw a point set (:func:`points_panel`) into one PNG or PDF/SVG figure at ``path``;
+    refuses to replace an existing file unless ``overwrite``."""
+    path = Path(path)
+    fmt = path.suffix.lower().lstrip(".")
+    if fmt not in ("png", "pdf", "svg"):
+        raise ValueError(f"figure file name must end in .png, .pdf or .svg, got {path.name}")
+    if path.exists() and not overwrite:
+        raise FileExistsError(f"{path} exists; pass overwrite=True (CLI: --force) to replace it")
+    fig, axes = new_figure(size=size)
+    points_panel(axes[0, 0], points, title=title)
+    (out,) = save_figure(fig, path, formats=(fmt,), overwrite=overwrite)
     return out

@@ -88,8 +88,25 @@ def register(name: str, factory: Callable[..., Sampler]) -> None:
     _REGISTRY[name] = factory
 
 
+_BUILTIN_HOMES = ("tables", "selection")
+"""Modules that register a built-in sampler on import (``aligned`` looks its sets up in the
+tables): imported on first use of the registry, so that ``get("aligned")`` always works."""
+
+
+def _register_builtins() -> None:
+    import importlib
+    import importlib.util
+
+    for home in _BUILTIN_HOMES:
+        if "aligned" in _REGISTRY:
+            return
+        if importlib.util.find_spec(f"{__package__}.{home}") is not None:
+            importlib.import_module(f".{home}", __package__)
+
+
 def names() -> list[str]:
     """The registered sampler names."""
+    _register_builtins()
     return sorted(_REGISTRY)
 
 
@@ -98,6 +115,7 @@ def get(name: str, **options) -> Sampler:
 
     ``get("sheared", base="pmj02bn", direction_deg=30.0)`` is the Singh-Jarosz sheared baseline.
     """
+    _register_builtins()
     if name not in _REGISTRY:
         raise ValueError(f"unknown sampler {name!r}; known samplers: {', '.join(names())}")
     return _REGISTRY[name](**options)

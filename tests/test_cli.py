@@ -43,12 +43,12 @@ def test_points_and_spectrum(tmp_path, capsys):
     [
         (["points", "halton", "-n", "8", "-o", "x.npy"], "unknown sampler 'halton'"),
         (["points", "random", "-n", "0", "-o", "x.npy"], "n must be >= 1"),
-        (["points", "random", "-n", "8", "-o", "x.txt"], "--output must end in .npy or .npz"),
+        (["points", "random", "-n", "8", "-o", "x.bmp"], "--output must end in .npy, .npz"),
         (["spectrum", "missing.npy", "-o", "s.png"], "no such file"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(tmp_path, args, needle):
-    args = [a if not a.endswith((".npy", ".txt", ".png")) else str(tmp_path / a) for a in args]
+    args = [a if not a.endswith((".npy", ".bmp", ".png")) else str(tmp_path / a) for a in args]
     r = run(*args)
     assert r.returncode == 2
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
@@ -59,7 +59,7 @@ def test_spectrum_rejects_points_outside_the_square(tmp_path):
     bad = tmp_path / "bad.npy"
     np.save(bad, np.full((4, 2), 1.5, np.float32))
     r = run("spectrum", str(bad), "-o", str(tmp_path / "s.png"))
-    assert r.returncode == 2 and "points must lie in [0, 1)^2" in r.stderr
+    assert r.returncode == 2 and f"points in {bad} must lie in [0, 1)^2" in r.stderr
 
 
 def test_help_lists_commands():
