@@ -147,7 +147,14 @@ def kappa_from_resultant(rbar, *, newton_steps: int = 6, kappa_max: float = 1e4)
 
 
 def log_pdf(x, mu, kappa):
-    """``log q(x | mu, kappa)`` of W Eq. 16 (radians; per unit angle on the circle)."""
+    """``log q(x | mu, kappa)`` of W Eq. 16 (radians; per unit angle on the circle).
+
+    ``kappa >= 0``; concrete ``x``, ``mu`` must be finite and ``kappa`` finite and ``>= 0``
+    (``ValueError`` otherwise; traced values are not checked).
+    """
+    _check_mu("x", x)
+    _check_mu("mu", mu)
+    _check_kappa(kappa, allow_zero=True)
     kappa = jnp.asarray(kappa)
     return kappa * (jnp.cos(x - mu) - 1.0) - jnp.log(_TWO_PI * i0e(kappa))
 
@@ -158,7 +165,7 @@ def pdf(x, mu, kappa):
     Evaluated as ``exp(kappa (cos(x - mu) - 1)) / (2 pi i0e(kappa))``: finite for every
     ``kappa >= 0`` (``kappa = 0`` is the uniform density ``1/(2 pi)``).
     """
-    return jnp.exp(log_pdf(x, mu, kappa))
+    return jnp.exp(log_pdf(x, mu, kappa))  # log_pdf checks the arguments
 
 
 @jax.custom_jvp
@@ -197,6 +204,10 @@ def bin_masses(mu, kappa, nbins: int, *, nodes: int = DEFAULT_NODES):
     ``sum_i Q_i = 1`` up to the quadrature error (< 1e-5 for ``kappa`` up to ~1e3 with 180 bins
     and 4 nodes; raise ``nodes`` for narrower q).
     """
+    nbins = check_int("nbins", nbins, minimum=1)
+    nodes = check_int("nodes", nodes, minimum=1)
+    _check_mu("mu", mu)
+    _check_kappa(kappa, allow_zero=True)
     mu = jnp.asarray(mu)
     dtype = (
         jnp.result_type(mu, jnp.float32) if not jnp.issubdtype(mu.dtype, jnp.floating) else mu.dtype
@@ -284,15 +295,23 @@ def _check_mask(mask, nbins: int):
 
 
 def _check_mu(name: str, mu):
-    if not isinstance(mu, jax.core.Tracer) and not np.all(np.isfinite(np.asarray(mu))):
+    if isinstance(mu, jax.core.Tracer):
+        return
+    m = np.asarray(mu)
+    if not np.issubdtype(m.dtype, np.number) or np.iscomplexobj(m):
+        raise TypeError(f"{name} must be real angles in radians, got dtype {m.dtype}")
+    if not np.all(np.isfinite(m)):
         raise ValueError(f"{name} must be finite (radians), got {np.asarray(mu).tolist()}")
 
 
-def _check_kappa(kappa):
+def _check_kappa(kappa, *, allow_zero: bool = False):
     if not isinstance(kappa, jax.core.Tracer):
         k = np.asarray(kappa)
-        if not np.all(np.isfinite(k)) or np.any(k <= 0):
-            raise ValueError(f"kappa must be finite and > 0, got {k.tolist()}")
+        if not np.issubdtype(k.dtype, np.number) or np.iscomplexobj(k):
+            raise TypeError(f"kappa must be a real number, got {k.dtype}")
+        if not np.all(np.isfinite(k)) or np.any(k < 0) or (not allow_zero and np.any(k == 0)):
+            bound = ">= 0" if allow_zero else "> 0"
+            raise ValueError(f"kappa must be finite and {bound}, got {k.tolist()}")
 
 
 def _circulant_kernel(nbins: int, kappa, nodes: int, dtype):
