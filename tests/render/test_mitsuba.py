@@ -15,7 +15,8 @@ from .helpers import SCENES, mitsuba_render
 
 pytest.importorskip("mitsuba")
 
-SHIPPED = ["cornell", "blinds", "attic", "dof", "triangle_light", "glossy", "plastic"]
+SHIPPED = ["cornell", "blinds", "attic", "dof", "triangle_light", "glossy", "plastic",
+           "h_triangle_plane"]
 
 
 def _relrmse(a, b):
