@@ -14,6 +14,7 @@ subcommand's ``--help`` answer at once: ``_add_NAME`` takes its lists of names f
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -29,11 +30,37 @@ def _int_list(text: str) -> list[int]:
 
 def _float_list(text: str) -> list[float]:
     try:
-        return [float(t) for t in text.split(",") if t.strip()]
+        values = [float(t) for t in text.split(",") if t.strip()]
     except ValueError as exc:
         raise argparse.ArgumentTypeError(
             f"expected comma-separated numbers, got {text!r}"
         ) from exc
+    if not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected finite numbers, got {text!r}")
+    return values
+
+
+def _finite_float(text: str) -> float:
+    """argparse's ``float`` without NaN and infinities (``float("nan")`` parses)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+def _seed(text: str) -> int:
+    """A seed for ``jax.random.key``: an integer in [0, 2^32) (larger ones wrap around to the
+    keys of small seeds without x64: ``key(2**32)`` is ``key(0)``)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer seed, got {text!r}") from None
+    if not 0 <= value < 2**32:
+        raise argparse.ArgumentTypeError(f"seeds must lie in [0, 2^32), got {value}")
+    return value
 
 
 # --- points ------------------------------------------------------------------------------------
@@ -47,7 +74,7 @@ def _add_directional_options(p):
     p.add_argument("--directions", type=_float_list, default=None,
                    help="aligned: the set's spectral directions in degrees, e.g. 0,90,30 (the "
                         "axes are always in a table's sets; others are rounded to integers)")
-    p.add_argument("--direction", type=float, default=None,
+    p.add_argument("--direction", type=_finite_float, default=None,
                    help="sheared: the spectral direction in degrees [0, 180) to shear to")
     p.add_argument("--base", default="pmj02bn",
                    help="sheared: the baseline sampler that is sheared (default pmj02bn)")
@@ -60,7 +87,7 @@ def _add_points(sub):
                                       "sampler")
     p.add_argument("sampler", help=f"one of: {', '.join(BASELINES + DIRECTIONAL_SAMPLERS)}")
     p.add_argument("-n", type=int, required=True, help="number of points")
-    p.add_argument("--seed", type=int, default=0, help="integer seed of the JAX key")
+    p.add_argument("--seed", type=_seed, default=0, help="integer seed of the JAX key")
     p.add_argument("--shift", action="store_true", help="apply a random toroidal shift")
     _add_directional_options(p)
     p.add_argument("-o", "--output", required=True,
@@ -168,12 +195,12 @@ def _add_synthesize(sub):
     p.add_argument("-n", type=int, required=True, help="number of points")
     p.add_argument("--directions", type=_float_list, required=True,
                    help="spectral directions in degrees, e.g. 0,90,30 (axes are not implied)")
-    p.add_argument("--seed", type=int, default=0, help="integer seed of the JAX key")
+    p.add_argument("--seed", type=_seed, default=0, help="integer seed of the JAX key")
     p.add_argument("--recipe", default="rate", choices=["rate", "paper"],
                    help="rate (default, reaches the rate) or paper (W Eqs. 10-15)")
     p.add_argument("--steps", type=int, default=None, help="optimizer steps (recipe default)")
-    p.add_argument("--c", type=float, default=None, help="weight of the SW term (W Eq. 10)")
-    p.add_argument("--learning-rate", type=float, default=None,
+    p.add_argument("--c", type=_finite_float, default=None, help="weight of the SW term (W Eq. 10)")
+    p.add_argument("--learning-rate", type=_finite_float, default=None,
                    help="Adam step in units of 1/sqrt(n) (recipe default)")
     p.add_argument("-o", "--output", required=True, help="output .npz (points + metadata)")
     p.add_argument("--checkpoint", default=None,
@@ -222,9 +249,10 @@ def _add_directions(sub):
     p.add_argument("--top-down", action="store_true",
                    help="the grid's first row is the largest y (renderer images)")
     p.add_argument("--method", default="fixed", choices=["fixed", "gradient"])
-    p.add_argument("--kappa", type=float, default=None, help="vMF concentration (doubled angle)")
-    p.add_argument("--threshold", type=float, default=None, help="confidence threshold")
-    p.add_argument("--sigma", type=float, default=None, help="Gaussian sigma in grid cells")
+    p.add_argument("--kappa", type=_finite_float, default=None,
+                   help="vMF concentration (doubled angle)")
+    p.add_argument("--threshold", type=_finite_float, default=None, help="confidence threshold")
+    p.add_argument("--sigma", type=_finite_float, default=None, help="Gaussian sigma in grid cells")
     p.add_argument("--force", action="store_true", help="overwrite an existing output")
 
 
@@ -286,7 +314,7 @@ def _add_tables(sub):
                    help="3 (axes + 1 direction, 46 sets) or 4 (axes + 2, 4141 sets)")
     b.add_argument("--out", default=None,
                    help="table directory (default: the user cache, see tables.cache_dir())")
-    b.add_argument("--seed", type=int, default=0, help="integer seed of the JAX key")
+    b.add_argument("--seed", type=_seed, default=0, help="integer seed of the JAX key")
     b.add_argument("--sets", default=None,
                    help="only these canonical sets, e.g. 0,30,45 or 10:20;0:45 (default: all)")
     b.add_argument("--recipe", default=None, choices=["rate", "paper"])
@@ -373,7 +401,7 @@ def _add_variance(sub):
                    help="auto: fresh for traceable samplers, shifts of fixed sets otherwise")
     p.add_argument("--patterns", type=int, default=1,
                    help="fixed sets per n for randomization 'shift'")
-    p.add_argument("--seed", type=int, default=0, help="integer seed of the JAX key")
+    p.add_argument("--seed", type=_seed, default=0, help="integer seed of the JAX key")
     _add_directional_options(p)
     p.add_argument("-o", "--output", default="variance.json", help="output JSON")
     p.add_argument("--force", action="store_true", help="overwrite an existing output")
@@ -450,7 +478,7 @@ def _add_render(sub):
     p.add_argument("--spp", type=int, default=None, help="points per pixel (default: the scene's)")
     p.add_argument("--realizations", type=int, default=1,
                    help="independent renders; >1 also writes a per-pixel variance image")
-    p.add_argument("--seed", type=int, default=0, help="integer seed of the JAX key")
+    p.add_argument("--seed", type=_seed, default=0, help="integer seed of the JAX key")
     p.add_argument("--pixel-center", action="store_true",
                    help="fixed primary hit per pixel (the papers' 2D integrand) instead of "
                         "averaging over the pixel area")
@@ -463,7 +491,8 @@ def _add_render(sub):
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                    help="override a <default> parameter of the XML (repeatable)")
     p.add_argument("--reference", default=None, help="reference EXR: also write *_mse.exr")
-    p.add_argument("--exposure", type=float, default=0.0, help="PNG preview exposure (stops)")
+    p.add_argument("--exposure", type=_finite_float, default=0.0,
+                   help="PNG preview exposure (stops)")
     p.add_argument("-o", "--output", required=True, help="output .exr (a .png preview beside)")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
 
@@ -586,7 +615,8 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-_USER_ERRORS = (ValueError, TypeError, KeyError, OSError, MemoryError, RuntimeError, EOFError)
+_USER_ERRORS = (ValueError, TypeError, KeyError, OSError, MemoryError, RuntimeError, EOFError,
+                OverflowError)
 """What bad input raises in the library: wrong values, missing/damaged/unwritable files, requests
 too large to allocate, checks inside jit (``eqx.error_if`` raises a RuntimeError). ``OSError``
 covers FileExistsError and FileNotFoundError; a damaged ``.npz`` (``zipfile.BadZipFile``) is
