@@ -50,6 +50,7 @@ import numpy as np
 
 from ._validate import check_choice, check_directions_deg, check_points, check_positive_float
 from .frequencies import FrequencySet, custom_set
+from .spectrum import finufft_opts
 
 METHODS = ("auto", "direct", "nufft1", "nufft3")
 _DIRECT_LIMIT = 2**21
@@ -109,7 +110,8 @@ def _nufft_forward(x, v, r, eps):
     xr = (x - 0.5) @ r.T * (2.0 * jnp.pi)  # centring only changes the phase of F, not P
     vr = v @ r.T
     c = jnp.ones(x.shape[0], dtype=_cdtype(x.dtype))
-    return nufft3(c, xr[:, 0], xr[:, 1], vr[:, 0], vr[:, 1], iflag=-1, eps=eps)
+    return nufft3(c, xr[:, 0], xr[:, 1], vr[:, 0], vr[:, 1], iflag=-1, eps=eps,
+                  opts=finufft_opts(eps))
 
 
 def _nufft_adjoint(x, v, a, r, eps):
@@ -117,7 +119,8 @@ def _nufft_adjoint(x, v, a, r, eps):
 
     xr = (x - 0.5) @ r.T
     vr = v @ r.T * (2.0 * jnp.pi)
-    return nufft3(a, vr[:, 0], vr[:, 1], xr[:, 0], xr[:, 1], iflag=-1, eps=eps)
+    return nufft3(a, vr[:, 0], vr[:, 1], xr[:, 0], xr[:, 1], iflag=-1, eps=eps,
+                  opts=finufft_opts(eps))
 
 
 class _Box(NamedTuple):
@@ -207,8 +210,6 @@ def _box_area(segs) -> int:
 
 def _nufft1_setup(x, v, box: _Box, eps):
     """Points on the box's lattice, the centre's phase per point, grid indices, NUFFT options."""
-    from jax_finufft.options import Opts
-
     m = jnp.asarray(np.asarray(box.m, np.float64).reshape(2, 2), x.dtype)
     xp = x @ m  # x'_j = M^T x_j
     xp = xp - jnp.floor(xp)
@@ -222,9 +223,7 @@ def _nufft1_setup(x, v, box: _Box, eps):
     # sigma = 1.25 shrinks the fine grid 2.6x; type 1/2 only spread the n points, so the wider
     # kernel it needs costs little. CPU FINUFFT supports it down to eps ~ 1e-9; on a GPU the
     # library's own choice stands.
-    small_sigma = eps >= 1e-9 and jax.default_backend() == "cpu"
-    opts = Opts(upsampfac=1.25) if small_sigma else None
-    return (xp - 0.5) * (2.0 * jnp.pi), shift, idx, shape, opts
+    return (xp - 0.5) * (2.0 * jnp.pi), shift, idx, shape, finufft_opts(eps, upsampfac=1.25)
 
 
 def _nufft1_forward(x, v, box: _Box, eps):

@@ -119,6 +119,27 @@ def _power_spectrum_direct(points, freqs):
 
 # --- NUFFT paths ----------------------------------------------------------------------------------
 
+NUFFT_THREADS = 1
+"""OpenMP threads of every CPU FINUFFT call. FINUFFT's multithreaded spreader (types 1 and 3)
+adds the threads' subgrids into the fine grid in whatever order they finish, so with more than
+one thread the same call gives different bits from run to run (n = 1024, 300 synthesis steps:
+coordinates differ by 3e-5). One thread makes every transform a fixed sequence of operations:
+same key, same bits across runs, thread counts and resumes (DESIGN). Interpolation (type 2) is
+order-independent but its FFT's plan depends on the thread count, so it runs on one thread too.
+On a GPU, cuFINUFFT's options apply (its atomics make it nondeterministic there)."""
+
+
+def finufft_opts(eps, *, upsampfac=None):
+    """The FINUFFT options of every call: :data:`NUFFT_THREADS` threads on the CPU and, for
+    type 1/2 grids, ``upsampfac`` where the CPU library supports it (``eps >= 1e-9``)."""
+    from jax_finufft.options import Opts
+
+    if jax.default_backend() != "cpu":
+        return None
+    up = upsampfac if upsampfac is not None and eps >= 1e-9 else 0.0
+    return Opts(nthreads=NUFFT_THREADS, upsampfac=up)
+
+
 
 def _nufft_eps(dtype) -> float:
     return 1e-11 if dtype == jnp.float64 else 1e-6
@@ -134,9 +155,9 @@ def _fourier_grid_nufft1(points, rx, ry):
     c = jnp.full((n,), 1.0 / n, dtype=cdtype)
     x = (2.0 * math.pi) * points[:, 0]
     y = (2.0 * math.pi) * points[:, 1]
-    return jax_finufft.nufft1(
-        (2 * rx + 1, 2 * ry + 1), c, x, y, eps=_nufft_eps(points.dtype), iflag=-1
-    )
+    eps = _nufft_eps(points.dtype)
+    return jax_finufft.nufft1((2 * rx + 1, 2 * ry + 1), c, x, y, eps=eps, iflag=-1,
+                              opts=finufft_opts(eps))
 
 
 @functools.partial(jax.jit, static_argnames=("rx", "ry"))
@@ -160,9 +181,9 @@ def _power_spectrum_nufft3(points, freqs, rotation):
     xr = (points - 0.5) @ R.T
     s = (2.0 * math.pi) * (freqs.astype(points.dtype) @ R.T)
     c = jnp.full((n,), 1.0 / n, dtype=cdtype)
-    f = jax_finufft.nufft3(
-        c, xr[:, 0], xr[:, 1], s[:, 0], s[:, 1], eps=_nufft_eps(points.dtype), iflag=-1
-    )
+    eps = _nufft_eps(points.dtype)
+    f = jax_finufft.nufft3(c, xr[:, 0], xr[:, 1], s[:, 0], s[:, 1], eps=eps, iflag=-1,
+                           opts=finufft_opts(eps))
     return jnp.real(f) ** 2 + jnp.imag(f) ** 2
 
 

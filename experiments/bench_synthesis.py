@@ -2,7 +2,8 @@
 cores: <= 17 s for n = 2^12 and <= 10 min for n = 2^16, 3 directions).
 
 Prints, per n: frequency count, one gradient's time with the default evaluation (``auto``:
-type-1 NUFFTs on lattice-aligned grids) and with the rotated type-3 NUFFT, after compilation,
+type-1 NUFFTs on lattice-aligned grids, FINUFFT on one thread: deterministic), the same with
+FINUFFT on its own thread count, and with the rotated type-3 NUFFT, after compilation,
 the compile time, and the wall and CPU time of ``synthesize`` with the default recipe
 (compilation included), the load average (other work on the machine inflates wall time) and the
 final loss.  Not a test: nothing is asserted.
@@ -21,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import anisosample as asp
-from anisosample import frequencies, losses, synthesis
+from anisosample import frequencies, losses, spectrum, synthesis
 
 
 def main(argv=None):
@@ -41,9 +42,14 @@ def main(argv=None):
             x = jnp.asarray(np.asarray(asp.samplers.get("jittered")(jax.random.key(0), n)),
                             jnp.float64)
             grad_s, compile_s = {}, None
-            for method, reps in (("auto", 5), ("nufft3", 2)):
-                g = jax.jit(jax.grad(lambda y, fset=fset, method=method: (
-                    losses.linear_spectrum_loss(y, fset, method=method, eps=opts["nufft_eps"]))))
+            # "auto threads": FINUFFT on its own thread count (nondeterministic spreading),
+            # the cost of the one-thread default (spectrum.NUFFT_THREADS) in the same run
+            for method, reps, threads in (("auto", 5, 1), ("auto threads", 5, 0),
+                                          ("nufft3", 2, 1)):
+                spectrum.NUFFT_THREADS = threads
+                path = method.split()[0]
+                g = jax.jit(jax.grad(lambda y, fset=fset, m=path: (
+                    losses.linear_spectrum_loss(y, fset, method=m, eps=opts["nufft_eps"]))))
                 t = time.perf_counter()
                 g(x).block_until_ready()
                 if compile_s is None:
@@ -52,6 +58,7 @@ def main(argv=None):
                 for _ in range(reps):
                     g(x).block_until_ready()
                 grad_s[method] = (time.perf_counter() - t) / reps
+            spectrum.NUFFT_THREADS = 1
         t = time.perf_counter()
         c0 = time.process_time()
         _, info = synthesis.synthesize(jax.random.key(0), n, dirs, steps=args.steps,
@@ -59,7 +66,8 @@ def main(argv=None):
         wall = time.perf_counter() - t
         cpu = time.process_time() - c0
         load = os.getloadavg()[0]
-        print(f"n=2^{k}: {len(fset)} frequencies; gradient {grad_s['auto']:.3f} s (type-3 NUFFT: "
+        print(f"n=2^{k}: {len(fset)} frequencies; gradient {grad_s['auto']:.3f} s (FINUFFT on "
+              f"its own threads, not deterministic: {grad_s['auto threads']:.3f} s; type-3 NUFFT: "
               f"{grad_s['nufft3']:.3f} s; first call incl. "
               f"compile {compile_s:.1f} s); synthesize {len(info['history']) - 1} steps: "
               f"{wall:.1f} s wall, {cpu:.1f} s CPU (load average {load:.1f}); "
