@@ -1,4 +1,4 @@
-"""Pixel classes: what kind of 2D integrand each pixel's light sample sees (W Sec. 6.2).
+"""Pixel classes: what kind of 2D integrand each pixel's light (or lens) sample sees (W Sec. 6.2).
 
 W's rendered gain lives on pixels whose light integrand has a straight discontinuity (a
 penumbra), not on fully lit or fully dark ones, where every good sampler already converges at
@@ -212,8 +212,8 @@ class PixelClasses(NamedTuple):
     ``classes``: ``(h, w)`` int8 indices into :data:`CLASSES`; ``directions_deg``: ``(h, w, 2)``
     spectral directions, valid where ``num_directions`` (``(h, w)``: 1 for one-edge, 2 for corner
     pixels, else 0) says; ``evaluated``: ``(h, w)`` bool, the pixels that were classified (others
-    hold class ``"other"`` and no direction); ``grid``: the grid side ``g``; ``technique``: the
-    light-sampling technique whose primary sample space the grids live in.
+    hold class ``"other"`` and no direction); ``grid``: the grid side ``g``; ``dimension`` and
+    ``technique``: the integrand whose primary sample space the grids live in.
     """
 
     classes: np.ndarray
@@ -221,6 +221,7 @@ class PixelClasses(NamedTuple):
     num_directions: np.ndarray
     evaluated: np.ndarray
     grid: int
+    dimension: str
     technique: str
 
     def mask(self, name: str) -> np.ndarray:
@@ -268,13 +269,15 @@ def pixel_grids(
     pixels=None,
     *,
     grid: int = 64,
+    dimension: str = "auto",
     technique: str = "area",
+    square_aperture: bool = False,
     chunk: int = 64,
 ):
     """Dense grids ``(m, g, g)`` (float32) of the integrands of ``pixels`` (``(m, 2)`` of
     ``[column, row]``; default every pixel), each at its pixel centre (the fixed-primary-hit
-    integrand of :func:`anisosample.render.pixel_integrand`, luminance), in DESIGN's grid
-    convention. Generator of ``(start, grids)`` chunks of ``chunk`` pixels, so that a large
+    integrand of :func:`anisosample.render.pixel_integrand`, luminance, with its ``dimension``,
+    ``technique`` and ``square_aperture``), in DESIGN's grid convention. Generator of ``(start, grids)`` chunks of ``chunk`` pixels, so that a large
     image is never held at once."""
     from .integrator import pixel_integrand
 
@@ -283,7 +286,8 @@ def pixel_grids(
     grid = check_int("grid", grid, minimum=8, maximum=1024)
     chunk = check_int("chunk", chunk, minimum=1)
     px = _check_pixels(scene, pixels)
-    base = pixel_integrand(scene, (0, 0), dimension="light", technique=technique)
+    base = pixel_integrand(scene, (0, 0), dimension=dimension, technique=technique,
+                           square_aperture=square_aperture)
     c = (np.arange(grid) + 0.5) / grid
     x = jnp.asarray(np.stack(np.meshgrid(c, c, indexing="xy"), -1).reshape(-1, 2), jnp.float32)
     films = np.stack([(px[:, 0] + 0.5) / scene.width, (px[:, 1] + 0.5) / scene.height], -1)
@@ -301,19 +305,20 @@ def pixel_classes(
     pixels=None,
     *,
     grid: int = 64,
+    dimension: str = "auto",
     technique: str = "area",
+    square_aperture: bool = False,
     progress: bool = False,
     **options,
 ) -> PixelClasses:
-    """Classify the light integrand of every pixel in ``pixels`` (default: all) from a dense
-    ``grid x grid`` sample of it (module docstring). ``options`` go to :func:`classify_grid`.
-
-    Only scenes lit by area lights have a light integrand to classify.
+    """Classify the 2D integrand of every pixel in ``pixels`` (default: all) from a dense
+    ``grid x grid`` sample of it (module docstring). ``dimension``, ``technique`` and
+    ``square_aperture`` choose the integrand as :func:`anisosample.render.pixel_integrand` does
+    (``"auto"``: the light sample where the scene has area lights, else the lens sample);
+    ``options`` go to :func:`classify_grid`.
     """
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
-    if not scene.has_area_lights:
-        raise ValueError("pixel_classes needs a scene with an area light (the light integrand)")
     px = _check_pixels(scene, pixels)
     classify_grid(np.ones((8, 8)), **options)  # validate the options once, before any work
     h, w = scene.height, scene.width
@@ -323,7 +328,8 @@ def pixel_classes(
     done = np.zeros((h, w), bool)
     from ..progress import progress as bar
 
-    chunks = pixel_grids(scene, px, grid=grid, technique=technique)
+    chunks = pixel_grids(scene, px, grid=grid, dimension=dimension, technique=technique,
+                         square_aperture=square_aperture)
     total = -(-len(px) // 64)
     for start, grids in bar(chunks, total=total, desc="pixel classes", unit="chunk",
                             disable=None if progress else True, leave=False):
@@ -336,7 +342,10 @@ def pixel_classes(
             num[row, col] = len(r.directions_deg)
             dirs[row, col, :len(r.directions_deg)] = r.directions_deg
             done[row, col] = True
-    return PixelClasses(classes, dirs, num, done, grid, technique)
+    from .integrator import default_dimension
+
+    dim = default_dimension(scene) if dimension == "auto" else dimension
+    return PixelClasses(classes, dirs, num, done, grid, dim, technique)
 
 
 def class_rgb(classes: PixelClasses, *, unevaluated=1.0) -> np.ndarray:
