@@ -277,8 +277,9 @@ def pixel_grids(
     """Dense grids ``(m, g, g)`` (float32) of the integrands of ``pixels`` (``(m, 2)`` of
     ``[column, row]``; default every pixel), each at its pixel centre (the fixed-primary-hit
     integrand of :func:`anisosample.render.pixel_integrand`, luminance, with its ``dimension``,
-    ``technique`` and ``square_aperture``), in DESIGN's grid convention. Generator of ``(start, grids)`` chunks of ``chunk`` pixels, so that a large
-    image is never held at once."""
+    ``technique`` and ``square_aperture``), in DESIGN's grid convention. Generator of
+    ``(start, grids)`` chunks of ``chunk`` pixels, so that a large image is never held at once.
+    """
     from .integrator import pixel_integrand
 
     if not isinstance(scene, Scene):
