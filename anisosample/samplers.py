@@ -11,7 +11,7 @@ rounding, so strata survive the conversion and no coordinate becomes 1.0. Jitter
 References: Kensler 2013 (CMJ); Burley 2020 (hash-based Owen scrambling); Christensen, Kensler,
 Kilpatrick 2018 (pmj02, pmj02bn); Helmer, Christensen, Kensler 2021 (stochastic generation of
 (t, s) sequences, which we use to construct pmj02); Cranley and Patterson 1976; Singh and Jarosz
-2017 (shearing anisotropic patterns). See ``shared/references/samplers.md``.
+2017 (shearing anisotropic patterns).
 """
 
 from __future__ import annotations

@@ -3,8 +3,7 @@
 Werner et al. precompute one optimized set per combination of integer principal directions: the
 axes 0 and 90 degrees are always included, plus one extra direction (the *3-direction* table) or
 two (the *4-direction* table). The symmetries of the unit square reduce the 180 (resp. 16,290)
-combinations to **46** (resp. **4,141**) canonical sets (W Sec. 5.4; fact sheet
-``shared/references/point_synthesis.md`` Sec. 6).
+combinations to **46** (resp. **4,141**) canonical sets (W Sec. 5.4).
 
 Symmetry. The dihedral group of the square maps the torus to itself, keeps stratification and
 the pair of axes, and acts on axial spectral angles (mod 180) as four maps: identity
@@ -487,86 +486,13 @@ def build(n: int, kind: int = 3, **options):
 # --- the aligned sampler (W Sec. 5.4) -------------------------------------------------------------
 
 
-def _round_axial(directions) -> tuple[int, ...]:
-    out = []
-    for a in directions:
-        r = int(round(float(a))) % 180
-        if r not in AXES_DEG and r not in out:
-            out.append(r)
-    return tuple(out)
+def aligned_sampler(**options) -> _samplers.Sampler:
+    """The aligned sampler of W Sec. 5.4 (``samplers.get("aligned", ...)``): the public entry
+    to :func:`anisosample.selection.aligned_sampler`, which documents ``options`` and holds
+    the one direction-rounding rule (:func:`anisosample.selection.table_directions`)."""
+    from . import selection  # selection looks sets up here: imported when first asked for
 
-
-def _grid_of(f, size: int) -> np.ndarray:
-    c = (jnp.arange(size, dtype=jnp.float32) + 0.5) / size
-    xx, yy = jnp.meshgrid(c, c)  # values[i, j] = f((j + .5)/w, (i + .5)/h)
-    return np.asarray(f(jnp.stack([xx, yy], axis=-1)), dtype=np.float32)
-
-
-def aligned_sampler(*, integrand=None, values=None, directions_deg=None, k: int = 2,
-                    grid_size: int = 96, fallback: str = "pmj02bn", table=None,
-                    build_missing: bool = False, estimate_options: dict | None = None,
-                    **build_options) -> _samplers.Sampler:
-    """The aligned sampler of W Sec. 5.4 as a :class:`~anisosample.samplers.Sampler`.
-
-    Give one of: ``integrand`` (a callable ``f(x)`` over ``(..., 2)``, sampled on a
-    ``grid_size``-squared grid), ``values`` (an ``(h, w)`` grid of its samples, DESIGN's
-    convention) or ``directions_deg`` (the extra directions, skipping estimation). The extra
-    directions are estimated with :func:`anisosample.directions.estimate` (at most ``k``, 1 or 2),
-    rounded to integer degrees; none (smooth or only axis-aligned features) -> ``fallback``
-    (``pmj02bn``, W Sec. 5.4). ``sampler(key, n)`` looks up the set for ``n`` points and applies a
-    toroidal shift drawn from ``key`` (decorrelation across realizations / pixels; W uses one
-    precomputed set per direction combination). Two extra directions use the 4-direction table
-    for ``n``; where there is none (and ``build_missing`` is false) the 3-direction set of the
-    strongest direction is used. Attributes: ``directions_deg`` (the integer extra
-    directions used) and ``estimated_deg`` (raw estimates).
-    """
-    given = [v is not None for v in (integrand, values, directions_deg)]
-    if sum(given) != 1:
-        raise ValueError("aligned sampler needs exactly one of integrand=, values= or "
-                         "directions_deg=")
-    k = check_int("k", k, minimum=1, maximum=2)
-    check_choice("fallback", fallback, _samplers.BASELINES)  # option-free samplers only
-    if directions_deg is not None:
-        if isinstance(directions_deg, int | float | np.number):
-            directions_deg = (directions_deg,)
-        raw = tuple(float(a) for a in np.asarray(directions_deg, np.float64).reshape(-1))
-        if not all(np.isfinite(raw)) or any(a < 0 or a >= 180 for a in raw):
-            raise ValueError(f"directions_deg must lie in [0, 180) degrees, got {list(raw)}")
-    else:
-        from . import directions as _directions
-
-        if integrand is not None:
-            if not callable(integrand):
-                raise TypeError(f"integrand must be a callable f(x) over (..., 2), got "
-                                f"{type(integrand).__name__}")
-            grid_size = check_int("grid_size", grid_size, minimum=16)
-            values = _grid_of(integrand, grid_size)
-        raw = tuple(_directions.estimate(values, k=k, **(estimate_options or {})))
-    extra = _round_axial(raw)[:k]
-    if not extra:
-        fb = _samplers.get(fallback)
-        return _AlignedSampler(f"aligned(fallback {fallback})", fb.fn, fb.jittable,
-                               fb.power_of_two, (), raw, None)
-    canon = canonicalize(extra)
-
-    def fn(key, n):
-        try:
-            pts = lookup(extra, n, table=table, build_missing=build_missing, **build_options)
-        except FileNotFoundError:
-            if len(extra) < 2 or build_missing:
-                raise
-            # no 4-direction table for n: the strongest direction's 3-direction set
-            pts = lookup(extra[:1], n, table=table)
-        return _samplers.toroidal_shift(key, pts)
-
-    return _AlignedSampler(f"aligned{list(extra)}", fn, False, False, extra, raw, canon)
-
-
-@dataclasses.dataclass(frozen=True)
-class _AlignedSampler(_samplers.Sampler):
-    directions_deg: tuple[int, ...] = ()
-    estimated_deg: tuple[float, ...] = ()
-    canonical: Canonical | None = None
+    return selection.aligned_sampler(**options)
 
 
 _samplers.register("aligned", aligned_sampler)

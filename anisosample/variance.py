@@ -5,8 +5,8 @@ over *randomizations* of the pattern, chosen explicitly with ``randomization``:
 
 * ``"shift"`` -- one fixed pattern (or ``patterns`` fixed patterns) moved by independent
   toroidal shifts ``(x + t) mod 1`` (Cranley-Patterson; W Sec. 5.4 decorrelates its precomputed
-  sets this way). For a fixed set this is exactly ``sum_{v != 0} P_S(v) P_f(v)`` (W Eq. 5; see
-  ``shared/references/fourier_variance.md`` Sec. 2). The only sensible choice for deterministic
+  sets this way). For a fixed set this is exactly ``sum_{v != 0} P_S(v) P_f(v)`` (W Eq. 5;
+  Pilleboue et al. 2015). The only sensible choice for deterministic
   or precomputed sets (optimized sets, tables) and for slow constructions (pmj02, pmj02bn).
 * ``"fresh"`` -- a new pattern per realization from a new key (new jitter, new Owen scramble,
   new permutation): the sampler's own randomization, what a renderer does per pixel.

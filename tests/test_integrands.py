@@ -1,5 +1,5 @@
-"""Analytic integrands against independent computations: slab integration, quadrature, the
-fact sheet's values (shared/references/fourier_variance.md), a many-sided polygon for the disk."""
+"""Analytic integrands against independent computations: slab integration, quadrature, closed-
+form Fourier coefficients (W Eqs. 3-5; Durand 2011), a many-sided polygon for the disk."""
 
 import math
 

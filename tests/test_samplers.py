@@ -59,7 +59,8 @@ def test_sobol_unscrambled_values_and_scramble_hash():
     np.testing.assert_array_equal(
         np.asarray(y) / 2**32, [0, 0.5, 0.75, 0.25, 0.625, 0.125, 0.375, 0.875]
     )
-    # Burley 2020 with pbrt-v4's improved hash: value from shared/references/samplers.md
+    # Burley 2020 with pbrt-v4's improved hash: a bit-exact value from a reference computation
+    # outside this package
     v = samplers.nested_uniform_scramble(jnp.uint32(0x80000000), jnp.uint32(0x12345678))
     assert int(v) == 0x87E32B06
 

@@ -1,6 +1,6 @@
 """The variance engine against independent truth: a float64 NumPy reference, W Eq. 5 with
 closed-form spectra, the exact fixed-set identity, and the convergence rates theory predicts
-(shared/references/fourier_variance.md Secs. 2-5)."""
+(Durand 2011; Pilleboue et al. 2015; W Eqs. 3-6)."""
 
 import math
 

@@ -8,7 +8,7 @@ shape ``(..., 2)`` returning shape ``(...)`` in ``x``'s float dtype. Each carrie
   (W Sec. 2: an edge running at ``theta + 90`` degrees puts its energy along ``theta``);
 * where a closed form exists, ``fourier_coefficients(v)`` for integer ``v`` (complex128),
   ``F_f(v) = int_{[0,1)^2} f(x) exp(-2 pi i v.x) dx``, so ``P_f(v) = |F_f(v)|^2`` is exact
-  (W Eq. 3-5; ``shared/references/fourier_variance.md`` Sec. 4).
+  (W Eq. 3-5; Durand 2011; Pilleboue et al. 2015).
 
 The integrand lives on the unit square: shapes that reach outside it are clipped to it for the
 integral and the spectrum (the torus sees the square's border as extra axis-aligned edges).
