@@ -24,6 +24,7 @@ from typing import ClassVar
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .._types import Array, Float
 
@@ -145,9 +146,34 @@ def compose(*warps: AbstractWarp) -> Compose:
     return Compose(*warps)
 
 
-@eqx.filter_jit
 def sample_batch(warp: AbstractWarp, u: Float[Array, "n 2"]) -> tuple[Array, Array]:
-    """``(x, pdf)`` for a batch ``u`` of shape ``(n, 2)`` (``vmap`` of ``sample_and_pdf``)."""
+    """``(x, pdf)`` for a batch ``u`` of shape ``(n, 2)`` (``vmap`` of ``sample_and_pdf``).
+
+    ``u`` must lie in ``[0, 1]^2`` and be finite: a ``ValueError`` otherwise (checked once here,
+    before the compiled batch; a warp would clamp such ``u`` to the square's border, or map NaN
+    to a finite point, without saying so). Traced ``u`` is only shape-checked.
+    """
+    if not isinstance(warp, AbstractWarp):
+        raise TypeError(f"warp must be a warp (AbstractWarp), got {type(warp).__name__}")
+    shape = getattr(u, "shape", None)
+    if shape is None:
+        u = jnp.asarray(u)
+        shape = u.shape
+    if len(shape) != 2 or shape[1] != 2:
+        raise ValueError(f"u must have shape (n, 2), got {tuple(shape)}")
+    if not isinstance(u, jax.core.Tracer):
+        a = np.asarray(u)
+        if not np.issubdtype(a.dtype, np.floating):
+            raise TypeError(f"u must be a floating-point array, got dtype {a.dtype}")
+        if a.size and not np.all(np.isfinite(a)):
+            raise ValueError("u contains NaN or Inf; primary samples must lie in [0, 1]^2")
+        if a.size and (a.min() < 0.0 or a.max() > 1.0):
+            raise ValueError(f"u must lie in [0, 1]^2, got values in [{a.min()}, {a.max()}]")
+    return _sample_batch(warp, u)
+
+
+@eqx.filter_jit
+def _sample_batch(warp, u):
     return jax.vmap(warp.sample_and_pdf)(u)
 
 

@@ -68,9 +68,17 @@ def fit_pointwise(
 
     Values are clamped below at ``floor`` times their maximum (pbrt-v4 clamps cosines at 0.01) so
     that the density stays positive wherever the factor might not vanish; a factor that is 0 at
-    every control point gives the uniform warp.
+    every control point gives the uniform warp. Called outside ``jit`` (concrete values), a
+    factor that is NaN or infinite at a control point, or negative at every control point where
+    it is not zero (no density to follow), is a ``ValueError``; inside ``jit`` such values are
+    cleaned as above (the renderer's own factors are finite).
     """
     _check_kind(kind)
+    if not callable(factor):
+        raise TypeError(f"factor must be a callable f(x) -> scalar, got {type(factor).__name__}")
+    floor = float(floor)
+    if not 0.0 <= floor < 1.0:
+        raise ValueError(f"floor must lie in [0, 1), got {floor}")
     pts = jnp.asarray(kind.control_points())
     rest = _rest(later)
     if kind is Bilinear and hasattr(rest, "corner_images"):
@@ -78,6 +86,14 @@ def fit_pointwise(
     else:
         x = pts if rest is None else jax.vmap(jax.vmap(rest.sample))(pts)
     v = jax.vmap(jax.vmap(factor))(x)
+    if not isinstance(v, jax.core.Tracer):  # the Python boundary: say what is wrong
+        vals = np.asarray(v, np.float64)
+        if not np.all(np.isfinite(vals)):
+            raise ValueError(f"factor must be finite at the {kind.__name__} control points, got "
+                             f"{vals.ravel().tolist()}")
+        if vals.max() <= 0.0 and vals.min() < 0.0:
+            raise ValueError(f"factor must be >= 0 (a density to follow) at some control point; "
+                             f"it is negative at every one: {vals.ravel().tolist()}")
     return kind(_clean(v.astype(jnp.float32), floor))
 
 
