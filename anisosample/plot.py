@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["new_figure", "spectrum_panel", "points_panel", "convergence_panel", "save_figure",
-           "save_points_figure"]
+           "save_points_figure", "direction_rgb", "save_direction_map"]
 
 
 def _plt():
@@ -162,3 +162,44 @@ def save_points_figure(path, points, *, title: str | None = None, size: float = 
     points_panel(axes[0, 0], points, title=title)
     (out,) = save_figure(fig, path, formats=(fmt,), overwrite=overwrite)
     return out
+
+
+# --- per-block direction maps (W Fig. 7) ----------------------------------------------------------
+
+
+def direction_rgb(directions_deg, valid, *, none=0.5) -> np.ndarray:
+    """Colours ``(..., 3)`` for directions: hue = direction / 180 (a cyclic map for axial
+    angles), grey ``none`` where ``valid`` is false."""
+    import matplotlib
+
+    d, v = np.asarray(directions_deg), np.asarray(valid)
+    rgb = matplotlib.colormaps["hsv"](np.clip(d, 0, 180) / 180.0)[..., :3]
+    return np.where(v[..., None], rgb, none)
+
+
+def save_direction_map(path, estimate, *, overwrite: bool = False) -> Path:
+    """PNG of per-block directions at the image's size (row 0 on top, like the render): one
+    panel per estimate slot, hue = direction / 180, black where there is none.
+
+    ``estimate``: a :class:`anisosample.render.estimation.BlockEstimate` or a
+    :class:`anisosample.render.aligned.BlockSampler` holding one."""
+    from . import io
+
+    path = Path(path)
+    if path.suffix != ".png":
+        raise ValueError(f"the direction map must end in .png, got {path.name}")
+    inner = getattr(estimate, "estimate", None)
+    if hasattr(estimate, "method") and hasattr(estimate, "block_px"):  # a BlockSampler
+        if inner is None:
+            raise ValueError("this sampler holds no estimate to draw")
+        estimate, inner = inner, getattr(inner, "estimate", None)
+    if not (hasattr(estimate, "block_px") and hasattr(inner, "directions_deg")):
+        raise TypeError(f"estimate must be a BlockEstimate or BlockSampler, got "
+                        f"{type(estimate).__name__}")
+    bp = estimate.block_px
+    rgb = direction_rgb(inner.directions_deg, inner.valid, none=0.0)  # (rows, cols, k, 3)
+    panels = [np.kron(rgb[:, :, s], np.ones((bp, bp, 1)))[:estimate.height, :estimate.width]
+              for s in range(rgb.shape[2])]
+    panels = [np.pad(p, ((0, 0), (0, 2), (0, 0)), constant_values=1.0) for p in panels]
+    return io.save_png(path, np.clip(np.concatenate(panels, axis=1)[:, :-2], 0, 1),
+                       overwrite=overwrite)

@@ -1,0 +1,350 @@
+"""Per-block direction estimation in the renderer (W Sec. 5.3) and the per-pixel gate.
+
+* **The block grid.** The image is cut into blocks of ``B x B`` pixels (W: ``B = 16``). Each
+  block gets one ``s x s`` grid of integrand samples (W: ``s = 96``, i.e. ``(s/B)^2 = 36``
+  samples per pixel): grid sample ``(i, j)`` at ``x = ((j + .5)/s, (i + .5)/s)`` is taken by
+  pixel ``(row0 + i // t, col0 + j // t)`` of the block, ``t = s / B``. Each pixel fills one
+  ``t x t`` tile of the grid (its own part of the sample domain) and neighbouring tiles come from
+  neighbouring pixels, so the grid pieces together one integrand from the block's structurally
+  similar ones. W does not say how pixels share the grid; an interleaved layout (``i mod B``)
+  puts jumps between far pixels every ``B`` samples. The pixel integrands are the papers'
+  fixed-primary-hit ones (pixel centre, luminance, no MIS; W Sec. 6.2), whatever the render's
+  own film and MIS settings. One orientation histogram and estimate per block:
+  :func:`anisosample.directions.estimate_blocks`. An image whose sides are not multiples of ``B``
+  is *padded*: the last row and column of blocks reach past the image and their missing pixels
+  repeat the image's last row or column (edge replication).
+* **The per-pixel gate (beyond W).** W gives every pixel of a block the block's set; pixels
+  whose own integrand is smooth (fully lit, fully occluded) then get an aligned set, which
+  converges more slowly than pmj02bn on smooth integrands. A pixel's tile covers only ``1/B^2``
+  of its sample domain, so it cannot tell whether the pixel's integrand has an edge elsewhere;
+  the gate therefore looks at a *probe*: ``m x m`` midpoint samples of the pixel's integrand over
+  the whole domain (default ``m = 6``, as many samples as the pixel's tile at W's settings), and
+  calls the pixel discontinuous when some step between neighbouring probe samples is a jump
+  (:func:`probe_discontinuous`). Deterministic, like the grid, so the choice of set does not
+  depend on the render's random numbers and every pixel's estimator stays unbiased.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._validate import check_int, check_positive_float
+from .integrator import PixelIntegrand, pixel_integrand
+from .scene import Scene
+
+__all__ = [
+    "BlockEstimate", "block_grid_values", "estimate_blocks", "estimation_grid", "pixel_probes",
+    "probe_discontinuous", "strongest_directions",
+]
+
+JUMP_RATIO = 3.0
+"""A step between neighbouring probe samples is a jump when it exceeds ``JUMP_RATIO`` times the
+larger of the steps next to it on the same probe row or column (a smooth integrand's steps change
+gradually) ..."""
+
+JUMP_FRACTION = 0.25
+"""... and ``JUMP_FRACTION`` of the probe's value range (small wiggles of a constant are not
+edges)."""
+
+
+class BlockEstimate(NamedTuple):
+    """Per-block principal directions of an image (W Sec. 5.3); leading axes ``(rows, cols)``.
+
+    ``strength`` (or None when not asked for): each block's orientation-histogram mass outside
+    the zeroed axis windows (W Sec. 5.1), a measure of how much edge there is to align with.
+    ``seconds``: wall time of the integrand samples and the estimate (not of ``strength``);
+    ``integrand_samples``: the samples it took, ``rows * cols * s^2`` (W Fig. 10 counts them).
+    ``discontinuous`` (or None without the gate): ``(height, width)`` bool, whether each pixel's
+    probe shows a jump; ``probe``: the probe's side ``m``; ``probe_seconds``: its wall time.
+    """
+
+    estimate: object  # anisosample.directions.Estimate, leading axes (rows, cols)
+    strength: np.ndarray | None
+    block_px: int
+    samples: int
+    width: int
+    height: int
+    seconds: float
+    integrand_samples: int
+    discontinuous: np.ndarray | None = None
+    probe: int = 0
+    probe_seconds: float = 0.0
+
+    @property
+    def blocks(self) -> tuple[int, int]:
+        return tuple(np.asarray(self.estimate.valid).shape[:2])
+
+    @property
+    def samples_per_pixel(self) -> float:
+        """Estimation samples per image pixel (36 for W's ``s = 96``, ``B = 16``; the gate's
+        probe not included)."""
+        return self.integrand_samples / (self.width * self.height)
+
+
+def _check_blocks(scene: Scene, block_px, samples) -> tuple[int, int]:
+    if not isinstance(scene, Scene):
+        raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
+    block_px = check_int("block_px", block_px, minimum=1)
+    samples = check_int("samples", samples, minimum=1)
+    if samples % block_px:
+        raise ValueError(
+            f"samples (grid samples per block side) must be a multiple of block_px={block_px} "
+            f"(each pixel fills a (samples/block_px)^2 tile), got {samples}"
+        )
+    return block_px, samples
+
+
+def _base_integrand(scene, integrand, dimension, technique, square_aperture):
+    if integrand is None:
+        return pixel_integrand(scene, (0, 0), dimension=dimension, technique=technique,
+                               square_aperture=square_aperture)
+    if not isinstance(integrand, PixelIntegrand):
+        raise TypeError(f"integrand must be a render.PixelIntegrand (its film is replaced per "
+                        f"pixel), got {type(integrand).__name__}")
+    return integrand
+
+
+@eqx.filter_jit
+def _films_eval(base, films, x):
+    """``f_q(x_i)`` with pixel ``q``'s film position ``films[i]`` (vmapped)."""
+    return jax.vmap(lambda film, xy: eqx.tree_at(lambda g: g.film, base, film)(xy))(films, x)
+
+
+def _cell_centres(samples: int) -> np.ndarray:
+    c = (np.arange(samples) + 0.5) / samples
+    return np.stack(np.meshgrid(c, c, indexing="xy"), -1).reshape(-1, 2).astype(np.float32)
+
+
+def _bar(iterable, desc, progress, unit):
+    from ..progress import progress as bar
+
+    return bar(iterable, desc=desc, disable=None if progress else True, unit=unit, leave=False)
+
+
+def estimation_grid(
+    scene: Scene,
+    block_px: int = 16,
+    samples: int = 96,
+    *,
+    integrand=None,
+    dimension: str = "auto",
+    technique: str = "area",
+    square_aperture: bool = False,
+    progress: bool = False,
+) -> np.ndarray:
+    """All blocks' estimation grids as one ``(rows * s, cols * s)`` float32 array (W Sec. 5.3).
+
+    Block ``(a, b)`` (row ``a`` from the image top) holds rows ``a s .. a s + s - 1`` and columns
+    ``b s .. b s + s - 1``, the layout of :func:`anisosample.directions.estimate_blocks`; inside
+    it DESIGN's grid convention in the sample domain. Pixel tiles: module docstring.
+    ``integrand``: the :class:`~anisosample.render.PixelIntegrand` whose film is moved to each
+    pixel centre (default: :func:`~anisosample.render.pixel_integrand` with ``dimension``,
+    ``technique``, ``square_aperture``). Computed one row of blocks per jitted call.
+    """
+    block_px, samples = _check_blocks(scene, block_px, samples)
+    base = _base_integrand(scene, integrand, dimension, technique, square_aperture)
+    w, h = scene.width, scene.height
+    by, bx = -(-h // block_px), -(-w // block_px)
+    t = samples // block_px
+    ii, jj = np.meshgrid(np.arange(samples), np.arange(samples), indexing="ij")
+    ii, jj = ii // t, jj // t  # the pixel of each grid sample inside its block
+    xs = jnp.asarray(np.tile(_cell_centres(samples), (bx, 1)))
+    out = np.empty((by * samples, bx * samples), np.float32)
+    for a in _bar(range(by), "directions", progress, "block row"):
+        row = np.minimum(a * block_px + ii, h - 1)  # padding: edge replication
+        films = np.concatenate([
+            np.stack([(np.minimum(b * block_px + jj, w - 1) + 0.5) / w, (row + 0.5) / h], -1)
+            .reshape(-1, 2) for b in range(bx)]).astype(np.float32)
+        vals = np.asarray(_films_eval(base, jnp.asarray(films), xs))
+        out[a * samples:(a + 1) * samples] = (
+            vals.reshape(bx, samples, samples).transpose(1, 0, 2).reshape(samples, -1))
+    if not np.all(np.isfinite(out)):
+        raise FloatingPointError("the estimation samples hold NaN or Inf (a bug: please report)")
+    return out
+
+
+def block_grid_values(
+    scene: Scene,
+    block: tuple[int, int],
+    block_px: int = 16,
+    samples: int = 96,
+    *,
+    integrand=None,
+    dimension: str = "auto",
+    technique: str = "area",
+    square_aperture: bool = False,
+) -> np.ndarray:
+    """The ``(s, s)`` estimation grid of one block ``(row, col)``: what its histogram is built
+    from (equal to that block of :func:`estimation_grid`)."""
+    block_px, samples = _check_blocks(scene, block_px, samples)
+    base = _base_integrand(scene, integrand, dimension, technique, square_aperture)
+    w, h = scene.width, scene.height
+    a = check_int("block[0] (row)", block[0], minimum=0, maximum=-(-h // block_px) - 1)
+    b = check_int("block[1] (column)", block[1], minimum=0, maximum=-(-w // block_px) - 1)
+    ii, jj = np.meshgrid(np.arange(samples), np.arange(samples), indexing="ij")
+    t = samples // block_px
+    row = np.minimum(a * block_px + ii // t, h - 1)
+    col = np.minimum(b * block_px + jj // t, w - 1)
+    films = np.stack([(col + 0.5) / w, (row + 0.5) / h], -1).reshape(-1, 2).astype(np.float32)
+    x = jnp.asarray(_cell_centres(samples))
+    return np.asarray(_films_eval(base, jnp.asarray(films), x)).reshape(samples, samples)
+
+
+# --- the per-pixel gate ---------------------------------------------------------------------------
+
+
+def probe_discontinuous(values, *, jump_ratio: float = JUMP_RATIO,
+                        jump_fraction: float = JUMP_FRACTION) -> np.ndarray:
+    """Whether each ``(..., m, m)`` probe grid (DESIGN's grid convention) shows a jump.
+
+    Along every probe row and column, the step ``d_i = v_{i+1} - v_i`` is a jump when
+    ``|d_i| > jump_ratio * max(|d_{i-1}|, |d_{i+1}|)`` (the steps beside it on the same line;
+    one at the line's ends) and ``|d_i| > jump_fraction * (max v - min v)``. A smooth integrand
+    sampled at spacing ``h`` has steps ``f' h`` that change by ``f'' h^2`` from one to the next;
+    a step edge crossing the line puts its whole height into one step. Constant grids (fully
+    occluded pixels) have no jump, nor have steps below ``1e-4`` of the largest ``|v|``
+    (float32 round-off of the integrand). Returns a bool array of the leading shape.
+    """
+    v = np.asarray(values, np.float64)
+    if v.ndim < 2 or v.shape[-1] != v.shape[-2] or v.shape[-1] < 3:
+        raise ValueError(f"values must be (..., m, m) probe grids with m >= 3, got {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise ValueError("values hold NaN or Inf")
+    jump_ratio = check_positive_float("jump_ratio", jump_ratio)
+    jump_fraction = check_positive_float("jump_fraction", jump_fraction)
+    span = v.max(axis=(-2, -1)) - v.min(axis=(-2, -1))
+    scale = np.abs(v).max(axis=(-2, -1))  # steps below 1e-4 of it are float32 round-off
+    found = np.zeros(v.shape[:-2], bool)
+    for d in (np.abs(np.diff(v, axis=-1)), np.swapaxes(np.abs(np.diff(v, axis=-2)), -1, -2)):
+        pad = np.zeros(d.shape[:-1] + (1,))
+        left = np.concatenate([pad, d[..., :-1]], -1)
+        right = np.concatenate([d[..., 1:], pad], -1)
+        floor = np.maximum(jump_fraction * span, 1e-4 * scale)[..., None, None]
+        jump = (d > jump_ratio * np.maximum(left, right)) & (d > floor)
+        found |= jump.any(axis=(-2, -1))
+    return found
+
+
+def pixel_probes(
+    scene: Scene,
+    probe: int = 6,
+    *,
+    integrand=None,
+    dimension: str = "auto",
+    technique: str = "area",
+    square_aperture: bool = False,
+    progress: bool = False,
+) -> np.ndarray:
+    """Every pixel's probe: ``(height, width, m, m)`` float32, pixel ``(col, row)``'s integrand
+    (film at the pixel centre, as :func:`estimation_grid`) at the ``m x m`` midpoints of the
+    whole sample domain, ``[..., i, j] = f((j + .5)/m, (i + .5)/m)``. One image row of pixels per
+    jitted call."""
+    if not isinstance(scene, Scene):
+        raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
+    m = check_int("probe", probe, minimum=3)
+    base = _base_integrand(scene, integrand, dimension, technique, square_aperture)
+    w, h = scene.width, scene.height
+    xs = jnp.asarray(np.tile(_cell_centres(m), (w, 1)))
+    cols = np.repeat((np.arange(w) + 0.5) / w, m * m)
+    out = np.empty((h, w, m, m), np.float32)
+    for r in _bar(range(h), "gate", progress, "pixel row"):
+        films = np.stack([cols, np.full_like(cols, (r + 0.5) / h)], -1).astype(np.float32)
+        out[r] = np.asarray(_films_eval(base, jnp.asarray(films), xs)).reshape(w, m, m)
+    if not np.all(np.isfinite(out)):
+        raise FloatingPointError("the probe samples hold NaN or Inf (a bug: please report)")
+    return out
+
+
+# --- the estimate ---------------------------------------------------------------------------------
+
+_GRID_OPTIONS = ("sigma_px", "bin_deg", "min_gradient")
+
+
+def _strength(blocks, options: dict) -> np.ndarray:
+    """Each block's orientation-histogram mass outside the zeroed axis windows (W Sec. 5.1)."""
+    from .. import directions
+
+    grid_opts = {k: options[k] for k in _GRID_OPTIONS if k in options}
+    axis_opts = {k: options[k] for k in ("bin_deg", "zero_window_deg") if k in options}
+
+    @jax.jit
+    def mass(v):
+        return jnp.sum(directions.zero_axes(directions.orientation_histogram(v, **grid_opts),
+                                            **axis_opts))
+
+    return np.asarray(jax.lax.map(mass, jnp.asarray(blocks)), np.float64)
+
+
+def estimate_blocks(
+    scene: Scene,
+    block_px: int = 16,
+    samples: int = 96,
+    k: int = 2,
+    *,
+    integrand=None,
+    dimension: str = "auto",
+    technique: str = "area",
+    square_aperture: bool = False,
+    strength: bool = False,
+    gate: bool = False,
+    probe: int = 6,
+    progress: bool = False,
+    **estimate_options,
+) -> BlockEstimate:
+    """W Sec. 5.3: the principal directions of every ``block_px``-pixel block of ``scene``.
+
+    One ``samples x samples`` grid per block (:func:`estimation_grid`; W: 96 and 16) feeds
+    :func:`anisosample.directions.estimate_blocks` (``k`` extra directions, 1 or 2;
+    ``estimate_options`` go to it). ``strength=True`` also returns each block's histogram mass
+    outside the zeroed axis windows; ``gate=True`` each pixel's :func:`probe_discontinuous` of
+    its ``probe x probe`` :func:`pixel_probes`. Image sides that are not multiples of
+    ``block_px`` are padded (module docstring).
+    """
+    from .. import directions
+
+    k = check_int("k", k, minimum=1, maximum=2)
+    block_px, samples = _check_blocks(scene, block_px, samples)
+    if gate:
+        probe = check_int("probe", probe, minimum=3)
+    t0 = time.perf_counter()
+    grid = estimation_grid(scene, block_px, samples, integrand=integrand, dimension=dimension,
+                           technique=technique, square_aperture=square_aperture,
+                           progress=progress)
+    try:
+        est = directions.estimate_blocks(grid, k=k, samples_per_block=samples,
+                                         **estimate_options)
+    except ValueError as exc:  # name this function's parameter, not the estimator's
+        raise ValueError(str(exc).replace("samples_per_block", "samples")) from None
+    jax.block_until_ready(est)
+    seconds = time.perf_counter() - t0
+    by, bx = grid.shape[0] // samples, grid.shape[1] // samples
+    power = None
+    if strength:
+        blocks = grid.reshape(by, samples, bx, samples).transpose(0, 2, 1, 3)
+        power = _strength(blocks.reshape(by * bx, samples, samples),
+                          estimate_options).reshape(by, bx)
+    disc, probe_seconds = None, 0.0
+    if gate:
+        t1 = time.perf_counter()
+        disc = probe_discontinuous(pixel_probes(
+            scene, probe, integrand=integrand, dimension=dimension, technique=technique,
+            square_aperture=square_aperture, progress=progress))
+        probe_seconds = time.perf_counter() - t1
+    return BlockEstimate(est, power, block_px, samples, scene.width, scene.height, seconds,
+                         by * bx * samples * samples, disc, probe if gate else 0, probe_seconds)
+
+
+def strongest_directions(estimate) -> tuple[np.ndarray, np.ndarray]:
+    """``(directions_deg, valid)``, both ``(rows, cols)``: each block's strongest extra
+    direction (slot 0 of the estimate) and whether it has one (``directions_deg`` is -1 where
+    not). Takes a :class:`BlockEstimate` or an :class:`anisosample.directions.Estimate`."""
+    est = getattr(estimate, "estimate", estimate)
+    d = np.asarray(est.directions_deg, np.float64)[..., 0]
+    v = np.asarray(est.valid)[..., 0]
+    return np.where(v, d, -1.0), v

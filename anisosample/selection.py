@@ -1,0 +1,148 @@
+"""Point-set selection (W Sec. 5.4): from estimated principal directions to an aligned set.
+
+W precomputes one optimized set per combination of 1-degree integer principal directions: the
+axes 0 and 90 degrees plus one extra direction (the 3-direction table) or two (the 4-direction
+table); "if our principal direction algorithm does not find any other directions apart from the
+horizontal and vertical axes, e.g., on smooth integrands, we use an existing anisotropic sampling
+pattern", and "we decorrelate points across pixels using toroidal shifts" (W Sec. 5.4).
+
+This module is that selection, once, for every caller: the aligned sampler of one integrand
+(:func:`aligned_sampler`, also ``samplers.get("aligned", ...)`` and
+:func:`anisosample.tables.aligned_sampler`) and the renderer's per-block sampler
+(:mod:`anisosample.render.aligned`).
+
+* **Rounding** (:func:`table_directions`): each estimated direction, strongest first, is rounded
+  to the nearest integer degree (halves up) modulo 180; a direction that rounds onto an axis
+  (0 or 90, which every set holds) or onto a direction already taken is dropped; at most ``k``
+  (1 or 2) remain.
+* **The set** (:func:`aligned_set`): one remaining direction takes the 3-direction set, two the
+  4-direction set (W's four low-energy directions) -- never the 3-direction set in place of a
+  missing 4-direction one. Sets come from :func:`anisosample.tables.lookup`; a missing one is
+  built on demand when ``build_missing`` (else ``FileNotFoundError`` naming the build command).
+  No remaining direction: the fallback sampler (pmj02bn).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import samplers as _samplers
+from . import tables as _tables
+from ._validate import check_choice, check_int
+
+__all__ = ["AlignedSampler", "aligned_sampler", "aligned_set", "table_directions"]
+
+
+def table_directions(directions_deg, k: int = 2) -> tuple[int, ...]:
+    """W Sec. 5.4's discretization: the integer extra directions a table set is asked for.
+
+    ``directions_deg``: estimated spectral directions in degrees, strongest first (``None``
+    entries are skipped: no direction). Each is rounded to the nearest integer degree, halves
+    up, modulo 180; directions that round onto an axis (0, 90) or onto one already kept are
+    dropped; the first ``k`` (1 or 2) are returned -- possibly none.
+    """
+    k = check_int("k", k, minimum=1, maximum=2)
+    if directions_deg is None or isinstance(directions_deg, int | float | np.number):
+        directions_deg = (directions_deg,)
+    out: list[int] = []
+    for a in directions_deg:
+        if a is None:
+            continue
+        d = float(a)
+        if not math.isfinite(d):
+            raise ValueError(f"directions_deg must be finite degrees (or None), got {a!r}")
+        r = int(math.floor(d + 0.5)) % 180
+        if r not in _tables.AXES_DEG and r not in out:
+            out.append(r)
+    return tuple(out[:k])
+
+
+def aligned_set(extra_deg, n: int, key=None, *, table=None, build_missing: bool = False,
+                **build_options) -> jax.Array:
+    """The aligned set of ``n`` points for the integer extra directions ``extra_deg`` (one:
+    the 3-direction table, two: the 4-direction table; from :func:`table_directions`),
+    toroidally shifted by ``key`` when given (Cranley & Patterson 1976, W Sec. 5.4).
+
+    ``table``, ``build_missing`` and ``build_options`` go to :func:`anisosample.tables.lookup`.
+    """
+    extra = tuple(int(a) for a in np.asarray(extra_deg, np.int64).reshape(-1))
+    if not 1 <= len(extra) <= 2 or any(a in _tables.AXES_DEG for a in extra):
+        raise ValueError(f"extra_deg must hold one or two integer directions other than the "
+                         f"axes (from table_directions), got {list(extra)}")
+    n = check_int("n", n, minimum=2)
+    pts = _tables.lookup(extra, n, kind=len(extra) + 2, table=table,
+                         build_missing=build_missing, **build_options)
+    pts = jnp.asarray(pts, jnp.float32)
+    return pts if key is None else _samplers.toroidal_shift(key, pts)
+
+
+@dataclasses.dataclass(frozen=True)
+class AlignedSampler(_samplers.Sampler):
+    """The aligned sampler of one integrand: a :class:`~anisosample.samplers.Sampler` with
+    ``directions_deg`` (the integer extra directions used, empty for the fallback),
+    ``estimated_deg`` (the raw estimates) and ``canonical`` (the table set, or None)."""
+
+    directions_deg: tuple[int, ...] = ()
+    estimated_deg: tuple[float, ...] = ()
+    canonical: _tables.Canonical | None = None
+
+
+def _grid_of(f, size: int) -> np.ndarray:
+    c = (jnp.arange(size, dtype=jnp.float32) + 0.5) / size
+    xx, yy = jnp.meshgrid(c, c)  # values[i, j] = f((j + .5)/w, (i + .5)/h)
+    return np.asarray(f(jnp.stack([xx, yy], axis=-1)), dtype=np.float32)
+
+
+def aligned_sampler(*, integrand=None, values=None, directions_deg=None, k: int = 2,
+                    grid_size: int = 96, fallback: str = "pmj02bn", table=None,
+                    build_missing: bool = False, estimate_options: dict | None = None,
+                    **build_options) -> AlignedSampler:
+    """The aligned sampler of W Sec. 5.4 for one integrand.
+
+    Give one of: ``integrand`` (a callable ``f(x)`` over ``(..., 2)``, sampled on a
+    ``grid_size``-squared grid), ``values`` (an ``(h, w)`` grid of its samples, DESIGN's
+    convention) or ``directions_deg`` (the extra directions, skipping estimation). At most ``k``
+    (1 or 2) extra directions are estimated with :func:`anisosample.directions.estimate` and
+    discretized by :func:`table_directions`; none -> ``fallback`` (an option-free baseline,
+    default ``pmj02bn``). ``sampler(key, n)`` is :func:`aligned_set` for ``n`` points shifted
+    by ``key`` (``table``, ``build_missing``, ``build_options``: the table lookup's).
+    """
+    given = [v is not None for v in (integrand, values, directions_deg)]
+    if sum(given) != 1:
+        raise ValueError("aligned sampler needs exactly one of integrand=, values= or "
+                         "directions_deg=")
+    k = check_int("k", k, minimum=1, maximum=2)
+    check_choice("fallback", fallback, _samplers.BASELINES)  # option-free samplers only
+    if directions_deg is not None:
+        if isinstance(directions_deg, int | float | np.number):
+            directions_deg = (directions_deg,)
+        raw = tuple(float(a) for a in np.asarray(directions_deg, np.float64).reshape(-1))
+        if not all(np.isfinite(raw)) or any(a < 0 or a >= 180 for a in raw):
+            raise ValueError(f"directions_deg must lie in [0, 180) degrees, got {list(raw)}")
+    else:
+        from . import directions as _directions
+
+        if integrand is not None:
+            if not callable(integrand):
+                raise TypeError(f"integrand must be a callable f(x) over (..., 2), got "
+                                f"{type(integrand).__name__}")
+            grid_size = check_int("grid_size", grid_size, minimum=16)
+            values = _grid_of(integrand, grid_size)
+        raw = tuple(_directions.estimate(values, k=k, **(estimate_options or {})))
+    extra = table_directions(raw, k)
+    if not extra:
+        fb = _samplers.get(fallback)
+        return AlignedSampler(f"aligned(fallback {fallback})", fb.fn, fb.jittable,
+                              fb.power_of_two, (), raw, None)
+
+    def fn(key, n):
+        return aligned_set(extra, n, key, table=table, build_missing=build_missing,
+                           **build_options)
+
+    return AlignedSampler(f"aligned{list(extra)}", fn, False, False, extra, raw,
+                          _tables.canonicalize(extra))
