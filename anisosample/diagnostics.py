@@ -19,8 +19,8 @@ edge's spectrum falls like ``|v|^-4``, so little is missed outside) plus a band 
 ``band`` along each line out to ``line_length``; the missing tail along each line is estimated
 with the pattern taken as white there (the sum of ``P_f`` over ``|v| > L`` on a ``|v|^-2`` ray is
 about its sum over ``[L/2, L]``) and reported separately.  Evaluation uses
-``anisosample.spectrum.power_spectrum`` in float64 (type-3 NUFFT in rotated coordinates for the
-long bands).
+the one engine, ``anisosample.spectrum.grouped_power_spectrum``, in float64 (per line's group:
+lattice-aligned type-1 grids or the rotated type-3 NUFFT for the long bands).
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import frequencies as _freq
+from . import spectrum
 from ._validate import check_directions_deg, check_points, check_positive_float
 
 
@@ -41,14 +42,13 @@ def _line_bands(theta, r_in, length, band):
 
 
 def _power(points64, freqs, dirs):
-    """P_S in float64: each frequency evaluated with the line it is nearest to (rotated type-3
-    NUFFT, cost ~ the band's length), so no long band is put in a huge bounding box."""
-    from . import losses
-
+    """P_S in float64 by the one engine, each frequency in the group of the line it is nearest
+    to (lattice-aligned type-1 grids or the rotated type-3 NUFFT: cost ~ the band's length), so
+    no long band is put in a huge bounding box."""
     fset = _freq.custom_set(freqs, dirs)
     with jax.enable_x64(True):
         x = jnp.asarray(points64, jnp.float64)
-        p = np.asarray(losses.grouped_power_spectrum(x, fset, method="nufft3", eps=1e-10))
+        p = np.asarray(spectrum.grouped_power_spectrum(x, fset, eps=1e-10))
     canon = _freq.canonical_half_rows(fset.freqs)
     order = np.lexsort((canon[:, 1], canon[:, 0]))
     # fset.freqs is a signed permutation of the (sorted, canonical) input: map back

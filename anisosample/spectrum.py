@@ -1,29 +1,54 @@
-"""Power spectra of point sets (W Eq. 6), expected spectra, profiles and pictures.
+"""Power spectra of point sets (W Eq. 6): the one engine, expected spectra, profiles, pictures.
 
 ``F_S(v) = (1/N) sum_j exp(-2 pi i v . x_j)`` and ``P_S(v) = |F_S(v)|^2`` for integer ``v``, so
 ``P_S(0) = 1`` and white noise has ``<P_S(v)> = 1/N``. Plots show ``N P_S`` (white noise -> 1).
 
-Three evaluation paths, all differentiable with respect to the points:
+One engine evaluates ``P_S`` for everything in the package (:func:`power_spectrum`, the losses of
+:mod:`anisosample.losses`, :mod:`anisosample.diagnostics`): :func:`grouped_power_spectrum` on a
+:class:`~anisosample.frequencies.FrequencySet`, one group (frequencies near one direction) at a
+time, by one of three methods (:data:`METHODS`):
 
-* ``"direct"``: the sum itself, chunked over frequencies (the reference; the fast path on GPUs).
-  In float32 the phase ``v . x`` is reduced modulo 1 from an exact high part and a small low part
-  of ``x``, so it stays accurate for frequencies up to tens of thousands (``|v| < 2^24``).
-* ``"nufft"``: a type-1 NUFFT (jax-finufft) onto the centred grid that bounds the frequencies,
-  then a gather: cheap when the frequencies fill their bounding box.
-* ``"nufft3"``: a type-3 NUFFT at exactly the requested frequencies, in coordinates rotated to the
-  frequencies' principal axis, so that its cost follows a long thin strip's length, not its
-  bounding box.
+``"direct"``  the sum itself, chunked over frequencies (the reference; O(n m)). The phase
+              ``v . x`` is reduced modulo 1 before it is scaled by ``2 pi``; in float32 it is
+              formed from an exact high part and a small low part of ``x``
+              (:func:`_phase_fraction`), so it stays accurate for ``|v| < 2^24``;
+``"nufft1"``  type-1 NUFFTs (jax-finufft; adjoint: type 2) on a few small grids per group: the
+              group is cut into runs along its direction, each run gets the bounding box of its
+              frequencies in a unimodular integer basis ``v = M u`` whose first vector follows
+              the direction (``exp(-2 pi i v.x) = exp(-2 pi i u.(M^T x mod 1))`` holds exactly
+              for integer ``u``), centred by a phase on the strengths. The grids of a group
+              total 1.5-2.6 times its frequency count (n = 2^16 at 0, 90 and 30 degrees) and
+              only the ``n`` points are spread: the fast path for long wedges. Bases other than
+              the identity need float64 (``M^T x`` multiplies the rounding error by ``|M|``);
+``"nufft3"``  a type-3 NUFFT at exactly the requested frequencies, in coordinates rotated to the
+              group's direction (``v.x = (R v).(R x)``), so a long thin wedge has a small
+              bounding box.
 
-``method="auto"`` picks the direct sum for small problems and on accelerators, and otherwise the
-NUFFT path whose cost is lower.
+``"auto"`` (the default everywhere) picks per group: the direct sum when ``n m <= 2^21``, else
+``nufft1`` when its grids total at most ``8 m`` points (every wedge, disk or grid), else
+``nufft3``. ``"nufft"`` is accepted as the old name of ``"nufft1"``.
+
+Accuracy policy (one for every caller, :func:`default_eps`): NUFFT tolerance ``1e-6`` in float32
+and ``1e-10`` in float64 unless a caller passes ``eps`` (synthesis uses ``1e-7``); every CPU
+FINUFFT call runs on :data:`NUFFT_THREADS` threads (deterministic, :func:`finufft_opts`).
+
+Every method has a custom VJP with the closed-form gradient (``point_synthesis.md`` Sec. 2)
+``dP(v)/dx_j = (4 pi / n) Im(conj(F(v)) exp(-2 pi i v.x_j)) v``, so the backward pass of any
+function of ``P`` is one adjoint transform ``sum_v a_v exp(-2 pi i v.x_j)`` with
+``a_v = (dL/dP_v) conj(F_v) v`` -- again a NUFFT (or a direct sum), never an ``m x n`` matrix
+held in memory. Points that are not finite are refused before they reach XLA or FINUFFT (a
+``ValueError`` for concrete arrays, ``equinox.error_if`` under ``jit`` and ``grad``).
 """
 
 from __future__ import annotations
 
 import functools
 import math
+import os
 from pathlib import Path
+from typing import NamedTuple
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -36,10 +61,17 @@ from ._validate import (
     check_points,
     check_positive_float,
 )
+from .frequencies import FrequencySet
 
 __all__ = [
+    "METHODS",
+    "NUFFT_THREADS",
+    "default_eps",
+    "finufft_opts",
     "power_spectrum",
     "power_spectrum_grid",
+    "grouped_power_spectrum",
+    "power_spectrum_rotated",
     "frequency_grid",
     "expected_power_spectrum",
     "expected_power_spectrum_grid",
@@ -49,11 +81,13 @@ __all__ = [
     "white_noise_level",
 ]
 
-METHODS = ("auto", "direct", "nufft", "nufft3")
+METHODS = ("auto", "direct", "nufft1", "nufft3")
+_ALIASES = {"nufft": "nufft1"}  # the old name of the type-1 path (spectrum CLI, scripts)
 
-_DIRECT_MAX_WORK = 1 << 22  # n * m below which the direct sum is cheapest on a CPU
-_CHUNK = 256  # frequencies per chunk of the direct sum
+_DIRECT_MAX_WORK = 2**21  # n * m up to which "auto" takes the direct sum
+_DIRECT_CHUNK_WORK = 2**21  # chunk * n elements per step of the direct sum
 _MAX_FREQ = 1 << 24  # float32 holds every integer frequency below this exactly
+_MAX_SEGMENTS = 8
 
 
 def white_noise_level(n: int) -> float:
@@ -67,57 +101,42 @@ def frequency_grid(radius: int) -> np.ndarray:
     Ordered so that ``.reshape(2r+1, 2r+1, 2)[i, j] == (j - r, i - r)``: rows are ``v_y``.
     """
     r = check_int("radius", radius, minimum=1)
+    _check_grid_memory(r)
     k = np.arange(-r, r + 1, dtype=np.int32)
     vx, vy = np.meshgrid(k, k, indexing="xy")
     return np.stack([vx.reshape(-1), vy.reshape(-1)], axis=-1)
 
 
-# --- direct sum -----------------------------------------------------------------------------------
+def _memory_bytes() -> int:
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return 16 << 30
 
 
-def _phase_fraction(points, v):
-    """``v . x`` modulo 1 (up to an integer), accurate in float32 for large integer ``v``.
-
-    ``x = x_hi + x_lo`` with ``x_hi = k / 1024`` (a truncation, ``k < 1024``) and
-    ``0 <= x_lo < 2^-10``. Since ``1024 x_hi`` is an integer, ``v x_hi = (v mod 1024) x_hi`` modulo
-    1, a product of two 10-bit numbers that float32 holds exactly, so its fraction is exact for
-    every ``|v| < 2^24``; ``v x_lo`` (``|v x_lo| < |v| / 1024``) is rounded once and reduced
-    modulo 1 too, so the phase error grows only like ``|v| 2^-34``. The gradient flows through
-    ``x_lo`` (``x_hi`` is a truncation), which is exact: ``d(v . x)/dx = v``.
-    """
-    scale = jnp.asarray(1024.0, points.dtype)
-    hi = jax.lax.stop_gradient(jnp.floor(points * scale) / scale)
-    lo = points - hi
-    v_mod = v - scale * jnp.floor(v / scale)  # in [0, 1024), exact
-    prod_hi = v_mod[:, None, :] * hi[None, :, :]  # (c, n, 2), exact
-    prod_lo = v[:, None, :] * lo[None, :, :]
-    frac = (prod_hi - jnp.floor(prod_hi)) + (prod_lo - jax.lax.stop_gradient(jnp.floor(prod_lo)))
-    return jnp.sum(frac, axis=-1)
+_GRID_BYTES_PER_FREQ = 48  # int32 pair + index + complex128 grid value + output + gather
 
 
-def _direct_chunk(points, v):
-    if points.dtype == jnp.float64:
-        phase = v @ points.T
-    else:
-        phase = _phase_fraction(points, v)
-    angle = (2.0 * math.pi) * phase
-    re = jnp.sum(jnp.cos(angle), axis=-1)
-    im = jnp.sum(jnp.sin(angle), axis=-1)
-    n = points.shape[0]
-    return (re * re + im * im) / (float(n) * float(n))
+def _check_grid_memory(radius: int) -> None:
+    """Refuse a centred grid whose arrays would not fit in half the memory, before allocating."""
+    side = 2 * radius + 1
+    need = side * side * _GRID_BYTES_PER_FREQ
+    have = _memory_bytes()
+    if need > have // 2:
+        raise ValueError(
+            f"radius={radius} asks for a {side} x {side} spectrum grid: about {need / 2**30:.1f}"
+            f" GiB, more than half of this machine's {have / 2**30:.1f} GiB of memory; "
+            f"use radius <= {int((math.sqrt(have // 2 / _GRID_BYTES_PER_FREQ) - 1) // 2)}"
+        )
 
 
-@jax.jit
-def _power_spectrum_direct(points, freqs):
-    m = freqs.shape[0]
-    pad = (-m) % _CHUNK
-    v = jnp.concatenate([freqs, jnp.zeros((pad, 2), freqs.dtype)]).astype(points.dtype)
-    chunk = jax.checkpoint(functools.partial(_direct_chunk, points))
-    out = jax.lax.map(chunk, v.reshape(-1, min(_CHUNK, v.shape[0]), 2))
-    return out.reshape(-1)[:m]
+# --- the accuracy policy and the FINUFFT options --------------------------------------------------
 
 
-# --- NUFFT paths ----------------------------------------------------------------------------------
+def default_eps(dtype) -> float:
+    """The NUFFT tolerance when a caller gives none: ``1e-6`` (float32), ``1e-10`` (float64)."""
+    return 1e-10 if dtype == jnp.float64 else 1e-6
+
 
 NUFFT_THREADS = 1
 """OpenMP threads of every CPU FINUFFT call. FINUFFT's multithreaded spreader (types 1 and 3)
@@ -141,125 +160,411 @@ def finufft_opts(eps, *, upsampfac=None):
 
 
 
-def _nufft_eps(dtype) -> float:
-    return 1e-11 if dtype == jnp.float64 else 1e-6
+# --- the direct sum -------------------------------------------------------------------------------
 
 
-@functools.partial(jax.jit, static_argnames=("rx", "ry"))
-def _fourier_grid_nufft1(points, rx, ry):
-    """``F_S`` on the grid ``|v_x| <= rx, |v_y| <= ry``, indexed ``[v_x + rx, v_y + ry]``."""
-    import jax_finufft
+def _phase_fraction(points, v):
+    """``v . x`` modulo 1 (up to an integer), accurate in float32 for large integer ``v``.
 
-    cdtype = jnp.complex128 if points.dtype == jnp.float64 else jnp.complex64
-    n = points.shape[0]
-    c = jnp.full((n,), 1.0 / n, dtype=cdtype)
-    x = (2.0 * math.pi) * points[:, 0]
-    y = (2.0 * math.pi) * points[:, 1]
-    eps = _nufft_eps(points.dtype)
-    return jax_finufft.nufft1((2 * rx + 1, 2 * ry + 1), c, x, y, eps=eps, iflag=-1,
-                              opts=finufft_opts(eps))
-
-
-@functools.partial(jax.jit, static_argnames=("rx", "ry"))
-def _power_spectrum_nufft1(points, freqs, rx, ry):
-    F = _fourier_grid_nufft1(points, rx, ry)
-    f = F[freqs[:, 0] + rx, freqs[:, 1] + ry]
-    return jnp.real(f) ** 2 + jnp.imag(f) ** 2
-
-
-@jax.jit
-def _power_spectrum_nufft3(points, freqs, rotation):
-    """Type-3 NUFFT at the given frequencies, in coordinates rotated by ``rotation`` (2x2).
-
-    ``v . x = (R v) . (R x)`` for a rotation R; centring the points only changes the phase.
+    ``x = x_hi + x_lo`` with ``x_hi = k / 1024`` (a truncation, ``k < 1024``) and
+    ``0 <= x_lo < 2^-10``. Since ``1024 x_hi`` is an integer, ``v x_hi = (v mod 1024) x_hi`` modulo
+    1, a product of two 10-bit numbers that float32 holds exactly, so its fraction is exact for
+    every ``|v| < 2^24``; ``v x_lo`` (``|v x_lo| < |v| / 1024``) is rounded once and reduced
+    modulo 1 too, so the phase error grows only like ``|v| 2^-34``.
     """
-    import jax_finufft
+    scale = jnp.asarray(1024.0, points.dtype)
+    hi = jnp.floor(points * scale) / scale
+    lo = points - hi
+    v_mod = v - scale * jnp.floor(v / scale)  # in [0, 1024), exact
+    prod_hi = v_mod[:, None, :] * hi[None, :, :]  # (c, n, 2), exact
+    prod_lo = v[:, None, :] * lo[None, :, :]
+    return jnp.sum((prod_hi - jnp.floor(prod_hi)) + (prod_lo - jnp.floor(prod_lo)), axis=-1)
 
-    cdtype = jnp.complex128 if points.dtype == jnp.float64 else jnp.complex64
+
+def _phase(x, vc):
+    """``-2 pi (v . x mod 1)`` for a chunk of frequencies ``vc`` ``(c, 2)``: ``(c, n)``."""
+    if x.dtype == jnp.float64:
+        ph = vc @ x.T
+        ph = ph - jnp.round(ph)  # reduce mod 1 before scaling by 2 pi (fourier_variance Sec. 6)
+    else:
+        ph = _phase_fraction(x, vc)
+    return -2.0 * jnp.pi * ph
+
+
+def _chunks(v, n):
+    c = int(min(2048, max(8, _DIRECT_CHUNK_WORK // max(n, 1))))
+    m = v.shape[0]
+    pad = (-m) % c
+    return jnp.pad(v, ((0, pad), (0, 0))).reshape(-1, c, 2), pad, c
+
+
+def _direct_forward(x, v):
+    """``n F(v)`` for integer ``v`` (float array), chunked over frequencies."""
+    vp, _, _ = _chunks(v, x.shape[0])
+
+    def one(vc):
+        ang = _phase(x, vc)
+        return jax.lax.complex(jnp.sum(jnp.cos(ang), axis=1), jnp.sum(jnp.sin(ang), axis=1))
+
+    return jax.lax.map(one, vp).reshape(-1)[: v.shape[0]]
+
+
+def _direct_adjoint(x, v, a):
+    """``sum_v a_v exp(-2 pi i v.x_j)`` for ``a``: ``(k, m)`` complex -> ``(k, n)``."""
+    vp, pad, c = _chunks(v, x.shape[0])
+    ap = jnp.pad(a, ((0, 0), (0, pad))).reshape(a.shape[0], -1, c).transpose(1, 0, 2)
+
+    def body(acc, inp):
+        vc, ac = inp
+        ang = _phase(x, vc)
+        e = jax.lax.complex(jnp.cos(ang), jnp.sin(ang))  # (c, n)
+        return acc + ac @ e, None
+
+    acc0 = jnp.zeros((a.shape[0], x.shape[0]), dtype=_cdtype(x.dtype))
+    acc, _ = jax.lax.scan(body, acc0, (vp, ap))
+    return acc
+
+
+def _cdtype(dtype):
+    return jnp.complex128 if dtype == jnp.float64 else jnp.complex64
+
+
+def rotation(theta_deg: float, dtype=jnp.float32):
+    """The 2x2 rotation taking direction ``theta_deg`` to the x axis (the type-3 coordinates)."""
+    th = math.radians(theta_deg)
+    return jnp.asarray([[math.cos(th), math.sin(th)], [-math.sin(th), math.cos(th)]], dtype)
+
+
+# --- type-3 NUFFT in rotated coordinates ----------------------------------------------------------
+
+
+def _nufft3_forward(x, v, r, eps):
+    from jax_finufft import nufft3
+
+    xr = (x - 0.5) @ r.T * (2.0 * jnp.pi)  # centring only changes the phase of F, not P
+    vr = v @ r.T
+    c = jnp.ones(x.shape[0], dtype=_cdtype(x.dtype))
+    return nufft3(c, xr[:, 0], xr[:, 1], vr[:, 0], vr[:, 1], iflag=-1, eps=eps,
+                  opts=finufft_opts(eps))
+
+
+def _nufft3_adjoint(x, v, a, r, eps):
+    from jax_finufft import nufft3
+
+    xr = (x - 0.5) @ r.T
+    vr = v @ r.T * (2.0 * jnp.pi)
+    return nufft3(a, vr[:, 0], vr[:, 1], xr[:, 0], xr[:, 1], iflag=-1, eps=eps,
+                  opts=finufft_opts(eps))
+
+
+# --- type-1 NUFFT on lattice-aligned grids --------------------------------------------------------
+
+
+class Box(NamedTuple):
+    """One type-1 grid: integer frequencies ``v = M u`` with ``u - c`` in ``[-r, r]^2``.
+
+    ``M`` (row-major ``m``) is unimodular (integer, ``|det| = 1``), so ``x' = M^T x mod 1`` is
+    again a point set on the torus and ``exp(-2 pi i v.x) = exp(-2 pi i u.x')``: a wedge along a
+    direction close to the lattice vector ``a = M e_1`` becomes a thin axis-aligned strip in
+    ``u``. The centre ``c`` is a phase modulation of the strengths, so a half-plane wedge does
+    not pay for the empty half of a box centred on 0.
+    """
+
+    m: tuple[int, int, int, int]
+    c: tuple[int, int]
+    r: tuple[int, int]
+
+
+def _unimodular_bases(theta_deg: float, lattice: bool) -> list[np.ndarray]:
+    """Candidate ``M`` (columns ``a, b``): the identity and, if ``lattice``, one basis per
+    continued-fraction convergent ``p/q`` of the direction's slope, ``a = (q, p)`` (or
+    ``(p, q)`` past 45 degrees), ``b`` the previous convergent made as orthogonal to ``a`` as
+    integer shifts ``b + j a`` allow (convergents give ``|det(a, b)| = 1``)."""
+    out = [np.eye(2, dtype=np.int64)]
+    if not lattice:
+        return out
+    th = math.radians(theta_deg)
+    d = (math.cos(th), math.sin(th))
+    swap = abs(d[1]) > abs(d[0])
+    slope = d[0] / d[1] if swap else d[1] / d[0]
+    (p0, q0), (p1, q1) = (1, 0), (math.floor(slope), 1)
+    frac = slope - math.floor(slope)
+    while q1 <= 256:
+        a, b = np.array([q1, p1]), np.array([q0, p0])
+        if swap:
+            a, b = a[::-1], b[::-1]
+        b = b - round(float(b @ a) / float(a @ a)) * a
+        m = np.stack([a, b], axis=1)
+        if abs(round(np.linalg.det(m))) == 1:
+            out.append(m)
+        if frac < 1e-12:
+            break
+        frac = 1.0 / frac
+        k = math.floor(frac)
+        frac -= k
+        (p0, q0), (p1, q1) = (p1, q1), (k * p1 + p0, k * q1 + q0)
+    return out
+
+
+def nufft1_plan(fg: np.ndarray, theta_deg: float, n: int, lattice: bool):
+    """Split a group into at most 8 runs along its direction, each with its own :class:`Box`
+    under one unimodular basis, minimising the total grid size (plus ``2 n`` per transform).
+    Returns ``(order, [(start, stop, box), ...])``: segment ``k`` holds ``fg[order[start:stop]]``.
+    The boxes of the rate design's groups total 1.5-2.6 times their frequency count at
+    n = 2^16 (0, 90, 30 degrees; one centred box around the 30-degree group in the standard
+    basis would be about 26 times)."""
+    th = math.radians(theta_deg)
+    order = np.argsort(fg @ np.array([math.cos(th), math.sin(th)]), kind="stable")
+    v = fg[order].astype(np.int64)
+    m = len(v)
+    best = None
+    for mat in _unimodular_bases(theta_deg, lattice):
+        inv = np.round(np.linalg.inv(mat)).astype(np.int64)
+        u = v @ inv.T
+        for k in range(1, min(_MAX_SEGMENTS, m) + 1):
+            cuts = np.linspace(0, m, k + 1).round().astype(np.int64)
+            lo = np.minimum.reduceat(u, cuts[:-1], axis=0)
+            hi = np.maximum.reduceat(u, cuts[:-1], axis=0)
+            c = (lo + hi) // 2
+            r = np.maximum(hi - c, c - lo)
+            cost = float(np.sum(np.prod(2 * r + 1, axis=1))) + 2.0 * n * k
+            if best is None or cost < best[0]:
+                best = (cost, mat, cuts, c, r)
+    _, mat, cuts, c, r = best
+    segs = [(int(cuts[i]), int(cuts[i + 1]),
+             Box(tuple(int(e) for e in mat.reshape(-1)), (int(c[i, 0]), int(c[i, 1])),
+                 (int(r[i, 0]), int(r[i, 1]))))
+            for i in range(len(cuts) - 1)]
+    return order, segs
+
+
+def box_area(segs) -> int:
+    """Total grid points of a :func:`nufft1_plan`'s boxes."""
+    return sum((2 * b.r[0] + 1) * (2 * b.r[1] + 1) for _, _, b in segs)
+
+
+def _nufft1_setup(x, v, box: Box, eps):
+    """Points on the box's lattice, the centre's phase per point, grid indices, NUFFT options."""
+    m = jnp.asarray(np.asarray(box.m, np.float64).reshape(2, 2), x.dtype)
+    xp = x @ m  # x'_j = M^T x_j
+    xp = xp - jnp.floor(xp)
+    ph = xp @ jnp.asarray(box.c, x.dtype)
+    ph = -2.0 * jnp.pi * (ph - jnp.round(ph))
+    shift = jax.lax.complex(jnp.cos(ph), jnp.sin(ph))
+    inv = np.round(np.linalg.inv(np.asarray(box.m, np.float64).reshape(2, 2)))
+    u = jnp.round(v @ jnp.asarray(inv.T, v.dtype)).astype(jnp.int32)
+    idx = (u[:, 0] - box.c[0] + box.r[0], u[:, 1] - box.c[1] + box.r[1])
+    shape = (2 * box.r[0] + 1, 2 * box.r[1] + 1)
+    # sigma = 1.25 shrinks the fine grid 2.6x; type 1/2 only spread the n points, so the wider
+    # kernel it needs costs little. CPU FINUFFT supports it down to eps ~ 1e-9; on a GPU the
+    # library's own choice stands.
+    return (xp - 0.5) * (2.0 * jnp.pi), shift, idx, shape, finufft_opts(eps, upsampfac=1.25)
+
+
+def _nufft1_forward(x, v, box: Box, eps):
+    """``n F(v)`` by a type-1 NUFFT onto the box's grid, then a gather."""
+    from jax_finufft import nufft1
+
+    xs, shift, idx, shape, opts = _nufft1_setup(x, v, box, eps)
+    grid = nufft1(shape, shift, xs[:, 0], xs[:, 1], iflag=-1, eps=eps, opts=opts)
+    return grid[idx]
+
+
+def _nufft1_adjoint(x, v, a, box: Box, eps):
+    """``sum_v a_v exp(-2 pi i v.x_j)`` by a scatter onto the box's grid and a type-2 NUFFT."""
+    from jax_finufft import nufft2
+
+    xs, shift, idx, shape, opts = _nufft1_setup(x, v, box, eps)
+    grid = jnp.zeros((a.shape[0], *shape), a.dtype).at[:, idx[0], idx[1]].add(a)
+    return nufft2(grid, xs[:, 0], xs[:, 1], iflag=-1, eps=eps, opts=opts) * shift[None, :]
+
+
+# --- P_S with the closed-form VJP -----------------------------------------------------------------
+
+
+@functools.partial(jax.custom_vjp, nondiff_argnums=(3, 4))
+def _power(x, v, r, how, eps):
+    """``P_S`` at frequencies ``v`` (float, integer-valued) by ``how``: ``"direct"``,
+    ``"nufft3"`` (rotation ``r``) or a :class:`Box` (type 1)."""
+    return _power_fwd(x, v, r, how, eps)[0]
+
+
+def _power_fwd(x, v, r, how, eps):
+    n = x.shape[0]
+    if how == "direct":
+        fn = _direct_forward(x, v)
+    elif isinstance(how, Box):
+        fn = _nufft1_forward(x, v, how, eps)
+    else:
+        fn = _nufft3_forward(x, v, r, eps)
+    f = fn / n
+    p = jnp.real(f) ** 2 + jnp.imag(f) ** 2
+    return p, (x, v, r, f)
+
+
+def _power_bwd(how, eps, res, g):
+    x, v, r, f = res
+    n = x.shape[0]
+    a = (g.astype(f.dtype) * jnp.conj(f))[None, :] * v.T.astype(f.dtype)  # (2, m)
+    if how == "direct":
+        s = _direct_adjoint(x, v, a)
+    elif isinstance(how, Box):  # the grid's phase convention cancels as for type 3
+        s = _nufft1_adjoint(x, v, a, how, eps)
+    else:
+        s = _nufft3_adjoint(x, v, a, r, eps)  # centring cancels in conj(F) e_j
+    grad = (4.0 * jnp.pi / n) * jnp.imag(s).T.astype(x.dtype)
+    return grad, jnp.zeros_like(v), jnp.zeros_like(r)
+
+
+_power.defvjp(_power_fwd, _power_bwd)
+
+
+def check_method(method) -> str:
+    """One of :data:`METHODS` (``"nufft"`` is read as ``"nufft1"``), or a ``ValueError``."""
+    method = _ALIASES.get(method, method) if isinstance(method, str) else method
+    return check_choice("method", method, METHODS)
+
+
+def group_plan(method: str, n: int, fg: np.ndarray, theta_deg: float, dtype):
+    """``(how, order, segments)`` for one group of frequencies ``fg`` along ``theta_deg``.
+
+    ``auto``: the direct sum for ``n m <= 2^21``, else type-1 grids (:func:`nufft1_plan`) when
+    their boxes total at most ``8 m`` (wedges, disks and grids along any direction: about
+    ``2 m``), else the rotated type-3 NUFFT. Unimodular bases other than the identity are only
+    used in float64."""
+    method = check_method(method)
+    m = fg.shape[0]
+    if method == "auto" and n * m <= _DIRECT_MAX_WORK:
+        return "direct", None, None
+    if method in ("auto", "nufft1"):
+        order, segs = nufft1_plan(fg, theta_deg, n, lattice=dtype == jnp.float64)
+        if method == "nufft1" or box_area(segs) <= 8 * m:
+            return "nufft1", order, segs
+        return "nufft3", None, None
+    return method, None, None
+
+
+def _finite(points):
+    """Refuse non-finite points before XLA or FINUFFT sees them (FINUFFT's spreader indexes its
+    grid with them: a NaN crashes the process)."""
+    if isinstance(points, jax.core.Tracer):
+        return eqx.error_if(points, ~jnp.all(jnp.isfinite(points)),
+                            "points contain NaN or Inf (P_S needs finite points in [0, 1)^2)")
+    if not bool(np.all(np.isfinite(np.asarray(points)))):
+        raise ValueError("points contain NaN or Inf (P_S needs finite points in [0, 1)^2)")
+    return points
+
+
+def _group_power(points, fg: np.ndarray, theta_deg: float, method: str, eps: float):
+    """``P_S`` of one group in its own order, by :func:`group_plan`'s choice."""
     n = points.shape[0]
-    R = rotation.astype(points.dtype)
-    xr = (points - 0.5) @ R.T
-    s = (2.0 * math.pi) * (freqs.astype(points.dtype) @ R.T)
-    c = jnp.full((n,), 1.0 / n, dtype=cdtype)
-    eps = _nufft_eps(points.dtype)
-    f = jax_finufft.nufft3(c, xr[:, 0], xr[:, 1], s[:, 0], s[:, 1], eps=eps, iflag=-1,
-                           opts=finufft_opts(eps))
-    return jnp.real(f) ** 2 + jnp.imag(f) ** 2
+    how, order, segs = group_plan(method, n, fg, theta_deg, points.dtype)
+    rot = rotation(theta_deg, points.dtype)
+    if how != "nufft1":
+        return _power(points, jnp.asarray(fg, points.dtype), rot, how, eps)
+    if box_area(segs) * _GRID_BYTES_PER_FREQ > _memory_bytes() // 2:
+        raise ValueError(f"method='nufft1' needs type-1 grids of {box_area(segs)} points for "
+                         f"{fg.shape[0]} frequencies here, more than half the memory; use "
+                         "method='auto' or 'nufft3'")
+    vs = fg[order]
+    p = jnp.concatenate([_power(points, jnp.asarray(vs[a:b], points.dtype), rot, box, eps)
+                         for a, b, box in segs])
+    # The barrier keeps XLA from constant-folding this gather's transpose when the loss is
+    # linear in P (a constant cotangent scattered by constant indices: seconds at 2^16).
+    return p[jax.lax.optimization_barrier(jnp.asarray(np.argsort(order), jnp.int32))]
 
 
-def _principal_rotation(freqs: np.ndarray) -> np.ndarray:
-    """Rotation taking the frequencies' principal axis (axial, through 0) to the x axis."""
+def _float_points(points):
+    pts = jnp.asarray(points)
+    if pts.dtype not in (jnp.float32, jnp.float64):
+        pts = pts.astype(jnp.float32)
+    return pts
+
+
+def grouped_power_spectrum(points, fset: FrequencySet, *, method: str = "auto", eps=None):
+    """``P_S`` on every frequency of ``fset`` (its order), differentiable w.r.t. ``points``.
+
+    Each group (the frequencies nearest one direction) is evaluated by ``method`` (see the
+    module docstring; ``"auto"`` chooses per group, :func:`group_plan`). ``eps``: the NUFFT
+    tolerance (default :func:`default_eps`).
+    """
+    check_points("points", points)
+    if not isinstance(fset, FrequencySet):
+        raise TypeError(f"fset must be a frequencies.FrequencySet, got {type(fset).__name__}")
+    method = check_method(method)
+    pts = _finite(_float_points(points))
+    eps = default_eps(pts.dtype) if eps is None else check_positive_float("eps", eps)
+    return jnp.concatenate([_group_power(pts, fg, theta, method, eps)
+                            for theta, fg, _ in fset.groups()])
+
+
+def _principal_angle(freqs: np.ndarray) -> float:
+    """Direction (degrees, axial) of the frequencies' principal axis through 0."""
     f = freqs.astype(np.float64)
     _, vecs = np.linalg.eigh(f.T @ f)
     a = vecs[:, -1]
-    ang = math.atan2(a[1], a[0])
-    c, s = math.cos(ang), math.sin(ang)
-    return np.array([[c, s], [-s, c]])
+    return math.degrees(math.atan2(a[1], a[0])) % 180.0
 
 
-def _choose_method(n: int, freqs: np.ndarray) -> str:
-    m = freqs.shape[0]
-    if jax.default_backend() != "cpu" or n * m <= _DIRECT_MAX_WORK:
-        return "direct"
-    rx, ry = np.abs(freqs).max(axis=0)
-    box = (2 * int(rx) + 1) * (2 * int(ry) + 1)
-    # type 1 costs ~ the box plus n; type 3 ~ the rotated extent of the set plus n and m.
-    rot = _principal_rotation(freqs) @ freqs.T.astype(np.float64)
-    ext = np.ptp(rot, axis=1) + 1.0
-    return "nufft" if box <= 4 * max(m, float(ext[0] * ext[1])) else "nufft3"
-
-
-def power_spectrum(points, freqs, *, method: str = "auto"):
+def power_spectrum(points, freqs, *, method: str = "auto", eps=None):
     """``P_S(v)`` of a point set at integer frequencies (W Eq. 6): ``(m,)`` values.
 
     Args:
         points: ``(n, 2)`` in ``[0, 1)^2`` (float32, or float64 under ``jax.enable_x64``).
         freqs: ``(m, 2)`` integer frequency vectors ``(v_x, v_y)`` with ``|v_x|, |v_y| < 2^24``.
-        method: ``"auto"``, ``"direct"``, ``"nufft"`` (type 1 on the bounding grid) or
-            ``"nufft3"`` (type 3 in rotated coordinates). All agree to ~1e-6 (float32) or
-            ~1e-10 (float64) relative to ``P_S(0) = 1``, and all are differentiable in ``points``.
+        method: ``"auto"``, ``"direct"``, ``"nufft1"`` (type 1 on lattice-aligned grids; also
+            ``"nufft"``) or ``"nufft3"`` (type 3 in rotated coordinates), the frequencies taken
+            as one group along their principal axis. All agree to ~1e-6 (float32) or ~1e-10
+            (float64) relative to ``P_S(0) = 1``, and all are differentiable in ``points``.
+        eps: NUFFT tolerance (default :func:`default_eps`).
     """
-    check_choice("method", method, METHODS)
+    method = check_method(method)
     points = check_points("points", points)
     freqs = check_frequencies("freqs", freqs)
-    if (
-        not isinstance(freqs, jax.core.Tracer)
-        and np.abs(np.asarray(freqs, np.int64)).max() >= _MAX_FREQ
-    ):
-        raise ValueError(f"freqs must satisfy |v_x|, |v_y| < 2^24, got up to {np.abs(freqs).max()}")
-    pts = jnp.asarray(points)
-    if pts.dtype not in (jnp.float32, jnp.float64):
-        pts = pts.astype(jnp.float32)
-    if method == "auto":
-        method = _choose_method(pts.shape[0], np.asarray(freqs))
-    if method == "direct":
-        return _power_spectrum_direct(pts, jnp.asarray(freqs, jnp.int32))
-    if method == "nufft":
-        f = np.asarray(freqs)
-        rx, ry = (int(r) for r in np.abs(f).max(axis=0))
-        return _power_spectrum_nufft1(pts, jnp.asarray(f, jnp.int32), max(rx, 1), max(ry, 1))
-    rot = _principal_rotation(np.asarray(freqs))
-    return _power_spectrum_nufft3(pts, jnp.asarray(freqs, jnp.int32), jnp.asarray(rot))
+    pts = _finite(_float_points(points))
+    eps = default_eps(pts.dtype) if eps is None else check_positive_float("eps", eps)
+    if isinstance(freqs, jax.core.Tracer):  # no plan for traced frequencies: the direct sum
+        if method not in ("auto", "direct"):
+            raise ValueError(f"method={method!r} needs concrete freqs; traced freqs take "
+                             "method='direct'")
+        v = jnp.asarray(freqs).astype(pts.dtype)
+        return _power(pts, v, rotation(0.0, pts.dtype), "direct", eps)
+    f = np.asarray(freqs, np.int64)
+    if np.abs(f).max() >= _MAX_FREQ:
+        raise ValueError(f"freqs must satisfy |v_x|, |v_y| < 2^24, got up to {np.abs(f).max()}")
+    return _group_power(pts, f, _principal_angle(f), method, eps)
+
+
+def power_spectrum_rotated(points, freqs, direction_deg=0.0, *, method="nufft3", eps=None):
+    """``P_S(v)`` for ``freqs`` ``(m, 2)`` as one group along ``direction_deg`` (the type-3 NUFFT
+    rotated to that direction, or any other method); differentiable w.r.t. ``points``."""
+    check_points("points", points)
+    f = np.asarray(check_frequencies("freqs", freqs), np.int64)
+    pts = _finite(_float_points(points))
+    eps = default_eps(pts.dtype) if eps is None else check_positive_float("eps", eps)
+    return _group_power(pts, f, float(direction_deg), check_method(method), eps)
 
 
 def power_spectrum_grid(points, radius: int, *, method: str = "auto"):
     """``P_S`` on the centred grid of half-width ``radius``: ``grid[i, j] = P_S(j - r, i - r)``.
 
     Rows are ``v_y`` and columns ``v_x``, as in DESIGN's grids (``imshow(origin="lower")``).
+    Past ``n (2r+1)^2 = 2^21`` (``"auto"``) one type-1 grid holds the whole spectrum.
     """
     r = check_int("radius", radius, minimum=1)
-    check_choice("method", method, METHODS)
+    method = check_method(method)
     points = check_points("points", points)
-    pts = jnp.asarray(points)
-    if method in ("auto", "nufft") and (
-        method == "nufft" or pts.shape[0] * (2 * r + 1) ** 2 > _DIRECT_MAX_WORK
-    ):
-        F = _fourier_grid_nufft1(
-            pts.astype(pts.dtype if pts.dtype == jnp.float64 else jnp.float32), r, r
-        )
-        return (jnp.real(F) ** 2 + jnp.imag(F) ** 2).T
-    vals = power_spectrum(pts, frequency_grid(r), method="direct" if method == "auto" else method)
-    return vals.reshape(2 * r + 1, 2 * r + 1)
+    _check_grid_memory(r)
+    pts = _finite(_float_points(points))
+    side = 2 * r + 1
+    if method == "nufft1" or (method == "auto" and pts.shape[0] * side * side > _DIRECT_MAX_WORK):
+        # the grid is one identity box: no plan search, no gather permutation
+        box = Box((1, 0, 0, 1), (0, 0), (r, r))
+        v = jnp.asarray(frequency_grid(r), pts.dtype)
+        vals = _power(pts, v, rotation(0.0, pts.dtype), box, default_eps(pts.dtype))
+    else:
+        vals = power_spectrum(pts, frequency_grid(r), method=method)
+    return vals.reshape(side, side)
 
 
 # --- expected spectra over realizations -----------------------------------------------------------
@@ -308,7 +613,7 @@ def expected_power_spectrum(
     key = check_key("key", key)
     realizations = check_int("realizations", realizations, minimum=1)
     freqs = check_frequencies("freqs", freqs)
-    check_choice("method", method, METHODS)
+    method = check_method(method)
     return _average_over_realizations(
         sampler, n, key, realizations, shift, progress,
         lambda pts: power_spectrum(pts, freqs, method=method),

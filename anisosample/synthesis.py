@@ -42,6 +42,7 @@ import numpy as np
 from . import frequencies as _freq
 from . import io as _io
 from . import losses as _losses
+from . import spectrum as _spectrum
 from ._validate import (
     ONE_MINUS_EPSILON,
     check_choice,
@@ -225,7 +226,7 @@ def synthesize(
         raise ValueError("spectrum_weight and c must not both be 0 (nothing to minimise)")
     if boundary is not None:
         opts["boundary"] = check_choice("boundary", boundary, BOUNDARIES)
-    check_choice("method", method, _losses.METHODS)
+    method = _spectrum.check_method(method)
     checkpoint_every = check_int("checkpoint_every", checkpoint_every, minimum=1)
     fset = _freq.design(n, directions_deg, opts["design"], **(frequency_options or {}))
     steps = opts["steps"]
@@ -385,7 +386,7 @@ def _padded_groups(fsets, dtype):
             pad = m - len(fg)
             vs.append(np.concatenate([fg, np.repeat(fg[:1], pad, axis=0)]).astype(np.float64))
             ws.append(np.concatenate([wg, np.zeros(pad)]))
-            rs.append(np.asarray(_losses._rot(theta, jnp.float64)))
+            rs.append(np.asarray(_spectrum.rotation(theta, jnp.float64)))
         out.append((jnp.asarray(np.stack(vs), dtype), jnp.asarray(np.stack(ws), dtype),
                     jnp.asarray(np.stack(rs), dtype)))
     return out
@@ -465,7 +466,7 @@ def synthesize_batch(key, n: int, direction_sets, *, recipe: str = "rate",
             num = jnp.zeros((), x.dtype)
             den = jnp.zeros((), x.dtype)
             for v, w, r in grp:
-                p = _losses._power(x, v, r, method, eps)
+                p = _spectrum._power(x, v, r, method, eps)
                 num = num + jnp.sum(w * (p * p * n if spec_sq else p))
                 den = den + jnp.sum(w)
             val = n * num / den

@@ -140,9 +140,9 @@ def test_lattice_grids_float64_deep(getkey, theta):
     n = 512
     fset = fr.design(n, [0.0, 90.0, theta], "rate")
     (_, fg, _), = [g for g in fset.groups() if g[0] == theta]
-    order, segs = L._nufft1_plan(fg, theta, n, lattice=True)
+    order, segs = asp.spectrum.nufft1_plan(fg, theta, n, lattice=True)
     assert any(box.m != (1, 0, 0, 1) for _, _, box in segs)
-    assert L._box_area(segs) <= 4 * len(fg)
+    assert asp.spectrum.box_area(segs) <= 4 * len(fg)
     assert sorted(order.tolist()) == list(range(len(fg)))
     with jax.enable_x64(True):
         x = jax.random.uniform(getkey(), (n, 2), jnp.float64)

@@ -190,3 +190,76 @@ def test_spectrum_image_rejects_bad_vmax(tmp_path):
         with pytest.raises(ValueError, match="vmax must be finite and > 0"):
             spectrum.save_spectrum_image(tmp_path / "s.png", g, n=4, vmax=vmax)
     assert not (tmp_path / "s.png").exists()
+
+
+@pytest.mark.parametrize("method", ["nufft1", "nufft3", "auto"])
+@pytest.mark.parametrize("shape", ["grid", "strip30"])
+def test_one_engine_against_direct_sum_float64(method, shape):
+    """power_spectrum's every method (one group along the principal axis) against the direct
+    sum: values within FINUFFT's bound |dP| <= 2 eps |F| (eps = 1e-10, a factor 10 spare) and
+    gradients of sum(w P) to 1e-6 of their size."""
+    from anisosample import frequencies
+
+    n = 400
+    f = (spectrum.frequency_grid(12) if shape == "grid"
+         else frequencies.wedge(30.0, 160.0, 2.0, 0.0))
+    with jax.enable_x64(True):
+        w = jnp.asarray(np.random.default_rng(0).random(len(f)), jnp.float64)
+        x = jax.random.uniform(jax.random.key(5), (n, 2), jnp.float64)
+        a = np.asarray(spectrum.power_spectrum(x, f, method=method))
+        b = np.asarray(spectrum.power_spectrum(x, f, method="direct"))
+        assert np.max(np.abs(a - b)) <= 10 * 2 * 1e-10 * np.sqrt(b.max())
+        ga = jax.grad(lambda y: jnp.sum(w * spectrum.power_spectrum(y, f, method=method)))(x)
+        gb = jax.grad(lambda y: jnp.sum(w * spectrum.power_spectrum(y, f, method="direct")))(x)
+        assert float(jnp.max(jnp.abs(ga - gb))) < 1e-6 * float(jnp.max(jnp.abs(gb)))
+
+
+def test_direct_sum_gradient_matches_closed_form_brute_force():
+    """The direct sum's VJP against dP/dx_j = (4 pi / n) Im(conj(F) e^{-2 pi i v.x_j}) v summed in
+    numpy float64."""
+    n = 64
+    f = spectrum.frequency_grid(3)
+    with jax.enable_x64(True):
+        x = jax.random.uniform(jax.random.key(9), (n, 2), jnp.float64)
+        g = np.asarray(jax.grad(lambda y: jnp.sum(spectrum.power_spectrum(y, f,
+                                                                          method="direct")))(x))
+    xn, v = np.asarray(x), f.astype(np.float64)
+    e = np.exp(-2j * np.pi * (v @ xn.T))  # (m, n)
+    F = e.mean(axis=1)
+    want = (4 * np.pi / n) * np.imag(np.conj(F)[:, None] * e).T @ v
+    np.testing.assert_allclose(g, want, atol=1e-12)
+
+
+def test_non_finite_points_are_refused_before_the_nufft():
+    """A NaN point used to crash the process inside FINUFFT (issue 17): now a clear error,
+    eagerly, under grad and under jit."""
+    import equinox as eqx
+
+    from anisosample import frequencies, losses
+
+    # eagerly a ValueError or equinox's error; under jax.jit XLA wraps equinox's message
+    _NAN_ERRORS = (ValueError, eqx.EquinoxRuntimeError, jax.errors.JaxRuntimeError)
+    fset = frequencies.design(256, (0.0, 90.0, 30.0), "rate")
+    x = np.asarray(samplers.get("random")(jax.random.key(1), 256)).copy()
+    x[3, 0] = np.nan
+    x = jnp.asarray(x)
+    with pytest.raises(ValueError, match="NaN"):
+        spectrum.power_spectrum(x, spectrum.frequency_grid(40), method="nufft1")
+    grad = jax.grad(lambda y: losses.spectrum_loss(y, fset, method="nufft1"))
+    with pytest.raises(_NAN_ERRORS, match="NaN or Inf"):
+        grad(x)
+    with pytest.raises(_NAN_ERRORS, match="NaN or Inf"):
+        jax.block_until_ready(jax.jit(grad)(x))
+    with pytest.raises(_NAN_ERRORS, match="NaN or Inf"):
+        jax.block_until_ready(jax.jit(lambda y: spectrum.power_spectrum(
+            y, spectrum.frequency_grid(40), method="nufft3"))(x.at[0, 1].set(jnp.inf)))
+
+
+def test_huge_grid_is_refused_before_allocating():
+    """radius 100000 (a 200001^2 grid) aborted inside XLA (issue 17): now a ValueError that
+    says how much memory it needs."""
+    pts = samplers.get("random")(jax.random.key(0), 16)
+    with pytest.raises(ValueError, match=r"radius=100000 .* GiB"):
+        spectrum.power_spectrum_grid(pts, 100000)
+    with pytest.raises(ValueError, match="radius=100000"):
+        spectrum.frequency_grid(100000)
