@@ -8,7 +8,8 @@ its smooth-integrand rate. To measure the claim where it lives, each pixel's int
 
 * ``"lit"``: no jump anywhere (the light fully visible; a horizon crossing, where the cosine
   goes to zero continuously, is no jump);
-* ``"occluded"``: zero everywhere (the light hidden, facing away, or no surface hit);
+* ``"occluded"``: constant: zero (the light hidden, facing away, or no surface hit), or an
+  emitter seen directly whose light integrand is zero (nothing varies: zero variance);
 * ``"one-edge"``: the jumps lie on one straight line (within ``tolerance_cells`` grid cells);
   its *spectral direction* is the line's normal (DESIGN: an edge running at ``theta + 90`` puts
   its energy along ``theta``);
@@ -188,7 +189,7 @@ def classify_grid(
     check_positive_float("min_angle_deg", min_angle_deg)
     min_points = check_int("min_points", min_points, minimum=2)
     g = v.shape[0]
-    if not np.any(v != 0):
+    if np.ptp(v) <= 1e-6 * np.max(np.abs(v)):  # constant (zero, or emission seen directly)
         return GridClass("occluded", (), 0, 0.0)
     p = jump_points(v, jump=jump, ratio=ratio)
     m = len(p)

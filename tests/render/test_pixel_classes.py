@@ -50,6 +50,7 @@ def test_smooth_dark_curved_and_patterned_grids():
     assert pc.classify_grid(np.exp(-4.0 * X)).name == "lit"  # steep but smooth
     assert pc.classify_grid(np.maximum(X - 0.3, 0.0)).name == "lit"  # horizon: continuous
     assert pc.classify_grid(np.zeros((G, G))).name == "occluded"
+    assert pc.classify_grid(np.full((G, G), 3.0)).name == "occluded"  # an emitter seen directly
     assert pc.classify_grid(((X - 0.5) ** 2 + (Y - 0.5) ** 2 < 0.09) * 1.0).name == "other"
     assert pc.classify_grid(((X * 8) % 1 < 0.5) * SMOOTH).name == "other"  # a pattern
     # a textured step without occlusion is a jump too

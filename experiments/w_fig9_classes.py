@@ -1,0 +1,259 @@
+"""W Fig. 9, measured where the claim lives: per-pixel convergence on classified pixels.
+
+W's rendered claim (Sec. 6.2, Fig. 9) is about pixels whose 2D integrand has a straight edge:
+there the aligned sets converge at about n^-1.75 while pmj02bn and sheared pmj02bn stay near
+n^-1.5. A region of fully lit pixels shows every sampler's smooth-integrand rate instead, so
+the regions here are chosen from the pixel classes (:mod:`anisosample.render.pixel_classes`):
+
+* ``one-edge``: one straight edge whose spectral direction is at least 10 degrees from both axes
+  (a penumbra of one occluder edge);
+* ``corner``: two straight edges (W's 4-direction sets apply);
+* ``lit``: no edge (the control: alignment has nothing to act on).
+
+Pixels are picked at W's resolution (``size``, 1280^2 at both scales): a coarse classification
+(``coarse``^2) proposes candidates, each candidate's pixel of the full-size image is classified
+again from its own dense grid and kept if its class agrees, up to ``per_class`` pixels per
+class (seeded choice). Only those pixels and their blocks are evaluated, which is what makes
+1280^2 affordable on a CPU: the block direction is W's estimate (Sec. 5.3: 16x16-pixel blocks,
+96^2 samples per block, each pixel filling a 6x6 tile; ``render.aligned.block_grid_values`` and
+``directions.estimate``) of the block that holds the pixel.
+
+Per pixel (fixed primary hit, W's setting), the estimator variance over ``realizations``
+toroidal shifts of one set per method and n (``variance.realization_estimates``), for
+
+* ``pmj02bn``; ``sheared pmj02bn`` (Singh & Jarosz 2017, to the block's direction);
+* ``aligned (block)``: the 3-direction table set for the block's estimated direction;
+* ``aligned (true)``: the 3-direction set for the pixel's own (classified) direction, the upper
+  bound of what estimation can reach;
+* corners also: ``aligned 4-dir (true)``, W's 4-direction set for the pixel's two directions,
+  and ``aligned 4-dir (block)`` for the block's two estimated directions when it has two.
+
+A block whose direction rounds onto an axis (or has none) uses pmj02bn for its aligned methods
+(W Sec. 5.4's fallback). Per-pixel slopes are weighted log-log fits over ``log2_ns``
+(``variance.fit_slope``); the summary gives their median and quartiles, and the per-pixel
+variance at the largest n relative to pmj02bn's (median and quartiles). Sets missing from the
+installed tables are synthesized on demand into ``results/w_render_tables``.
+
+Writes ``results/w_fig9/w_fig9.json`` (per scene and class: the image resolution, every pixel
+as ``[column, row]`` as ``render.pixel_integrand`` takes it, row 0 at the top, its class
+direction(s), its block's estimate, and per method its per-pixel variances and slopes) and
+``w_fig9.png``. Finished scenes are reused on rerun (``--fresh`` recomputes).
+
+    python experiments/w_fig9_classes.py --scale small|paper [--scenes cornell,dof]
+"""
+
+from __future__ import annotations
+
+import json
+import time
+
+import _w_render as W
+import common
+import jax
+import numpy as np
+
+import anisosample as asp
+from anisosample import directions, plot, samplers, tables
+from anisosample import variance as V
+from anisosample.progress import progress
+from anisosample.render import aligned
+from anisosample.render import pixel_classes as pc
+
+NAME = "w_fig9"
+SCALES = {
+    "small": dict(coarse=128, coarse_grid=48, size=1280, grid=64, block_px=16, samples=96,
+                  log2_ns=[8, 9, 10, 11, 12], corner_log2_ns=[8, 10, 12], realizations=64,
+                  per_class=30, min_axis_deg=10.0),
+    "paper": dict(coarse=256, coarse_grid=64, size=1280, grid=96, block_px=16, samples=96,
+                  log2_ns=[8, 9, 10, 11, 12], corner_log2_ns=[8, 9, 10, 11, 12],
+                  realizations=256, per_class=60, min_axis_deg=10.0),
+}
+CLASS_NAMES = ("one-edge", "corner", "lit")
+SCENES = ("cornell", "dof")
+
+
+def _off_axis(d) -> np.ndarray:
+    d = np.asarray(d) % 90.0
+    return np.minimum(d, 90.0 - d)
+
+
+def pick_pixels(name, cfg, rng):
+    """Pixels of each class at the full resolution (module docstring), with their classes."""
+    sq = W.SCENES[name]["square_aperture"]
+    coarse = W.load_scene(name, cfg["coarse"], cfg["coarse"])
+    cl = pc.pixel_classes(coarse, grid=cfg["coarse_grid"], square_aperture=sq, progress=True)
+    full = W.load_scene(name, cfg["size"], cfg["size"])
+    f = cfg["size"] // cfg["coarse"]
+    picked = {}
+    for cname in CLASS_NAMES:
+        cand = cl.pixels(cname)
+        if cname == "one-edge":
+            cand = cand[_off_axis(cl.directions_deg[cand[:, 1], cand[:, 0], 0])
+                        >= cfg["min_axis_deg"]]
+        cand = cand[rng.permutation(len(cand))][: 4 * cfg["per_class"]]
+        if len(cand) == 0:
+            picked[cname] = (np.zeros((0, 2), int), np.zeros((0, 2)), np.zeros(0, int))
+            continue
+        fine = cand * f + f // 2
+        fc = pc.pixel_classes(full, fine, grid=cfg["grid"], square_aperture=sq)
+        keep = fc.classes[fine[:, 1], fine[:, 0]] == pc.CLASSES.index(cname)
+        d = fc.directions_deg[fine[:, 1], fine[:, 0]]
+        if cname == "one-edge":
+            keep &= _off_axis(d[:, 0]) >= cfg["min_axis_deg"]
+        sel = np.nonzero(keep)[0][: cfg["per_class"]]
+        picked[cname] = (fine[sel], d[sel], fc.num_directions[fine[sel, 1], fine[sel, 0]])
+    return full, cl.counts(), picked
+
+
+def block_estimate(full, base, pixel, cfg, cache):
+    """W's estimate (Sec. 5.3) of the block holding ``pixel``: directions, strongest first."""
+    b = (int(pixel[1]) // cfg["block_px"], int(pixel[0]) // cfg["block_px"])
+    if b not in cache:
+        grid = aligned.block_grid_values(full, b, cfg["block_px"], cfg["samples"], integrand=base)
+        cache[b] = directions.estimate(grid, k=2)
+    return b, cache[b]
+
+
+def _lookup(extra, n):
+    """The aligned set for integer extra directions (3 or 4 directions in all), or None."""
+    extra = tuple(sorted({int(round(e)) % 180 for e in extra} - set(tables.AXES_DEG)))
+    if not extra:
+        return None
+    try:
+        return tables.lookup(extra, n, kind=2 + len(extra))
+    except (FileNotFoundError, ValueError):
+        return tables.lookup(extra, n, kind=2 + len(extra), table=W.TABLES, build_missing=True)
+
+
+def method_sets(cname, true_dirs, block_dirs, n, pmj):
+    """The point set of every method for one pixel (module docstring)."""
+    d_block = block_dirs[0] if block_dirs else None
+    sets = {"pmj02bn": pmj,
+            "sheared pmj02bn": pmj if d_block is None else samplers.shear(pmj, d_block)}
+    sets["aligned (block)"] = (_lookup((d_block,), n) if d_block is not None else None)
+    sets["aligned (true)"] = _lookup(true_dirs[:1], n) if len(true_dirs) else None
+    if cname == "corner":
+        sets["aligned 4-dir (true)"] = _lookup(true_dirs[:2], n)
+        sets["aligned 4-dir (block)"] = (_lookup(block_dirs[:2], n) if len(block_dirs) == 2
+                                         else None)
+    return {m: pmj if s is None else s for m, s in sets.items()}
+
+
+def measure_class(full, base, cname, pixels, dirs, num, cfg, key, cache):
+    ns = [2**k for k in (cfg["corner_log2_ns"] if cname == "corner" else cfg["log2_ns"])]
+    rows = []
+    for q, pix in enumerate(progress(pixels, desc=cname, leave=False)):
+        true_dirs = [float(x) for x in dirs[q][: int(num[q])]]
+        block, block_dirs = block_estimate(full, base, pix, cfg, cache)
+        f = W.pixel_f(base, full, (int(pix[0]), int(pix[1])))
+        per = {}
+        for n in ns:
+            pmj = samplers.get("pmj02bn")(jax.random.fold_in(key, n), n)
+            sets = method_sets(cname, true_dirs, list(block_dirs), n, pmj)
+            kq = jax.random.fold_in(jax.random.fold_in(key, 10_000 + q), n)
+            for m, pts in sets.items():
+                v, se, _ = W.pixel_variance(f, pts, n, kq, cfg["realizations"])
+                per.setdefault(m, {"variance": [], "std_error": []})
+                per[m]["variance"].append(v)
+                per[m]["std_error"].append(se)
+        for c in per.values():
+            c["slope"] = V.fit_slope(ns, c["variance"], c["std_error"]).slope
+        rows.append({"pixel": [int(pix[0]), int(pix[1])], "true_directions_deg": true_dirs,
+                     "block": list(block), "block_directions_deg": [float(x) for x in block_dirs],
+                     "methods": per})
+    return {"ns": ns, "pixels": rows, "summary": summarize(rows)}
+
+
+def summarize(rows) -> dict:
+    if not rows:
+        return {}
+    out = {}
+    for m in rows[0]["methods"]:
+        slopes = np.array([r["methods"][m]["slope"] for r in rows])
+        ratio = np.array([r["methods"][m]["variance"][-1] / r["methods"]["pmj02bn"]["variance"][-1]
+                          for r in rows])
+        out[m] = {"slope_median": float(np.median(slopes)),
+                  "slope_quartiles": [float(x) for x in np.percentile(slopes, [25, 75])],
+                  "ratio_median": float(np.median(ratio)),
+                  "ratio_quartiles": [float(x) for x in np.percentile(ratio, [25, 75])]}
+    err = [directions.axial_distance_deg(r["block_directions_deg"][0], r["true_directions_deg"][0])
+           for r in rows if r["block_directions_deg"] and r["true_directions_deg"]]
+    if err:
+        err = np.asarray(err, float)
+        out["block_direction_error_deg"] = {
+            "median": float(np.median(err)), "within_3_deg": float(np.mean(err <= 3.0)),
+            "pixels_with_estimate": int(len(err)), "pixels": len(rows)}
+    return out
+
+
+def run_scene(name, cfg, key, out, fresh):
+    settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist())}
+    path = out / "scenes" / f"{name}.json"
+    cached = common.cached_json(path, fresh)
+    if cached is not None and cached.get("settings") == settings:
+        return cached
+    started = time.time()
+    rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).astype(np.uint32))
+    full, coarse_counts, picked = pick_pixels(name, cfg, rng)
+    base = W.base_integrand(full, name)
+    cache = {}
+    rec = {"settings": settings, "resolution": [cfg["size"], cfg["size"]],
+           "coarse_class_counts": coarse_counts, "classes": {}}
+    for i, cname in enumerate(CLASS_NAMES):
+        pixels, dirs, num = picked[cname]
+        print(f"{name}: {cname}: {len(pixels)} pixels")
+        rec["classes"][cname] = measure_class(full, base, cname, pixels, dirs, num, cfg,
+                                              jax.random.fold_in(key, i), cache)
+    rec["seconds"] = time.time() - started
+    asp.io.save_json(path, rec, overwrite=True)
+    return rec
+
+
+def figure(results, out):
+    names = list(results)
+    fig, axes = plot.new_figure(max(1, len(names)), len(CLASS_NAMES), size=2.8)
+    for row, s in enumerate(names):
+        for col, cname in enumerate(CLASS_NAMES):
+            ax = axes[row, col]
+            c = results[s]["classes"].get(cname, {})
+            if not c.get("pixels"):
+                ax.set_title(f"{s}: {cname}: no pixels", fontsize=8)
+                continue
+            ns = c["ns"]
+            for m in c["pixels"][0]["methods"]:
+                v = np.median([r["methods"][m]["variance"] for r in c["pixels"]], axis=0)
+                sm = c["summary"][m]
+                plot.convergence_panel(ax, ns, v, label=m, slope=sm["slope_median"])
+            ax.legend(fontsize=5, loc="lower left")
+            ax.set_title(f"{s}: {cname} ({len(c['pixels'])} px), median variance", fontsize=8)
+    return plot.save_figure(fig, out / NAME, formats=("png",))
+
+
+def main(argv=None):
+    p = W.scene_parser(NAME, __doc__.splitlines()[0])
+    p.set_defaults(scenes=",".join(SCENES))
+    args = p.parse_args(argv)
+    started = time.time()
+    cfg = SCALES[args.scale]
+    results, missing = W.run_scenes(NAME, args, cfg, run_scene)
+    pngs = figure(results, args.out)
+    data = {"scenes": results, "missing_scenes": missing}
+    json_path = common.write_record(args.out, NAME, data, {**cfg, "scale": args.scale,
+                                    "seed": args.seed}, started)
+    print(f"figure: {pngs[0]}\nnumbers: {json_path}")
+    for s, r in results.items():
+        for cname, c in r["classes"].items():
+            print(f"  {s} {cname}: {len(c['pixels'])} pixels at {r['resolution']}")
+            for m, sm in c["summary"].items():
+                if m == "block_direction_error_deg":
+                    print(f"    block direction error: median {sm['median']:.1f} deg, "
+                          f"{100 * sm['within_3_deg']:.0f}% within 3 deg")
+                    continue
+                q = sm["slope_quartiles"]
+                print(f"    {m:22s} slope {sm['slope_median']:+.2f} [{q[0]:+.2f}, {q[1]:+.2f}]"
+                      f"  Var@{c['ns'][-1]} / pmj02bn {sm['ratio_median']:.2f}")
+    return json.loads(json_path.read_text())
+
+
+if __name__ == "__main__":
+    main()
