@@ -26,7 +26,9 @@ toroidal shifts of one set per method and n (``variance.realization_estimates``)
 * ``aligned (true)``: the 3-direction set for the pixel's own (classified) direction, the upper
   bound of what estimation can reach;
 * corners also: ``aligned 4-dir (true)``, W's 4-direction set for the pixel's two directions,
-  and ``aligned 4-dir (block)`` for the block's two estimated directions when it has two.
+  and ``aligned 4-dir (block)`` for the block's two estimated directions when it has two;
+* ``aligned (gated)``: ``aligned (block)`` where the renderer's per-pixel gate sees a
+  discontinuity in the pixel's probe, pmj02bn elsewhere (beyond W; :func:`add_gate`).
 
 A block whose direction rounds onto an axis (or has none) uses pmj02bn for its aligned methods
 (W Sec. 5.4's fallback). Per-pixel slopes are weighted log-log fits over ``log2_ns``
@@ -69,6 +71,7 @@ SCALES = {
                   realizations=256, per_class=60, min_axis_deg=10.0),
 }
 CLASS_NAMES = ("one-edge", "corner", "lit")
+GATE_PROBE = 6  # the renderer's probe side (render.estimation.pixel_probes' default)
 SCENES = ("cornell", "dof")
 
 
@@ -161,7 +164,27 @@ def measure_class(full, base, cname, pixels, dirs, num, cfg, key, cache):
         rows.append({"pixel": [int(pix[0]), int(pix[1])], "true_directions_deg": true_dirs,
                      "block": list(block), "block_directions_deg": [float(x) for x in block_dirs],
                      "methods": per})
+    add_gate(full, base, rows)
     return {"ns": ns, "pixels": rows, "summary": summarize(rows)}
+
+
+def add_gate(full, base, rows):
+    """The renderer's per-pixel gate (``render.estimation.probe_discontinuous`` on the pixel's
+    6x6 probe) and the gated aligned method: the block's aligned set where the probe shows a
+    discontinuity, pmj02bn elsewhere -- the same sets and keys as those two columns, so its
+    variances are theirs, pixel by pixel."""
+    if not rows:
+        return
+    from anisosample.render import estimation
+
+    px = np.array([r["pixel"] for r in rows])
+    probes = np.concatenate([g for _, g in pc.pixel_grids(
+        full, px, grid=GATE_PROBE, dimension=base.dimension, technique=base.technique,
+        square_aperture=base.square_aperture)])
+    for r, flag in zip(rows, estimation.probe_discontinuous(probes), strict=True):
+        r["gate_discontinuous"] = bool(flag)
+        r["methods"]["aligned (gated)"] = dict(
+            r["methods"]["aligned (block)" if flag else "pmj02bn"])
 
 
 def summarize(rows) -> dict:
@@ -176,6 +199,9 @@ def summarize(rows) -> dict:
                   "slope_quartiles": [float(x) for x in np.percentile(slopes, [25, 75])],
                   "ratio_median": float(np.median(ratio)),
                   "ratio_quartiles": [float(x) for x in np.percentile(ratio, [25, 75])]}
+    gate = [r["gate_discontinuous"] for r in rows if "gate_discontinuous" in r]
+    if gate:
+        out["gate_discontinuous_share"] = float(np.mean(gate))
     err = [directions.axial_distance_deg(r["block_directions_deg"][0], r["true_directions_deg"][0])
            for r in rows if r["block_directions_deg"] and r["true_directions_deg"]]
     if err:
@@ -191,6 +217,15 @@ def run_scene(name, cfg, key, out, fresh):
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
     if cached is not None and cached.get("settings") == settings:
+        stale = [c for c in cached["classes"].values()
+                 if c["pixels"] and "gate_discontinuous" not in c["pixels"][0]]
+        if stale:  # a record from before the gate column: add it (no variance is recomputed)
+            full = W.load_scene(name, cfg["size"], cfg["size"])
+            base = W.base_integrand(full, name)
+            for c in stale:
+                add_gate(full, base, c["pixels"])
+                c["summary"] = summarize(c["pixels"])
+            asp.io.save_json(path, cached, overwrite=True)
         return cached
     started = time.time()
     rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).astype(np.uint32))
@@ -245,6 +280,9 @@ def main(argv=None):
         for cname, c in r["classes"].items():
             print(f"  {s} {cname}: {len(c['pixels'])} pixels at {r['resolution']}")
             for m, sm in c["summary"].items():
+                if m == "gate_discontinuous_share":
+                    print(f"    gate: {100 * sm:.0f}% of the pixels see a discontinuity")
+                    continue
                 if m == "block_direction_error_deg":
                     print(f"    block direction error: median {sm['median']:.1f} deg, "
                           f"{100 * sm['within_3_deg']:.0f}% within 3 deg")

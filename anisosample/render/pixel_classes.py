@@ -285,7 +285,7 @@ def pixel_grids(
 
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
-    grid = check_int("grid", grid, minimum=8, maximum=1024)
+    grid = check_int("grid", grid, minimum=2, maximum=1024)
     chunk = check_int("chunk", chunk, minimum=1)
     px = _check_pixels(scene, pixels)
     base = pixel_integrand(scene, (0, 0), dimension=dimension, technique=technique,
