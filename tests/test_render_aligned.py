@@ -1,14 +1,19 @@
-"""anisosample.render.aligned: per-block direction estimates and per-block point sets in the
-renderer (W Sec. 5.3-5.4), ``render(sampler="aligned")`` and ``anisosample render --sampler
-aligned``.
+"""anisosample.render.aligned / estimation and anisosample.selection: per-block direction
+estimates and per-block point sets in the renderer (W Sec. 5.3-5.4), ``render(sampler="aligned")``
+and ``anisosample render --sampler aligned``. W's own method (3-direction sets, no gate) is
+``k=1, gate=False``; the defaults (4-direction sets for two directions, the per-pixel gate) are
+checked here on the selection and in tests/test_render_gate.py on the variance.
 
 Truth: the box-edge shadow directions predicted from the Cornell geometry (central projection
 onto the light plane, ``tests/render/test_directions.py``), the pixel integrands evaluated one
 by one, the table sets looked up directly, converged pixel values (512^2-point quadrature of the
 pixel integrand), and the ordinary pmj02bn render of the same scene and key (an unbiased
-estimator of the same pixel values, with the same per-pixel shifts).
+estimator of the same pixel values, with the same per-pixel shifts). Where only the choice of
+set is tested, 4-direction tables are stand-ins of random points (the selection does not look
+at the points).
 """
 
+import dataclasses
 from pathlib import Path
 
 import jax
@@ -18,7 +23,7 @@ import pytest
 from render.test_directions import LIGHT_HALF, LIGHT_Y, _box_edges
 
 import anisosample.render as R
-from anisosample import cli, io, samplers, tables
+from anisosample import _table_build, cli, io, samplers, selection, tables
 from anisosample.render import aligned
 from anisosample.render.camera import generate_ray
 from anisosample.render.geometry import intersect
@@ -42,7 +47,7 @@ def renders(scene, est):
     """The aligned and the pmj02bn render (fixed primary hit, the papers' 2D integrands) with
     the same key: per pixel, the mean and variance over R_ realizations."""
     key = jax.random.key(7)
-    sampler = aligned.block_sampler(scene, "aligned", estimate=est)
+    sampler = aligned.block_sampler(scene, "aligned", estimate=est, k=1, gate=False)  # W's
     opts = dict(spp=SPP, realizations=R_, pixel_center=True, progress=False)
     return (sampler, R.render(scene, key, sampler=sampler, **opts),
             R.render(scene, key, sampler="pmj02bn", **opts))
@@ -164,13 +169,14 @@ def test_blocks_with_a_known_shadow_edge_get_its_direction():
 def test_point_sets_follow_the_blocks(scene, est):
     key = jax.random.key(3)
     d, v = aligned.strongest_directions(est)
-    al = aligned.block_sampler(scene, "aligned", estimate=est)
+    al = aligned.block_sampler(scene, "aligned", estimate=est, k=1, gate=False)
     sets, pix = al.point_sets(key, SPP)
     pmj = samplers.get("pmj02bn")(key, SPP)
     np.testing.assert_array_equal(np.asarray(sets[0]), np.asarray(pmj))  # the render's pmj02bn
     pix = pix.reshape(SIZE, SIZE)
     assert sets.shape == (len(al.table_directions) + 1, SPP, 2)
     sh = aligned.block_sampler(scene, "sheared", estimate=est)
+    assert not sh.gate  # the gate is on by default for "aligned" only
     sh_sets, sh_pix = sh.point_sets(key, SPP)
     sh_pix = sh_pix.reshape(SIZE, SIZE)
     for a in range(SIZE // BLOCK):
@@ -178,8 +184,8 @@ def test_point_sets_follow_the_blocks(scene, est):
             ids = pix[a * BLOCK:(a + 1) * BLOCK, b * BLOCK:(b + 1) * BLOCK]
             assert np.all(ids == ids[0, 0])  # one set per block
             got = np.asarray(sets[ids[0, 0]])
-            t = aligned.table_direction(d[a, b]) if v[a, b] else None
-            want = pmj if t is None else tables.lookup((t,), SPP)
+            t = _extra(est, a, b, 1)  # the valid slots, strongest first
+            want = pmj if not t else tables.lookup(t, SPP)
             np.testing.assert_array_equal(got, np.asarray(want))
             want_sh = pmj if not v[a, b] else samplers.shear(pmj, float(d[a, b]))
             got_sh = sh_sets[sh_pix[a * BLOCK, b * BLOCK]]
@@ -241,16 +247,24 @@ def test_aligned_variance_not_above_pmj02bn_on_edge_pixels(renders):
     np.testing.assert_allclose(al.mean[~use], pm.mean[~use], rtol=1e-6, atol=1e-7)
 
 
+def _extra(est, a, b, k):
+    """Block ``(a, b)``'s table directions by the selection rule, from its valid slots."""
+    d, v = np.asarray(est.estimate.directions_deg), np.asarray(est.estimate.valid)
+    return selection.table_directions([x for x, ok in zip(d[a, b], v[a, b], strict=True)
+                                       if ok], k)
+
+
 def _aligned_pixels(sampler):
-    ids = np.array([aligned.table_direction(d) if ok else None for d, ok in
-                    zip(sampler.directions_deg.reshape(-1), sampler.valid.reshape(-1),
-                        strict=True)], object).reshape(sampler.valid.shape)
-    blocks = ids != None  # noqa: E711 (elementwise on an object array)
-    return np.kron(blocks, np.ones((BLOCK, BLOCK), bool))[:SIZE, :SIZE]
+    by, bx = sampler.valid.shape
+    blocks = np.array([[bool(_extra(sampler.estimate, a, b, sampler.k)) for b in range(bx)]
+                       for a in range(by)])
+    use = np.kron(blocks, np.ones((BLOCK, BLOCK), bool))[:SIZE, :SIZE]
+    np.testing.assert_array_equal(use, sampler.pixel_sampler == 2)  # the record says the same
+    return use
 
 
 def test_render_records_the_sampler_and_rejects_bad_options(scene, est):
-    s = aligned.block_sampler(scene, "aligned", estimate=est)
+    s = aligned.block_sampler(scene, "aligned", estimate=est, k=1, build_missing=False)
     rec = s.settings()
     assert rec["block_px"] == BLOCK and rec["estimation_integrand_samples"] == 16 * S * S
     with pytest.raises(ValueError, match="sampler_options"):
@@ -314,7 +328,91 @@ def test_padding_replicates_the_edge_pixels():
                                    rtol=1e-5, atol=1e-7)
 
 
-def test_cli_render_aligned(scene, tmp_path, capsys):
+@pytest.fixture(scope="module")
+def four_tables(tmp_path_factory, scene, est):
+    """A table root with a stand-in 4-direction n = SPP table holding every set the k = 2
+    sampler of ``est`` needs (random points: only the choice of set is under test)."""
+    root = tmp_path_factory.mktemp("tables")
+    need = aligned.block_sampler(scene, "aligned", estimate=est, build_missing=False)
+    pairs = [e for e in need.table_directions if len(e) == 2]
+    assert pairs  # the 32^2 Cornell box has blocks with two directions
+    tab = _table_build.create_table(root / tables.table_name(4, SPP), SPP, 4,
+                                    synthesis={"steps": 1})
+    rng = np.random.default_rng(0)
+    for e in {tables.canonicalize(e, kind=4).extra for e in pairs}:
+        _table_build.write_set(tab, e, rng.random((SPP, 2), dtype=np.float32))
+    return root
+
+
+def test_two_directions_take_the_four_direction_set(scene, est, four_tables, tmp_path,
+                                                    monkeypatch):
+    """k = 2 (the default): a block with two extra directions gets the 4-direction set of both
+    (W Sec. 5.4), one with one direction the 3-direction set, one with none pmj02bn; a missing
+    4-direction set is an error naming the 4-direction build, never a 3-direction stand-in."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))  # no user-built sets
+    monkeypatch.setenv("ANISOSAMPLE_TABLES", str(four_tables))
+    s = aligned.block_sampler(scene, "aligned", estimate=est, gate=False, build_missing=False)
+    assert s.k == 2
+    s.check_tables(SPP)
+    sets, pix = s.point_sets(jax.random.key(3), SPP)
+    pix = pix.reshape(SIZE, SIZE)
+    kinds = []
+    for a in range(SIZE // BLOCK):
+        for b in range(SIZE // BLOCK):
+            extra = _extra(est, a, b, 2)
+            got = np.asarray(sets[pix[a * BLOCK, b * BLOCK]])
+            want = sets[0] if not extra else tables.lookup(extra, SPP, kind=len(extra) + 2)
+            np.testing.assert_array_equal(got, np.asarray(want))
+            kinds.append(len(extra) + 2 if extra else 0)
+    rec = s.settings()
+    assert rec["blocks_with_4_direction_set"] == kinds.count(4) >= 1
+    assert rec["blocks_with_3_direction_set"] == kinds.count(3) >= 1
+    assert all(len(e) == 2 for e in rec["sets_4_directions_deg"])
+    monkeypatch.delenv("ANISOSAMPLE_TABLES")
+    with pytest.raises(FileNotFoundError, match="--directions 4"):
+        s.check_tables(SPP)
+
+
+def test_missing_sets_are_built_on_demand(scene, est, tmp_path, monkeypatch):
+    """build_missing (the default): a missing 4-direction set is synthesized into the user
+    cache before rendering (2 optimizer steps here, to stay fast) and then used."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    s = aligned.block_sampler(scene, "aligned", estimate=est, gate=False,
+                              build_options={"steps": 2})
+    one = dataclasses.replace(s, block_extra=((30, 100),) + ((),) * 15)
+    assert one.table_directions == ((30, 100),)
+    with pytest.raises(FileNotFoundError):
+        tables.lookup((30, 100), 16, kind=4, build_missing=False)
+    one.check_tables(16, progress=False)
+    assert (tables.cache_dir() / "d4_n16").is_dir()
+    pts = tables.lookup((30, 100), 16, kind=4, build_missing=False)
+    sets, _ = one.point_sets(jax.random.key(0), 16)
+    np.testing.assert_array_equal(np.asarray(sets[1]), np.asarray(pts))
+    assert one.settings()["sets_4_directions_deg"] == [[30, 100]]
+
+
+def test_selection_rounding_rule():
+    """The one rule (tables.aligned_sampler and the renderer use it): nearest integer degree,
+    halves up, mod 180; axes and repeats dropped; strongest first, at most k."""
+    ts = selection.table_directions
+    assert ts([149.6, 30.2, 0.4], 2) == (150, 30)
+    assert ts([30.5, 30.4], 2) == (31, 30) and ts([29.5], 1) == (30,)
+    assert ts([179.6, 90.4, 44.0], 2) == (44,) and ts([None, 12.0]) == (12,) and ts([]) == ()
+    assert ts([10.2, 9.8, 100.0], 2) == (10, 100)  # 9.8 repeats 10
+    assert samplers.get("aligned", directions_deg=[30.5, 100.2]).directions_deg == (31, 100)
+    for d in (30.49, 30.5, 179.6):
+        assert aligned.table_direction(d) == (ts([d], 1) or (None,))[0]
+    with pytest.raises(ValueError, match="finite"):
+        ts([float("inf")])
+    with pytest.raises(ValueError, match="k must be <= 2"):
+        ts([10.0], 3)
+    with pytest.raises(ValueError, match="one or two integer directions"):
+        selection.aligned_set((), 16)
+
+
+def test_cli_render_aligned(scene, four_tables, tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.setenv("ANISOSAMPLE_TABLES", str(four_tables))  # the k = 2 default's sets
     out, png = tmp_path / "a.exr", tmp_path / "dirs.png"
     # the fixtures' sizes (32^2 pixels, 8-pixel blocks, 96^2 samples): their compilations serve
     args = ["render", str(CORNELL), "--sampler", "aligned", "--spp", str(SPP), "--realizations",
