@@ -256,10 +256,15 @@ def test_aligned_sampler_given_directions(tmp_path, getkey):
     assert np.allclose(np.sin(2 * np.pi * (d - d[0])), 0, atol=1e-5)
     assert not np.array_equal(pts, np.asarray(s(getkey(), 32)))  # decorrelated realizations
     np.testing.assert_array_equal(pts, np.asarray(s(key, 32)))  # same key, same bits
-    # two directions but no 4-direction table: the strongest one's 3-direction set
+    # two directions: the 4-direction set, and no 4-direction table is an error naming its
+    # build (never the 3-direction set of the strongest one in its place)
     two = asp.samplers.get("aligned", directions_deg=[30, 100], table=tmp_path)
     assert two.directions_deg == (30, 100) and two.canonical.kind == 4
-    d = (np.asarray(two(key, 32)) - tab.load((30,))) % 1.0
+    with pytest.raises(FileNotFoundError, match="--directions 4"):
+        two(key, 32)
+    four = _fake_table(tmp_path, kind=4, sets=[two.canonical.extra])
+    d = (np.asarray(two(key, 32)) - np.asarray(tables.apply_symmetry(
+        four.load(two.canonical.extra), two.canonical.transform))) % 1.0
     assert np.allclose(np.sin(2 * np.pi * (d - d[0])), 0, atol=1e-5)
 
 
