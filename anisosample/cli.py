@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 from pathlib import Path
 
@@ -219,13 +220,12 @@ def _run_synthesize(args):
     if out.exists() and not args.force:
         raise FileExistsError(f"{out} exists; pass --force to replace it")
     ckpt = args.checkpoint or str(out.with_suffix(".ckpt.npz"))
-    pts, info = synthesis.synthesize(
+    result = synthesis.synthesize(
         jax.random.key(args.seed), args.n, args.directions, recipe=args.recipe,
         steps=args.steps, c=args.c, learning_rate=args.learning_rate, checkpoint=ckpt,
-        return_info=True,
     )
-    info["seed"] = args.seed
-    synthesis.save_result(out, pts, info, overwrite=args.force)
+    info = dict(result.info, seed=args.seed)
+    synthesis.save_result(out, result.points, info, overwrite=args.force)
     print(f"wrote {args.n} points optimized for {args.directions} deg to {out}"
           f" (loss {info['history'][0]:.3g} -> {info['final_loss']:.3g})")
 
@@ -600,7 +600,8 @@ class _VersionAction(argparse.Action):
     def __call__(self, parser, namespace, values, option_string=None):
         from . import __version__
 
-        parser.exit(0, f"anisosample {__version__}\n")
+        print(f"anisosample {__version__}")
+        parser.exit(0)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -627,6 +628,9 @@ def _one_line(exc: BaseException) -> str:
     """The first line of an exception's message (equinox's runtime errors add a paragraph of
     advice below it), or the exception's type if it has no message."""
     text = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
+    inner = re.search(r"EquinoxRuntimeError: (.+)", text)  # a check inside jit, wrapped by XLA
+    if inner:
+        return inner.group(1).strip()
     lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
     if not lines:
         return type(exc).__name__

@@ -17,6 +17,7 @@ import json
 import os
 import platform
 import secrets
+import tempfile
 import zipfile
 from collections.abc import Iterator, Mapping
 from pathlib import Path
@@ -64,6 +65,10 @@ def _to_jsonable(obj):
     if isinstance(obj, float) and not np.isfinite(obj):
         return None if np.isnan(obj) else ("inf" if obj > 0 else "-inf")
     return obj
+
+
+to_jsonable = _to_jsonable
+"""The JSON-able form of a record (dicts, lists, numbers, strings) as the metadata stores it."""
 
 
 def _check_suffix(path, suffixes: tuple[str, ...], what: str) -> Path:
@@ -142,7 +147,8 @@ def _check_magic(path: Path, suffix: str, head: bytes | None = None) -> None:
     head = head[: len(_MAGIC[suffix])]
     if head != _MAGIC[suffix]:
         kind = "empty" if not head else "of another format"
-        raise ValueError(f"{path} is not a {_FORMAT[suffix]} (the file is {kind})")
+        article = "an" if _FORMAT[suffix][0] in "AEIOU" else "a"
+        raise ValueError(f"{path} is not {article} {_FORMAT[suffix]} (the file is {kind})")
 
 
 # What NumPy's readers raise on a truncated or bit-flipped file (a zip member's CRC, a header
@@ -312,7 +318,7 @@ def read_exr(path) -> np.ndarray:
     path = _existing(path)
     _check_magic(path, ".exr")
     try:
-        with OpenEXR.File(str(path), separate_channels=True) as f:
+        with _c_output_captured() as said, OpenEXR.File(str(path), separate_channels=True) as f:
             ch = f.channels()
             names = list(ch)
             order = [c for c in "RGBA" if c in ch] or names
@@ -322,7 +328,42 @@ def read_exr(path) -> np.ndarray:
                 return np.asarray(ch[order[0]].pixels, dtype=np.float32)
             return np.stack([np.asarray(ch[c].pixels, dtype=np.float32) for c in order], axis=-1)
     except (RuntimeError, OSError, ValueError, TypeError) as exc:
-        raise _damaged(path, ".exr", exc) from None
+        detail = " ".join(said[0].split()) if said and said[0].strip() else str(exc)
+        raise _damaged(path, ".exr", RuntimeError(detail)) from None
+
+
+@contextlib.contextmanager
+def _c_output_captured():
+    """Collect what C libraries write to file descriptors 1 and 2 inside the block (OpenEXR
+    reports a damaged chunk there while it raises) into the yielded list's first item; a clean
+    read passes it on to ``sys.stderr``, a failed one lets the caller fold it into one error."""
+    import sys
+
+    said: list[str] = []
+    try:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        saved = [os.dup(1), os.dup(2)]
+    except (OSError, ValueError):  # no real descriptors (embedded interpreters)
+        yield said
+        return
+    with tempfile.TemporaryFile() as buf:
+        os.dup2(buf.fileno(), 1)
+        os.dup2(buf.fileno(), 2)
+        failed = False
+        try:
+            yield said
+        except BaseException:
+            failed = True
+            raise
+        finally:
+            for fd, old in zip((1, 2), saved, strict=True):
+                os.dup2(old, fd)
+                os.close(old)
+            buf.seek(0)
+            said.append(buf.read().decode("utf-8", "replace"))
+            if said[0] and not failed:
+                sys.stderr.write(said[0])
 
 
 def save_png(path, image, *, overwrite: bool = False, **imsave_kwargs) -> Path:

@@ -565,6 +565,17 @@ def convergence(
     fit_ns = [m for m in ns if m >= fit_min_n]
     if len(fit_ns) < 2:
         raise ValueError(f"fit_min_n leaves fewer than 2 sizes to fit, got {fit_min_n}")
+    if not callable(f):
+        raise TypeError(f"f must be a callable integrand over (..., 2), got {type(f).__name__}")
+    # the arguments every estimate checks, checked before the progress bar starts
+    check_int("realizations", realizations, minimum=2)
+    for opt, name in ((patterns, "patterns"),):
+        for value in (opt.values() if isinstance(opt, Mapping) else (opt,)):
+            check_int(name, value, minimum=1)
+    for label in table:
+        for opt, name in ((randomization, "randomization"), (patterns, "patterns")):
+            if isinstance(opt, Mapping) and label not in opt:
+                raise ValueError(f"{name} has no entry for sampler {label!r}")
 
     def option(opt, label):
         return opt[label] if isinstance(opt, Mapping) else opt

@@ -88,3 +88,127 @@ def test_points_and_spectrum_files_hold_what_the_library_computes(tmp_path):
     v = np.array([[-6, 6]])
     ref = np.abs(np.exp(-2j * np.pi * (got.astype(np.float64) @ v.T)).mean()) ** 2
     assert io.read_exr(exr)[0, 0] == pytest.approx(ref, rel=1e-4, abs=1e-7)
+
+
+def test_help_does_not_import_jax():
+    """``anisosample --help`` and every subcommand's ``--help`` answer without loading JAX or
+    NumPy (the parser takes its names from anisosample._names)."""
+    code = (
+        "import sys\n"
+        "from anisosample import cli\n"
+        "p = cli.build_parser()\n"
+        "sub = next(a for a in p._actions if a.dest == 'command')\n"
+        "texts = [p.format_help()] + [s.format_help() for s in sub.choices.values()]\n"
+        "tables = sub.choices['tables']\n"
+        "act = next(a for a in tables._actions if a.dest == 'tables_command')\n"
+        "texts += [s.format_help() for s in act.choices.values()]\n"
+        "print(len(texts), 'jax' in sys.modules, 'numpy' in sys.modules)\n"
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["10", "False", "False"]
+
+
+def test_help_lists_every_builtin_sampler():
+    from anisosample import _names, samplers
+
+    assert set(_names.BASELINES + _names.DIRECTIONAL_SAMPLERS) == set(samplers.names())
+    assert samplers.BASELINES == _names.BASELINES
+    text = cli.build_parser().format_help()
+    assert "points" in text and "render" in text
+
+
+def test_python_dash_m_runs_the_command_line(tmp_path):
+    from anisosample import __version__
+
+    r = subprocess.run([sys.executable, "-m", "anisosample", "--version"], capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 0 and r.stdout.strip() == f"anisosample {__version__}"
+    r = subprocess.run([sys.executable, "-m", "anisosample", "points", "random", "-n", "0",
+                        "-o", str(tmp_path / "p.npy")], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 2 and r.stderr.strip() == (
+        "anisosample points: error: n must be >= 1, got 0")
+
+
+def test_argparse_errors_are_one_line_and_exit_2(capsys):
+    assert cli.main(["points", "random", "-n", "x", "-o", "p.npy"]) == 2
+    err = capsys.readouterr().err
+    assert err == ("anisosample points: error: argument -n: invalid int value: 'x' "
+                   "(see anisosample points --help)\n")
+    assert cli.main([]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+    assert cli.main(["--help"]) == 0
+
+
+@pytest.mark.parametrize("umask,mode", [(0o022, 0o644), (0o027, 0o640), (0o002, 0o664)])
+def test_outputs_respect_the_umask(tmp_path, umask, mode, capsys):
+    """Every writer goes through io.atomic_path; files get 0o666 less the umask, as open()
+    would (tempfile.mkstemp made them 0o600)."""
+    import os
+
+    old = os.umask(umask)
+    try:
+        out = tmp_path / "p.npz"
+        assert cli.main(["points", "random", "-n", "16", "-o", str(out)]) == 0
+        png = tmp_path / "s.png"
+        assert cli.main(["spectrum", str(out), "-o", str(png), "--radius", "4"]) == 0
+        json_path = io.save_json(tmp_path / "x.json", {"a": 1})
+        exr = io.write_exr(tmp_path / "x.exr", np.ones((2, 2), np.float32))
+    finally:
+        os.umask(old)
+    for p in (out, png, json_path, exr):
+        assert p.stat().st_mode & 0o777 == mode, (p, oct(p.stat().st_mode))
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporaries left
+
+
+def test_points_exported_as_text_and_drawn_as_png(tmp_path):
+    """.txt and .csv hold every float32 bit of the .npy set; -o pts.png draws it."""
+    npy, txt, csv, png = (tmp_path / f"p.{s}" for s in ("npy", "txt", "csv", "png"))
+    for out in (npy, txt, csv, png):
+        assert cli.main(["points", "pmj02bn", "-n", "64", "--seed", "2", "-o", str(out)]) == 0
+    want = np.load(npy)
+    for out in (txt, csv):
+        got = io.load_points(out)
+        np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
+    assert csv.read_text().splitlines()[0] == "x,y"
+    assert txt.read_text().startswith('# {"sampler": "pmj02bn"')
+    from matplotlib.image import imread
+
+    img = imread(png)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and img.shape[0] > 100
+    # the dots are there: a scatter of 64 points leaves dark pixels inside the square
+    assert (img[..., :3].mean(axis=-1) < 0.5).sum() > 64
+
+
+def test_points_aligned_and_sheared_take_their_directions(tmp_path):
+    """``points aligned --directions`` and ``points sheared --direction`` write the library's
+    sets for key(seed) bit for bit; without their directions they are a one-line error."""
+    import jax
+
+    from anisosample import samplers
+
+    k_pts, _ = jax.random.split(jax.random.key(4))
+    a = tmp_path / "a.npz"
+    assert cli.main(["points", "aligned", "-n", "256", "--seed", "4", "--directions",
+                     "0,90,30", "-o", str(a)]) == 0
+    want = samplers.get("aligned", directions_deg=[0, 90, 30])(k_pts, 256)
+    got, meta = io.load_npz(a)
+    np.testing.assert_array_equal(got["points"], np.asarray(want))
+    assert meta["directions_deg"] == [0, 90, 30] and meta["name"] == "aligned[30]"
+    s = tmp_path / "s.npy"
+    assert cli.main(["points", "sheared", "-n", "64", "--seed", "4", "--direction", "30",
+                     "--base", "sobol-owen", "-o", str(s)]) == 0
+    want = samplers.shear(samplers.get("sobol-owen")(k_pts, 64), 30.0)
+    np.testing.assert_array_equal(np.load(s), np.asarray(want))
+
+
+def test_variance_with_aligned_and_sheared_samplers(tmp_path, capsys):
+    out = tmp_path / "v.json"
+    assert cli.main(["variance", "--integrand", "edges:30", "--sampler", "aligned,sheared",
+                     "--directions", "0,90,30", "--direction", "30", "--n", "256,4096",
+                     "--realizations", "16", "-o", str(out)]) == 0
+    rec = io.load_json(out)
+    assert rec["sampler_options"] == {"aligned": {"directions_deg": [0.0, 90.0, 30.0]},
+                                      "sheared": {"direction_deg": 30.0, "base": "pmj02bn"}}
+    assert set(rec["samplers"]) == {"aligned", "sheared"}
