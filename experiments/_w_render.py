@@ -1,10 +1,11 @@
 """Shared plumbing of the W render figures (W Figs. 7-10, Sec. 5.3-5.4, 6.2): scenes, per-block
 direction estimates, the per-block point sets, per-pixel estimates. No science of its own: the
-per-block estimation and set selection are the library's (``anisosample.render.aligned``, the
-same code ``anisosample render --sampler aligned`` runs); this module only strings it together
+per-block estimation, the per-pixel gate and the set selection are the library's
+(``anisosample.render.estimation``, ``anisosample.selection`` and ``anisosample.render.aligned``,
+the code ``anisosample render --sampler aligned`` runs); this module only strings them together
 with ``anisosample.render``, ``anisosample.tables`` and ``anisosample.variance``.
 
-* Per-block estimation (W Sec. 5.3): ``anisosample.render.aligned.estimate_blocks`` -- one
+* Per-block estimation (W Sec. 5.3): ``anisosample.render.estimation.estimate_blocks`` -- one
   ``s x s`` grid of integrand samples per block of ``B x B`` pixels (W: s = 96, B = 16), each
   pixel filling one ``(s/B)^2`` tile; see that module's docstring for the layout. The pixel
   integrands are the papers' fixed-primary-hit ones (``pixel_center``; W Sec. 6.2).
@@ -15,6 +16,9 @@ with ``anisosample.render``, ``anisosample.tables`` and ``anisosample.variance``
   fixed set, per pixel. Blocks without an extra direction use the unaligned pmj02bn set for
   every method (W Sec. 5.4 falls back to an existing sampler). Aligned sets missing from the
   installed tables are synthesized on demand into ``results/w_render_tables``.
+* Per-pixel gate (beyond W): ``pixel_gate`` -- whether each pixel's own probe of its integrand
+  shows a jump (``anisosample.render.estimation.probe_discontinuous``); the gated sampler gives
+  the other pixels pmj02bn.
 """
 
 from __future__ import annotations
@@ -31,8 +35,9 @@ import numpy as np
 import anisosample as asp
 from anisosample import render
 from anisosample import variance as V
+from anisosample.plot import direction_rgb as _direction_rgb
 from anisosample.progress import progress
-from anisosample.render import aligned
+from anisosample.render import aligned, estimation
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE_DIR = ROOT / "experiments" / "scenes"
@@ -70,30 +75,40 @@ def pixel_f(base, scene, pixel):
 
 
 def block_samples(scene, base, block_px: int, samples: int = 96) -> np.ndarray:
-    """All blocks' estimation grids as one ``(rows*s, cols*s)`` array (``aligned.estimation_grid``
-    with ``base``'s film moved to every pixel)."""
-    return aligned.estimation_grid(scene, block_px, samples, integrand=base)
+    """All blocks' estimation grids as one ``(rows*s, cols*s)`` array
+    (``estimation.estimation_grid`` with ``base``'s film moved to every pixel)."""
+    return estimation.estimation_grid(scene, block_px, samples, integrand=base)
 
 
 def estimate_blocks(scene, base, block_px: int, samples: int = 96, k: int = 2):
-    """W Sec. 5.3 per-block estimate (``aligned.estimate_blocks``).
+    """W Sec. 5.3 per-block estimate (``estimation.estimate_blocks``).
 
     Returns (Estimate with leading axes (rows, cols), seconds including the integrand samples
     (not the strength), per-block edge strength: the orientation histogram's mass outside the
     zeroed axis windows, W Sec. 5.1).
     """
-    be = aligned.estimate_blocks(scene, block_px, samples, k, integrand=base, strength=True)
+    be = estimation.estimate_blocks(scene, block_px, samples, k, integrand=base, strength=True)
     return be.estimate, be.seconds, be.strength
+
+
+def pixel_gate(scene, base, probe: int = 6) -> tuple[np.ndarray, float]:
+    """``(discontinuous, seconds)``: each pixel's gate decision, ``(height, width)`` bool (its
+    ``probe^2`` probe shows a jump: it keeps its block's set), and the probe's wall time."""
+    import time
+
+    t0 = time.perf_counter()
+    disc = estimation.probe_discontinuous(estimation.pixel_probes(scene, probe, integrand=base))
+    return disc, time.perf_counter() - t0
 
 
 def block_grid_values(scene, base, block, block_px: int, samples: int = 96) -> np.ndarray:
     """The ``(s, s)`` sample grid of one block (what its histogram is built from)."""
-    return aligned.block_grid_values(scene, block, block_px, samples, integrand=base)
+    return estimation.block_grid_values(scene, block, block_px, samples, integrand=base)
 
 
 def strongest(est, block) -> float | None:
     """The block's strongest extra direction (degrees) or None."""
-    d, v = aligned.strongest_directions(est)
+    d, v = estimation.strongest_directions(est)
     a, b = block
     return float(d[a, b]) if v[a, b] else None
 
@@ -157,7 +172,7 @@ def pick_block(est, *, strength=None, exclude=(), min_axis_deg: float = 10.0):
 
 def direction_rgb(directions_deg, valid) -> np.ndarray:
     """Per-block colour maps ``(rows, cols, k, 3)``: hue = direction / 180, grey = none."""
-    return aligned.direction_rgb(directions_deg, valid)
+    return _direction_rgb(directions_deg, valid)
 
 
 def finite_json(x):
@@ -170,7 +185,7 @@ def finite_json(x):
 __all__ = [
     "METHODS", "SCENES", "TABLES", "available_scenes", "load_scene", "base_integrand", "pixel_f",
     "estimate_blocks", "block_grid_values", "strongest", "aligned_usable", "aligned_set",
-    "block_sets", "pixel_variance", "region_pixels", "pick_block", "block_samples",
+    "block_sets", "pixel_variance", "region_pixels", "pick_block", "block_samples", "pixel_gate",
     "direction_rgb", "asp",
 ]
 

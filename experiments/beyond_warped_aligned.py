@@ -18,7 +18,8 @@ light sampling: Urena et al. 2013). Per pixel, four ways to draw its ``n`` light
 
 Where the estimator finds no extra direction (smooth, curved or near-axis edges) the aligned
 sampler falls back to pmj02bn (W Sec. 5.4), so that row then measures the same method as the
-pmj02bn row with other random sets: the gap between them is the noise of the comparison.
+pmj02bn row with other random sets: the gap between them is the noise of the comparison. Two
+extra directions take W's 4-direction set (built on demand into the user cache if missing).
 
 Variance of the ``n``-sample estimator over randomizations (``patterns`` base sets, each moved by
 toroidal shifts, W Sec. 5.4) with ``anisosample.variance.estimator_variance``; factors
@@ -108,7 +109,7 @@ def run(settings, seed):
     results = []
     for pi, px in enumerate(progress(pixels, desc="pixels")):
         f = asp.render.pixel_integrand(scene, px, technique="solid_angle")
-        al_f = tables.aligned_sampler(integrand=f, k=2)
+        al_f = tables.aligned_sampler(integrand=f, k=2, build_missing=True)
         row = dict(pixel=list(px), directions_before_deg=list(al_f.estimated_deg),
                    aligned_before=list(al_f.directions_deg), warps={})
         kp = jax.random.fold_in(key, pi)
@@ -120,7 +121,7 @@ def run(settings, seed):
         for wname, kind in (("bilinear", W.Bilinear), ("biquadratic", W.Biquadratic)):
             warp = product_warp(scene, sps, px, kind)
             g = asp.render.pixel_integrand(scene, px, technique="solid_angle", warp=warp)
-            al_g = tables.aligned_sampler(integrand=g, k=2)
+            al_g = tables.aligned_sampler(integrand=g, k=2, build_missing=True)
             row["warps"][wname] = {
                 "directions_after_deg": list(al_g.estimated_deg),
                 "aligned_after": list(al_g.directions_deg),

@@ -7,12 +7,16 @@ realization (W Sec. 5.4; the variance engine's ``"shift"`` randomization):
 
 * ``pmj02bn`` (unaligned: 0 and 90 degrees),
 * ``sheared pmj02bn`` (Singh & Jarosz 2017, sheared to the block's strongest direction),
-* ``aligned 3-dir`` (the table set for 0, 90 and the block's strongest direction).
+* ``aligned 3-dir`` (the table set for 0, 90 and the block's strongest direction),
+* ``aligned 3-dir gated`` (beyond W: the same, but pixels whose own probe of their integrand
+  shows no jump -- fully lit, fully occluded -- keep pmj02bn; ``_w_render.pixel_gate``, the
+  renderer's default for ``sampler="aligned"``). A gated pixel's estimator *is* the pmj02bn
+  pixel's (same set, same per-pixel shift), so its variance is taken from that column.
 
 Blocks without an extra direction use pmj02bn for every method. W's 4-direction sets are not
-measured (no 4141-set table). The variance of a pixel is the sample variance over
-``realizations`` shifts; the image number is its mean over all pixels (W: "variance calculated
-over the entire image").
+measured here (no 4141-set table ships; the renderer builds them on demand, one n = 256 set in
+11 s at load 3.8). The variance of a pixel is the sample variance over ``realizations`` shifts;
+the image number is its mean over all pixels (W: "variance calculated over the entire image").
 
 Writes per scene and method ``<scene>_<method>_variance.exr`` (one channel, row 0 on top) and a
 PNG panel ``w_fig8.png`` (log10 variance, one colour scale per scene), and ``w_fig8.json`` (image
@@ -22,7 +26,10 @@ Scale: small = 32^2 pixels in 8-pixel blocks (96^2 estimation samples per block)
 paper = 128^2 pixels in W's 16-pixel blocks, W's 4096 spp (W renders 1280^2: too many per-pixel
 variance runs for this script's pixel loop).
 
-    python experiments/w_fig8.py --scale small|paper [--out DIR] [--scenes cornell,blinds]
+``--spp N`` replaces the scale's spp (e.g. ``--scale small --spp 4096``: W's spp on the small
+image; needs a table for N points or builds one).
+
+    python experiments/w_fig8.py --scale small|paper [--spp N] [--out DIR] [--scenes ...]
 """
 
 from __future__ import annotations
@@ -40,6 +47,8 @@ from anisosample import plot
 from anisosample.progress import progress
 
 NAME = "w_fig8"
+GATED = "aligned 3-dir gated"
+METHODS = (*W.METHODS, GATED)
 SCALES = {
     "small": dict(size=32, block_px=8, spp=256, realizations=16),
     "paper": dict(size=128, block_px=16, spp=4096, realizations=32),
@@ -52,16 +61,17 @@ def _slug(m: str) -> str:
 
 def run_scene(name, cfg, key, out, fresh):
     settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist()),
-                "estimation_layout": "tiles"}
+                "estimation_layout": "tiles", "gate_probe": 6}
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
-    exrs = [out / f"{name}_{_slug(m)}_variance.exr" for m in W.METHODS]
+    exrs = [out / f"{name}_{_slug(m)}_variance.exr" for m in METHODS]
     if cached is not None and cached.get("settings") == settings and all(p.exists() for p in exrs):
         return cached
     size, bp, n, R = cfg["size"], cfg["block_px"], cfg["spp"], cfg["realizations"]
     scene = W.load_scene(name, size, size)
     base = W.base_integrand(scene, name)
     est, _, _ = W.estimate_blocks(scene, base, bp)
+    disc, gate_seconds = W.pixel_gate(scene, base, settings["gate_probe"])
     nb = size // bp
     var = {m: np.zeros((size, size)) for m in W.METHODS}
     k_sets, k_pix = jax.random.split(key)
@@ -83,15 +93,23 @@ def run_scene(name, cfg, key, out, fresh):
                 if d is None:  # no extra direction: every method falls back to pmj02bn
                     for m in W.METHODS[1:]:
                         var[m][row, col] = var["pmj02bn"][row, col]
+    has_set = np.kron(np.asarray([[block_dirs[f"{a},{b}"] is not None for b in range(nb)]
+                                  for a in range(nb)]), np.ones((bp, bp), bool))
+    keep = has_set & disc  # gated: only these pixels keep the block's aligned set
+    var[GATED] = np.where(keep, var["aligned 3-dir"], var["pmj02bn"])
     meta = {**asp.io.provenance(), "scene": name, "spp": str(n), "realizations": str(R)}
-    for m, p in zip(W.METHODS, exrs, strict=True):
+    for m, p in zip(METHODS, exrs, strict=True):
         asp.io.write_exr(p, var[m].astype(np.float32), {**meta, "method": m}, overwrite=True)
     means = {m: float(v.mean()) for m, v in var.items()}
     per_block = {m: v.reshape(nb, bp, nb, bp).mean(axis=(1, 3)).tolist() for m, v in var.items()}
     rec = {
         "settings": settings,
         "image_mean_variance": means,
-        "ratio_to_pmj02bn": {m: means[m] / means["pmj02bn"] for m in W.METHODS},
+        "ratio_to_pmj02bn": {m: means[m] / means["pmj02bn"] for m in METHODS},
+        "gated_over_ungated": means[GATED] / means["aligned 3-dir"],
+        "pixels_in_blocks_with_direction": int(has_set.sum()),
+        "pixels_gated": int((has_set & ~disc).sum()),
+        "gate_seconds": gate_seconds,
         "block_mean_variance": per_block,
         "block_direction_deg": block_dirs,
         "blocks_with_direction": int(sum(d is not None for d in block_dirs.values())),
@@ -103,13 +121,13 @@ def run_scene(name, cfg, key, out, fresh):
 
 def figure(results, out):
     names = list(results)
-    fig, axes = plot.new_figure(max(1, len(names)), len(W.METHODS), size=2.8)
+    fig, axes = plot.new_figure(max(1, len(names)), len(METHODS), size=2.8)
     for row, s in enumerate(names):
-        imgs = [asp.io.read_exr(out / f"{s}_{_slug(m)}_variance.exr") for m in W.METHODS]
+        imgs = [asp.io.read_exr(out / f"{s}_{_slug(m)}_variance.exr") for m in METHODS]
         logs = [np.log10(np.maximum(im, 1e-30)) for im in imgs]
         pos = np.concatenate([lg[im > 0] for lg, im in zip(logs, imgs, strict=True)])
         lo, hi = (np.percentile(pos, 2), np.percentile(pos, 99.5)) if pos.size else (-12, 0)
-        for col, (m, lg) in enumerate(zip(W.METHODS, logs, strict=True)):
+        for col, (m, lg) in enumerate(zip(METHODS, logs, strict=True)):
             ax = axes[row, col]
             im = ax.imshow(lg, vmin=lo, vmax=hi, cmap="inferno")
             mean = results[s]["image_mean_variance"][m]
@@ -121,22 +139,28 @@ def figure(results, out):
 
 
 def main(argv=None):
-    args = W.scene_parser(NAME, __doc__.splitlines()[0]).parse_args(argv)
+    p = W.scene_parser(NAME, __doc__.splitlines()[0])
+    p.add_argument("--spp", type=int, default=None, help="replace the scale's spp")
+    args = p.parse_args(argv)
     started = time.time()
-    cfg = SCALES[args.scale]
+    cfg = dict(SCALES[args.scale])
+    if args.spp is not None:
+        cfg["spp"] = args.spp
     results, missing = W.run_scenes(NAME, args, cfg, run_scene)
     pngs = figure(results, args.out)
     images = {s: {m: np.round(asp.io.read_exr(args.out / f"{s}_{_slug(m)}_variance.exr")
-                              .astype(float), 15).tolist() for m in W.METHODS} for s in results}
+                              .astype(float), 15).tolist() for m in METHODS} for s in results}
     json_path = common.write_record(args.out, NAME, {"scenes": results, "missing_scenes": missing,
                                                      "pixel_variance": images},
                                     {**cfg, "scale": args.scale, "seed": args.seed,
-                                     "methods": list(W.METHODS)}, started)
+                                     "methods": list(METHODS)}, started)
     print(f"figure: {pngs[0]}\nnumbers: {json_path}")
     for s, r in results.items():
-        print(f"  {s} ({r['blocks_with_direction']} blocks with an extra direction): " + ", ".join(
-            f"{m} {v:.3e} (x{r['ratio_to_pmj02bn'][m]:.3f})"
-            for m, v in r["image_mean_variance"].items()))
+        print(f"  {s} ({r['blocks_with_direction']} blocks with an extra direction, "
+              f"{r['pixels_gated']} of their {r['pixels_in_blocks_with_direction']} pixels "
+              f"gated): " + ", ".join(f"{m} {v:.3e} (x{r['ratio_to_pmj02bn'][m]:.3f})"
+                                      for m, v in r["image_mean_variance"].items())
+              + f"; gated / ungated {r['gated_over_ungated']:.3f}")
     return json.loads(json_path.read_text())
 
 
