@@ -356,12 +356,8 @@ api("spectrum-save-wrong-suffix", lambda d: A().spectrum.save_spectrum_image(
     d / "s.jpg", np.ones((5, 5)), n=16), ValueError, r"\.png|\.exr", owner="spectrum")
 api("spectrum-radial-profile-nan", lambda d: A().spectrum.radial_profile(
     np.full((5, 5), NAN)), ValueError, r"grid.*(NaN|finite)", owner="spectrum")
-proc("spectrum-grid-radius-huge",
-     "import numpy as np, anisosample as a\n"
-     "try:\n    a.spectrum.power_spectrum_grid(np.random.default_rng(0).random((64, 2))"
-     ".astype(np.float32), 100000)\n"
-     "except (ValueError, MemoryError) as e:\n    print('REFUSED', e)\n",
-     r"REFUSED .*radius.*(GB|GiB|MB|MiB|bytes|memory)", owner="spectrum")
+api("spectrum-grid-radius-huge", lambda d: A().spectrum.power_spectrum_grid(PTS, 100000),
+    ValueError, r"radius.*(GB|GiB|MB|MiB|bytes|memory)", owner="spectrum")
 
 # --- losses ------------------------------------------------------------------------------------
 
@@ -386,13 +382,9 @@ proc("losses-grad-nan-point",
      "    print('RETURNED', np.asarray(g).ravel()[:4])\n"
      "except (ValueError, RuntimeError) as e:\n    print('REFUSED', ' '.join(str(e).split()))\n",
      r"REFUSED .*(NaN|finite)", owner="losses")
-proc("losses-jit-grad-nan-point",
-     "import jax, numpy as np, anisosample as a\n"
-     "p = np.random.default_rng(0).random((16, 2)).astype(np.float32); p[3, 0] = np.nan\n"
-     "f = jax.jit(jax.grad(lambda x: a.losses.spectrum_loss(x, [[1, 0], [3, 4]])))\n"
-     "try:\n    g = f(p)\n    print('RETURNED', np.asarray(g).ravel()[:4])\n"
-     "except (ValueError, RuntimeError) as e:\n    print('REFUSED', ' '.join(str(e).split()))\n",
-     r"REFUSED .*(NaN|finite)", owner="losses")
+api("losses-jit-grad-nan-point", lambda d: __import__("jax").jit(__import__("jax").grad(
+    lambda x: A().losses.spectrum_loss(x, F)))(np.load(d / "nan.npy")), (ValueError, RuntimeError),
+    r"(NaN|finite)", owner="losses")
 
 # --- synthesis ---------------------------------------------------------------------------------
 
@@ -453,11 +445,8 @@ api("synthesis-save-result-wrong-suffix", lambda d: A().synthesis.save_result(
     d / "set.txt", PTS, {}), ValueError, r"must end in \.npz", owner=S)
 api("synthesize-batch-sets-mismatched", lambda d: A().synthesis.synthesize_batch(
     key(), 64, [[0, 90, 30], [0, 90]]), ValueError, r"direction_sets", owner=S)
-proc("synthesize-n-huge",
-     "import jax, anisosample as a\n"
-     "try:\n    a.synthesize(jax.random.key(0), 100_000_000, [0, 90, 30], show_progress=False)\n"
-     "except (ValueError, MemoryError) as e:\n    print('REFUSED', type(e).__name__, e)\n",
-     r"REFUSED ValueError .*(GB|GiB|MB|MiB|bytes|memory)", owner=S)
+api("synthesize-n-huge", lambda d: A().synthesize(key(), 100_000_000, [0, 90, 30],
+    show_progress=False), ValueError, r"(GB|GiB|MB|MiB|bytes|memory)", owner=S)
 cli("synthesize-checkpoint-nan", _synth_argv("ckpt_nan.npz"), r"ckpt_nan\.npz.*(NaN|finite)",
     setup=_edited_checkpoint("ckpt_nan.npz", _nan_x), subprocess=True)
 cli("synthesize-checkpoint-wrong-shape", _synth_argv("ckpt_small.npz"),
@@ -467,7 +456,7 @@ cli("synthesize-checkpoint-step-beyond-steps", _synth_argv("ckpt_late.npz"),
 cli("synthesize-checkpoint-damaged", _synth_argv("ckpt_trunc.npz"),
     r"ckpt_trunc\.npz is a damaged or truncated", setup=_damaged_checkpoint)
 cli("synthesize-n-huge", "synthesize -n 100000000 --directions 0,90,30 -o {o}/huge.npz",
-    r"(GB|GiB|TB|TiB|MB|MiB|bytes|memory)", subprocess=True)
+    r"(GB|GiB|TB|TiB|MB|MiB|bytes|memory)")
 
 # --- tables ------------------------------------------------------------------------------------
 
@@ -1007,8 +996,6 @@ cli("render-huge-image", "render {d}/triangle_light.xml --set width=100000 --set
     "--spp 1 -o {o}/huge.exr", r"(GB|GiB|TB|TiB|bytes|memory)", subprocess=True)
 cli("render-realizations-zero", "render {d}/triangle_light.xml --realizations 0 -o {o}/i.exr",
     r"realizations must be >= 1")
-cli("points-subprocess-truncated", "spectrum {d}/trunc.npz -o {o}/s.png",
-    r"trunc\.npz is a damaged or truncated", subprocess=True)
 cli("points-subprocess-sheared", "points sheared -n 64 -o {o}/a.npz",
     r"points sheared needs --direction", subprocess=True)
 
@@ -1142,7 +1129,7 @@ def test_the_catalogue_is_large_and_covers_every_subcommand():
     commands = {shlex.split(c.argv)[0] for c in CASES if c.argv}
     assert {"points", "spectrum", "synthesize", "directions", "tables", "variance",
             "render"} <= commands
-    assert sum(c.subprocess for c in CASES) <= 12  # the catalogue stays fast
+    assert sum(c.subprocess for c in CASES) <= 6  # the catalogue stays fast
     assert set(PENDING) <= {c.id for c in CASES}
 
 
