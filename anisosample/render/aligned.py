@@ -41,6 +41,7 @@ from .estimation import (
     block_grid_values,
     estimate_blocks,
     estimation_grid,
+    gate_estimate,
     strongest_directions,
 )
 from .scene import Scene
@@ -304,12 +305,9 @@ def block_sampler(
         raise ValueError(f"estimate is for a {estimate.width}x{estimate.height} image, the "
                          f"scene is {scene.width}x{scene.height}")
     elif gate and estimate.discontinuous is None:
-        from .estimation import pixel_probes, probe_discontinuous
-
-        disc = probe_discontinuous(pixel_probes(
-            scene, probe, dimension=dimension, technique=technique,
-            square_aperture=square_aperture, progress=progress))
-        estimate = estimate._replace(discontinuous=disc, probe=probe)
+        estimate = gate_estimate(scene, estimate, probe, dimension=dimension,
+                                 technique=technique, square_aperture=square_aperture,
+                                 progress=progress)
     d, v = strongest_directions(estimate)
     dirs = np.asarray(estimate.estimate.directions_deg, np.float64)
     ok = np.asarray(estimate.estimate.valid)

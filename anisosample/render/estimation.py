@@ -39,8 +39,8 @@ from .integrator import PixelIntegrand, pixel_integrand
 from .scene import Scene
 
 __all__ = [
-    "BlockEstimate", "block_grid_values", "estimate_blocks", "estimation_grid", "pixel_probes",
-    "probe_discontinuous", "strongest_directions",
+    "BlockEstimate", "block_grid_values", "estimate_blocks", "estimation_grid", "gate_estimate",
+    "pixel_probes", "probe_discontinuous", "strongest_directions",
 ]
 
 JUMP_RATIO = 3.0
@@ -235,30 +235,43 @@ def pixel_probes(
     scene: Scene,
     probe: int = 6,
     *,
+    pixels=None,
     integrand=None,
     dimension: str = "auto",
     technique: str = "area",
     square_aperture: bool = False,
     progress: bool = False,
 ) -> np.ndarray:
-    """Every pixel's probe: ``(height, width, m, m)`` float32, pixel ``(col, row)``'s integrand
-    (film at the pixel centre, as :func:`estimation_grid`) at the ``m x m`` midpoints of the
-    whole sample domain, ``[..., i, j] = f((j + .5)/m, (i + .5)/m)``. One image row of pixels per
-    jitted call."""
+    """Pixel probes: each pixel's integrand (film at the pixel centre, as :func:`estimation_grid`)
+    at the ``m x m`` midpoints of the whole sample domain, ``[..., i, j] = f((j + .5)/m,
+    (i + .5)/m)``, float32. ``pixels``: ``(p, 2)`` ``[column, row]`` -> ``(p, m, m)``; default
+    every pixel -> ``(height, width, m, m)``. One image row's worth of pixels per jitted call."""
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
     m = check_int("probe", probe, minimum=3)
     base = _base_integrand(scene, integrand, dimension, technique, square_aperture)
     w, h = scene.width, scene.height
+    if pixels is None:
+        rows, cols = np.mgrid[0:h, 0:w]
+        px = np.stack([cols.ravel(), rows.ravel()], -1)
+    else:
+        px = np.asarray(pixels)
+        if px.ndim != 2 or px.shape[1] != 2 or not np.issubdtype(px.dtype, np.integer):
+            raise ValueError(f"pixels must be an (p, 2) integer array of [column, row], got "
+                             f"{px.dtype} {px.shape}")
+        if px.size and ((px < 0).any() or (px[:, 0] >= w).any() or (px[:, 1] >= h).any()):
+            raise ValueError(f"pixels must lie in the {w}x{h} image")
     xs = jnp.asarray(np.tile(_cell_centres(m), (w, 1)))
-    cols = np.repeat((np.arange(w) + 0.5) / w, m * m)
-    out = np.empty((h, w, m, m), np.float32)
-    for r in _bar(range(h), "gate", progress, "pixel row"):
-        films = np.stack([cols, np.full_like(cols, (r + 0.5) / h)], -1).astype(np.float32)
-        out[r] = np.asarray(_films_eval(base, jnp.asarray(films), xs)).reshape(w, m, m)
+    out = np.empty((len(px), m, m), np.float32)
+    for s in _bar(range(0, len(px), w), "gate", progress, "chunk"):
+        chunk = px[s:s + w]
+        films = np.repeat((chunk + 0.5) / np.array([w, h]), m * m, axis=0)
+        films = np.concatenate([films, np.repeat(films[-1:], (w - len(chunk)) * m * m, 0)])
+        vals = np.asarray(_films_eval(base, jnp.asarray(films, jnp.float32), xs))
+        out[s:s + len(chunk)] = vals.reshape(w, m, m)[:len(chunk)]
     if not np.all(np.isfinite(out)):
         raise FloatingPointError("the probe samples hold NaN or Inf (a bug: please report)")
-    return out
+    return out.reshape(h, w, m, m) if pixels is None else out
 
 
 # --- the estimate ---------------------------------------------------------------------------------
@@ -303,15 +316,15 @@ def estimate_blocks(
     :func:`anisosample.directions.estimate_blocks` (``k`` extra directions, 1 or 2;
     ``estimate_options`` go to it). ``strength=True`` also returns each block's histogram mass
     outside the zeroed axis windows; ``gate=True`` each pixel's :func:`probe_discontinuous` of
-    its ``probe x probe`` :func:`pixel_probes`. Image sides that are not multiples of
+    its ``probe x probe`` :func:`pixel_probes` (probed only in blocks with a direction: False
+    elsewhere, where the base sampler is used anyway). Image sides that are not multiples of
     ``block_px`` are padded (module docstring).
     """
     from .. import directions
 
     k = check_int("k", k, minimum=1, maximum=2)
     block_px, samples = _check_blocks(scene, block_px, samples)
-    if gate:
-        probe = check_int("probe", probe, minimum=3)
+    probe = check_int("probe", probe, minimum=3)
     t0 = time.perf_counter()
     grid = estimation_grid(scene, block_px, samples, integrand=integrand, dimension=dimension,
                            technique=technique, square_aperture=square_aperture,
@@ -329,15 +342,46 @@ def estimate_blocks(
         blocks = grid.reshape(by, samples, bx, samples).transpose(0, 2, 1, 3)
         power = _strength(blocks.reshape(by * bx, samples, samples),
                           estimate_options).reshape(by, bx)
-    disc, probe_seconds = None, 0.0
+    out = BlockEstimate(est, power, block_px, samples, scene.width, scene.height, seconds,
+                        by * bx * samples * samples)
     if gate:
-        t1 = time.perf_counter()
-        disc = probe_discontinuous(pixel_probes(
-            scene, probe, integrand=integrand, dimension=dimension, technique=technique,
-            square_aperture=square_aperture, progress=progress))
-        probe_seconds = time.perf_counter() - t1
-    return BlockEstimate(est, power, block_px, samples, scene.width, scene.height, seconds,
-                         by * bx * samples * samples, disc, probe if gate else 0, probe_seconds)
+        out = gate_estimate(scene, out, probe, integrand=integrand, dimension=dimension,
+                            technique=technique, square_aperture=square_aperture,
+                            progress=progress)
+    return out
+
+
+def gate_estimate(
+    scene: Scene,
+    estimate: BlockEstimate,
+    probe: int = 6,
+    *,
+    integrand=None,
+    dimension: str = "auto",
+    technique: str = "area",
+    square_aperture: bool = False,
+    progress: bool = False,
+) -> BlockEstimate:
+    """``estimate`` with the per-pixel gate filled in (``discontinuous``, ``probe``,
+    ``probe_seconds``): :func:`probe_discontinuous` of each pixel's :func:`pixel_probes`, for
+    the pixels of blocks with a direction (False elsewhere: they take the base sampler
+    anyway). The integrand options must be the estimate's."""
+    if not isinstance(estimate, BlockEstimate):
+        raise TypeError(f"estimate must be a BlockEstimate, got {type(estimate).__name__}")
+    probe = check_int("probe", probe, minimum=3)
+    t0 = time.perf_counter()
+    bp = estimate.block_px
+    block_has = np.asarray(estimate.estimate.valid).any(-1)
+    need = np.kron(block_has, np.ones((bp, bp), bool))[:scene.height, :scene.width]
+    rows, cols = np.nonzero(need)
+    disc = np.zeros((scene.height, scene.width), bool)
+    if rows.size:
+        disc[rows, cols] = probe_discontinuous(pixel_probes(
+            scene, probe, pixels=np.stack([cols, rows], -1), integrand=integrand,
+            dimension=dimension, technique=technique, square_aperture=square_aperture,
+            progress=progress))
+    return estimate._replace(discontinuous=disc, probe=probe,
+                             probe_seconds=time.perf_counter() - t0)
 
 
 def strongest_directions(estimate) -> tuple[np.ndarray, np.ndarray]:
