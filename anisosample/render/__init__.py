@@ -4,11 +4,13 @@ integrand exposed (W Sec. 6.2, H Sec. 4).
 Scenes come from Mitsuba 3's XML format (:func:`load_xml`) or from :class:`SceneBuilder`;
 :func:`pixel_integrand` gives ``f_q(x)`` of one pixel for the variance engine and the direction
 estimator; :func:`render` renders images over realizations; :func:`save_result` writes EXR/PNG.
-Per-block aligned sampling (W Sec. 5.3-5.4): :mod:`anisosample.render.aligned`,
-``render(scene, key, sampler="aligned")``.
+Per-block aligned sampling (W Sec. 5.3-5.4, with a per-pixel gate):
+:mod:`anisosample.render.aligned` (the sampler), :mod:`anisosample.render.estimation` (the block
+estimate and the gate), ``render(scene, key, sampler="aligned")``.
 """
 
 from . import aligned as aligned
+from . import estimation as estimation
 from . import mitsuba_compat as mitsuba_compat
 from . import pixel_classes as pixel_classes
 from .aligned import BlockSampler as BlockSampler
