@@ -17,10 +17,10 @@ checkpoints inside the set), and sets are spread over the local devices
 (``jax.local_devices()``), one worker thread per device running under
 ``jax.default_device(device)`` (XLA releases the GIL while it computes). With ``batch=B`` groups of
 ``B`` sets of equal direction count run one after the other, each as one
-:func:`~anisosample.synthesis.synthesize_batch` loop (the loss mapped over the padded frequency
-sets of the group: one compilation per group) *sharded* over all the local devices with
-``jax.shard_map`` on a ``jax.sharding.Mesh`` (each device optimizes its slice of the group). On the
-CPU, test either with ``XLA_FLAGS=--xla_force_host_platform_device_count=2``.
+:func:`~anisosample.synthesis.synthesize_batch` loop (one compiled step updates every set of the
+group, each with its own frequency plan; checkpointed in ``.ckpt/`` on one device), its sets
+split over the local devices (one slice and thread per device; the same bits as one device). On
+the CPU, test either with ``XLA_FLAGS=--xla_force_host_platform_device_count=2``.
 
 Several hosts: run the same command on every host with a shared ``--out``, e.g.
 ``anisosample tables build --n 4096 --directions 4 --out /shared/d4 --distributed --coordinator
@@ -48,8 +48,11 @@ from . import tables as _t
 from ._validate import check_int
 from .progress import progress as _progress
 
-_SYNTH_OPTIONS = ("recipe", "steps", "learning_rate", "c", "boundary", "init", "method",
-                  "frequency_options", "b1", "b2", "adam_eps", "final_lr_fraction", "nufft_eps")
+
+def _synth_options() -> tuple[str, ...]:
+    from . import synthesis
+
+    return ("recipe", *synthesis.OPTIONS)
 
 
 def _settings(n: int, kind: int, seed: int, synthesis: dict) -> dict:
@@ -72,16 +75,22 @@ def _settings(n: int, kind: int, seed: int, synthesis: dict) -> dict:
 
 
 def _resolved(synthesis: dict) -> dict:
+    """The table's synthesis record: the :class:`~anisosample.synthesis.Recipe` the options
+    make (every option, defaults included: a later change of a default makes a resumed build
+    refuse this table instead of mixing sets of two settings), the batch size, and the
+    frequency design evaluated at a probe size."""
     from . import frequencies as _freq
     from . import synthesis as _synthesis
 
-    recipe = synthesis.get("recipe", "rate")
-    resolved = {**_synthesis.recipe_defaults(recipe), "recipe": recipe, **synthesis}
+    options = {k: v for k, v in synthesis.items() if k != "batch"}
+    recipe = _synthesis.make_recipe(**options)
+    resolved = dict(recipe.record(), **({"batch": synthesis["batch"]} if "batch" in synthesis
+                                        else {}))
     # The frequency design's formulas (wedge length, width, weights' offsets, ...) evaluated at a
     # probe size: a change of the design changes the fingerprint, so a table of the old design
     # is not resumed with sets of the new one.
-    probe = _freq.design(1024, (0.0, 90.0, 45.0), resolved.get("design", "rate"),
-                         **dict(resolved.get("frequency_options") or {})).params
+    probe = _freq.design(1024, (0.0, 90.0, 45.0), recipe.design,
+                         **dict(recipe.frequency_options)).params
     resolved["frequency_design_at_n1024"] = {k: v for k, v in probe.items()
                                              if k not in ("n", "directions_deg")}
     return dict(sorted(resolved.items()))
@@ -110,16 +119,16 @@ def _build_one(table: _t.Table, index: int, extra, device, checkpoint_every: int
     ckpt = ckdir / f"{_t.set_name(extra)}.npz"
     t0 = time.perf_counter()
     with jax.default_device(device):
-        pts, info = synthesis.synthesize(
+        result = synthesis.synthesize(
             _key_for(settings["seed"], index), table.n, _t.set_directions(extra),
-            checkpoint=ckpt, checkpoint_every=checkpoint_every, show_progress=False,
-            return_info=True, **opts,
+            checkpoint=ckpt, checkpoint_every=checkpoint_every, show_progress=False, **opts,
         )
+    pts = result.points
     extra_meta = {
         "index": index,
-        "final_loss": info.get("final_loss"),
-        "initial_loss": (info.get("history") or [None])[0],
-        "frequency_count": info.get("frequency_count"),
+        "final_loss": result.final_loss,
+        "initial_loss": float(result.history[0]),
+        "frequency_count": result.frequency_count,
         "seconds": time.perf_counter() - t0,
         "device": str(device),
     }
@@ -127,24 +136,30 @@ def _build_one(table: _t.Table, index: int, extra, device, checkpoint_every: int
     return extra_meta["seconds"]
 
 
-def _build_group(table: _t.Table, indices, group, devices) -> list[float]:
-    """One :func:`synthesize_batch` call for a group of sets with equal direction counts,
-    sharded over ``devices`` (``jax.shard_map``; one device: no sharding)."""
+def _build_group(table: _t.Table, indices, group, devices, checkpoint_every: int) -> list[float]:
+    """One :func:`synthesize_batch` call for a group of sets with equal direction counts, its
+    sets split over ``devices`` (one device: checkpointed in ``.ckpt/``, so it resumes)."""
     from . import synthesis
 
     settings = table.settings
     opts = dict(settings["synthesis"])
     opts.pop("batch", None)
+    ckpt = None
+    if len(devices) == 1:
+        (table.path / ".ckpt").mkdir(exist_ok=True)
+        ckpt = table.path / ".ckpt" / f"group_{indices[0]:04d}.npz"
     t0 = time.perf_counter()
     with jax.default_device(devices[0]):
-        pts, info = synthesis.synthesize_batch(
+        result = synthesis.synthesize_batch(
             _key_for(settings["seed"], indices[0]), table.n,
-            [_t.set_directions(e) for e in group], show_progress=False, return_info=True,
-            devices=devices if len(devices) > 1 else None, **opts,
+            [_t.set_directions(e) for e in group], show_progress=False,
+            devices=devices if len(devices) > 1 else None, checkpoint=ckpt,
+            checkpoint_every=checkpoint_every, **opts,
         )
+    pts = result.points
     device = ",".join(str(d) for d in devices)
     sec = (time.perf_counter() - t0) / len(group)
-    final = np.asarray(info.get("final_loss")).reshape(-1)
+    final = np.asarray(result.final_loss).reshape(-1)
     for b, (i, e) in enumerate(zip(indices, group, strict=True)):
         write_set(table, e, np.asarray(pts[b]), {
             "index": i, "group": [list(g) for g in group], "group_position": b,
@@ -235,8 +250,8 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
             canonical index ``i`` uses ``split(fold_in(key(seed), i), B)[b]``). ``batch`` is
             part of the table's settings (it changes the sets' keys).
         devices: the devices (default ``jax.local_devices()``): ``batch=1`` spreads sets over
-            them, one thread each; ``batch > 1`` shards each group over all of them
-            (results equal the one-device build's to float32 rounding, not bit for bit).
+            them, one thread each; ``batch > 1`` splits each group over all of them (the
+            same bits as a one-device build).
         checkpoint_every: synthesis checkpoint interval in steps (resume granularity).
         synthesis_options: passed to :func:`anisosample.synthesize` (``recipe``, ``steps``, ...).
 
@@ -249,15 +264,11 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
     checkpoint_every = check_int("checkpoint_every", checkpoint_every, minimum=1)
     batch = check_int("batch", batch, minimum=1)
     for name in synthesis_options:
-        if name not in _SYNTH_OPTIONS:
+        if name not in _synth_options():
             raise TypeError(f"build() got an unexpected keyword argument {name!r}; synthesis "
-                            f"options are {', '.join(_SYNTH_OPTIONS)}")
+                            f"options are {', '.join(_synth_options())}")
     synth = {k: v for k, v in synthesis_options.items() if v is not None}
     if batch > 1:
-        bad = sorted(set(synth) & {"boundary", "frequency_options"})
-        if bad or synth.get("method", "nufft3") not in ("direct", "nufft3"):
-            raise ValueError(f"batch > 1 (synthesize_batch) does not take {bad or ['method']}; "
-                             "use batch=1")
         synth["batch"] = batch
     all_sets = _t.canonical_sets(kind)
     index = {e: i for i, e in enumerate(all_sets)}
@@ -313,7 +324,8 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
                 if batch == 1:
                     sec = [_build_one(table, index[u[0]], u[0], device, checkpoint_every)]
                 else:
-                    sec = _build_group(table, [index[e] for e in u], u, device)
+                    sec = _build_group(table, [index[e] for e in u], u, device,
+                                       checkpoint_every)
             except BaseException as exc:  # noqa: BLE001 -- re-raised in the main thread
                 errors.append(exc)
                 return
@@ -323,7 +335,7 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
                 bar.update(len(u))
 
     try:
-        if batch > 1:  # one group at a time, sharded over all the devices
+        if batch > 1:  # one group at a time, split over all the devices
             worker(devices)
         elif len(devices) == 1 or len(remaining) <= 1:
             worker(devices[0])

@@ -68,6 +68,7 @@ __all__ = [
     "NUFFT_THREADS",
     "default_eps",
     "finufft_opts",
+    "memory_bytes",
     "power_spectrum",
     "power_spectrum_grid",
     "grouped_power_spectrum",
@@ -107,7 +108,9 @@ def frequency_grid(radius: int) -> np.ndarray:
     return np.stack([vx.reshape(-1), vy.reshape(-1)], axis=-1)
 
 
-def _memory_bytes() -> int:
+def memory_bytes() -> int:
+    """Physical memory of this machine in bytes (16 GiB where the OS does not say); size checks
+    refuse work that needs more than half of it before allocating."""
     try:
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):
@@ -121,7 +124,7 @@ def _check_grid_memory(radius: int) -> None:
     """Refuse a centred grid whose arrays would not fit in half the memory, before allocating."""
     side = 2 * radius + 1
     need = side * side * _GRID_BYTES_PER_FREQ
-    have = _memory_bytes()
+    have = memory_bytes()
     if need > have // 2:
         raise ValueError(
             f"radius={radius} asks for a {side} x {side} spectrum grid: about {need / 2**30:.1f}"
@@ -462,7 +465,7 @@ def _group_power(points, fg: np.ndarray, theta_deg: float, method: str, eps: flo
     rot = rotation(theta_deg, points.dtype)
     if how != "nufft1":
         return _power(points, jnp.asarray(fg, points.dtype), rot, how, eps)
-    if box_area(segs) * _GRID_BYTES_PER_FREQ > _memory_bytes() // 2:
+    if box_area(segs) * _GRID_BYTES_PER_FREQ > memory_bytes() // 2:
         raise ValueError(f"method='nufft1' needs type-1 grids of {box_area(segs)} points for "
                          f"{fg.shape[0]} frequencies here, more than half the memory; use "
                          "method='auto' or 'nufft3'")

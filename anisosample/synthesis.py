@@ -1,6 +1,10 @@
-"""Point synthesis with anisotropic spectra: the optimizer loop (W Sec. 4, Eqs. 9-15).
+"""Point synthesis with anisotropic spectra: one recipe, one optimizer loop, one result (W Sec. 4).
 
-``synthesize(key, n, directions_deg, *, recipe="rate", ...) -> (n, 2)`` float32 in ``[0, 1)^2``.
+``synthesize(key, n, directions_deg, *, recipe="rate", **options) -> SynthesisResult``; the
+points, float32 ``(n, 2)`` in ``[0, 1)^2``, are ``result.points`` (``np.asarray(result)`` gives
+them too). The optimistix shape: the problem first (key, n, directions), every option in one
+frozen :class:`Recipe`, one loop (:func:`_iterate`) serving a single set and a batch of sets
+(:func:`synthesize_batch`), and one result type, :class:`SynthesisResult`.
 
 Two recipes (``RECIPES``), both minimising a loss of the point positions with Adam (Kingma & Ba;
 a small pure-function implementation, :func:`adam_update`), initialised from a stratified set:
@@ -24,17 +28,24 @@ and never piles points on the border; the SW target assumes the square (not the 
 point wrapping from 1 to 0 would jump across the whole projected distribution: the paper recipe
 therefore ``"clip"``s to ``[0, 1 - 2^-53]``.  Both can be chosen with ``boundary=``.
 
-Long runs show a progress bar, save a checkpoint every ``checkpoint_every`` steps when
-``checkpoint=`` names a ``.npz`` file, and resume from it (bit-identical to an uninterrupted
-run: the same compiled step runs on the same state).  :func:`save_result` writes the set with
-its metadata (n, directions, frequency design, loss history, key, package version).
+Same key, same bits: the loop runs the same compiled chunk of ``checkpoint_every`` steps on the
+same state whether or not it is checkpointed or resumed, and every NUFFT runs on one thread
+(:data:`anisosample.spectrum.NUFFT_THREADS`), so a run is reproducible byte for byte across
+processes and thread counts, a resumed run equals an uninterrupted one, and set ``b`` of a batch
+equals ``synthesize(split(key, B)[b], ...)``. Long runs show a progress bar and save a
+checkpoint every ``checkpoint_every`` steps when ``checkpoint=`` names a ``.npz`` file.
+:func:`save_result` writes a result with its record (n, directions, recipe, frequency design,
+loss history, key, package version).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import threading
 from pathlib import Path
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -53,41 +64,175 @@ from ._validate import (
 )
 from .progress import progress as _progress
 
+__all__ = ["RECIPES", "BOUNDARIES", "Recipe", "make_recipe", "recipe_defaults",
+           "SynthesisResult", "synthesize", "synthesize_batch", "adam_update", "save_result",
+           "load_result", "load_or_synthesize", "max_directions"]
+
 RECIPES = ("rate", "paper")
 BOUNDARIES = ("wrap", "clip")
 
 _DEFAULTS = {
-    "rate": dict(
-        steps=200,
-        learning_rate=0.5,
-        final_lr_fraction=0.01,
-        b1=0.9,
-        b2=0.9,
-        adam_eps=1e-30,
-        c=0.0,
-        boundary="wrap",
-        design="rate",
-        nufft_eps=1e-7,
-    ),
-    "paper": dict(
-        steps=1000,
-        learning_rate=0.1,
-        final_lr_fraction=0.01,
-        b1=0.9,
-        b2=0.999,
-        adam_eps=1e-8,
-        c=100.0,
-        boundary="clip",
-        design="paper",
-        nufft_eps=1e-7,
-    ),
+    "rate": dict(steps=200, learning_rate=0.5, final_lr_fraction=0.01, b1=0.9, b2=0.9,
+                 adam_eps=1e-30, c=0.0, boundary="wrap", design="rate", nufft_eps=1e-7),
+    "paper": dict(steps=1000, learning_rate=0.1, final_lr_fraction=0.01, b1=0.9, b2=0.999,
+                  adam_eps=1e-8, c=100.0, boundary="clip", design="paper", nufft_eps=1e-7),
 }
+_POSITIVE = ("learning_rate", "final_lr_fraction", "b1", "b2", "adam_eps", "nufft_eps")
+OPTIONS = ("steps", "learning_rate", "final_lr_fraction", "b1", "b2", "adam_eps", "c",
+           "spectrum_weight", "boundary", "design", "frequency_options", "init", "method",
+           "nufft_eps")
+"""Every synthesis option a :class:`Recipe` holds (besides the recipe's name)."""
+
+
+def _freeze(options) -> tuple:
+    if options is None:
+        return ()
+    if isinstance(options, tuple):
+        options = dict(options)
+    if not isinstance(options, dict):
+        raise TypeError(f"frequency_options must be a dict, got {type(options).__name__}")
+    return tuple(sorted((str(k), tuple(v) if isinstance(v, list) else v)
+                        for k, v in options.items()))
+
+
+class Recipe(eqx.Module):
+    """Every option of a synthesis run, frozen: the one record that results and tables
+    fingerprint (:meth:`record`). Make one with :func:`make_recipe` (a named recipe's defaults
+    plus overrides); constructing it directly validates the same way.
+
+    ``learning_rate`` is in units of the mean point spacing ``1/sqrt(n)`` and decays
+    exponentially to ``final_lr_fraction`` of itself over ``steps``; ``c >= 0`` weighs the SW
+    term and ``spectrum_weight`` the spectrum term (W Eq. 10; 0 drops a term, W Fig. 3);
+    ``design`` and ``frequency_options`` choose the frequency set
+    (:func:`anisosample.frequencies.design`); ``init`` names the sampler of the initial set;
+    ``method`` and ``nufft_eps`` are the spectrum engine's (:mod:`anisosample.spectrum`).
+    """
+
+    name: str = eqx.field(static=True, default="rate")
+    steps: int = eqx.field(static=True, default=200)
+    learning_rate: float = eqx.field(static=True, default=0.5)
+    final_lr_fraction: float = eqx.field(static=True, default=0.01)
+    b1: float = eqx.field(static=True, default=0.9)
+    b2: float = eqx.field(static=True, default=0.9)
+    adam_eps: float = eqx.field(static=True, default=1e-30)
+    c: float = eqx.field(static=True, default=0.0)
+    spectrum_weight: float = eqx.field(static=True, default=1.0)
+    boundary: str = eqx.field(static=True, default="wrap")
+    design: str = eqx.field(static=True, default="rate")
+    frequency_options: tuple = eqx.field(static=True, default=(), converter=_freeze)
+    init: str = eqx.field(static=True, default="jittered")
+    method: str = eqx.field(static=True, default="auto")
+    nufft_eps: float = eqx.field(static=True, default=1e-7)
+
+    def __check_init__(self):
+        from . import samplers
+
+        check_choice("recipe", self.name, RECIPES)
+        check_int("steps", self.steps, minimum=1)
+        for name in _POSITIVE:
+            check_positive_float(name, getattr(self, name))
+        check_positive_float("c", self.c, allow_zero=True)
+        check_positive_float("spectrum_weight", self.spectrum_weight, allow_zero=True)
+        if self.spectrum_weight == 0 and self.c == 0:
+            raise ValueError("spectrum_weight and c must not both be 0 (nothing to minimise)")
+        check_choice("boundary", self.boundary, BOUNDARIES)
+        check_choice("design", self.design, _freq.DESIGNS)
+        if self.init not in samplers.names():
+            raise ValueError(f"init must be one of {samplers.names()}, got {self.init!r}")
+        check_choice("method", self.method, _spectrum.METHODS)
+
+    def record(self) -> dict:
+        """The JSON-able record of every option (stored with results, fingerprinted by tables)."""
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        out["recipe"] = out.pop("name")
+        out["frequency_options"] = dict(self.frequency_options)
+        return _io.to_jsonable(out)
+
+    def options(self) -> dict:
+        """The options as keyword arguments of :func:`make_recipe` / :func:`synthesize`."""
+        rec = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        rec["recipe"] = rec.pop("name")
+        rec["frequency_options"] = dict(self.frequency_options)
+        return rec
+
+
+def make_recipe(recipe: str | Recipe = "rate", **options) -> Recipe:
+    """A :class:`Recipe`: the named recipe's defaults (``"rate"`` or ``"paper"``) with
+    ``options`` (any of :data:`OPTIONS`; ``None`` keeps the default) applied; or ``recipe``
+    itself, with ``options`` replacing its fields."""
+    unknown = sorted(set(options) - set(OPTIONS))
+    if unknown:
+        raise TypeError(f"unexpected synthesis option(s) {unknown}; the options are "
+                        f"{', '.join(OPTIONS)}")
+    given = {k: v for k, v in options.items() if v is not None}
+    if "method" in given:
+        given["method"] = _spectrum.check_method(given["method"])
+    if isinstance(recipe, Recipe):
+        base = recipe.options()
+        name = base.pop("recipe")
+    else:
+        name = check_choice("recipe", recipe, RECIPES)
+        base = dict(_DEFAULTS[name])
+    return Recipe(name=name, **{**base, **given})
 
 
 def recipe_defaults(recipe: str) -> dict:
-    """The options a recipe uses unless overridden (``learning_rate`` is in units of the mean
-    point spacing ``1/sqrt(n)``; it decays exponentially to ``final_lr_fraction`` of itself)."""
+    """The options a named recipe uses unless overridden (see :class:`Recipe`)."""
     return dict(_DEFAULTS[check_choice("recipe", recipe, RECIPES)])
+
+
+def max_directions(n: int) -> int:
+    """The most spectral directions a set of ``n`` points is synthesized for:
+    ``max(4, floor(sqrt(n) / 2))`` (W's tables use 3 and 4). Each direction's wedge and its
+    robust offsets take frequencies the ``2 n`` coordinates must darken; past this many the
+    optimizer no longer lowers the loss of every direction (36 directions at n = 64 made the
+    loss worse, issue 17)."""
+    return max(4, int(math.isqrt(check_int("n", n, minimum=2)) // 2))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class SynthesisResult:
+    """What :func:`synthesize` (one set) and :func:`synthesize_batch` (``B`` sets) return.
+
+    Attributes:
+        points: float32 ``(n, 2)`` (batch: ``(B, n, 2)``) in ``[0, 1)^2``; ``np.asarray(result)``
+            is the same array.
+        history: the loss before each step and after the last, ``(steps + 1,)`` (``(B, ...)``).
+        final_loss: the loss of the returned points (batch: ``(B,)``).
+        recipe: the :class:`Recipe` that made them.
+        n, directions_deg: the problem (batch: a list of direction tuples).
+        key: the key's data as a list of ints (batch: the key the sets' keys were split from).
+        frequency_design: the frequency set's parameters (batch: one dict per set).
+        frequency_count: its size (batch: one per set).
+    """
+
+    points: jax.Array
+    history: np.ndarray
+    final_loss: float | np.ndarray
+    recipe: Recipe
+    n: int
+    directions_deg: tuple | list
+    key: list
+    frequency_design: dict | list
+    frequency_count: int | list
+
+    def __array__(self, dtype=None, copy=None):
+        return np.asarray(self.points, dtype=dtype)
+
+    @property
+    def info(self) -> dict:
+        """The record as a dict (what :func:`save_result` stores)."""
+        return {
+            "n": self.n,
+            "directions_deg": list(self.directions_deg),
+            "recipe": self.recipe.name,
+            "options": self.recipe.record(),
+            "key": self.key,
+            "frequency_design": self.frequency_design,
+            "frequency_count": self.frequency_count,
+            "history": np.asarray(self.history).tolist(),
+            "final_loss": np.asarray(self.final_loss).tolist(),
+        }
 
 
 def adam_update(grad, state, step, *, lr, b1, b2, eps):
@@ -100,14 +245,15 @@ def adam_update(grad, state, step, *, lr, b1, b2, eps):
     return -lr * mhat / (jnp.sqrt(vhat) + eps), (m, v)
 
 
-def _make_loss(fset, directions_deg, c, recipe, method, eps, a=1.0):
+def _make_loss(fset, directions_deg, recipe: Recipe):
     """``a L_spec + c L_SW`` (W Eq. 10; ``a = 0`` or ``c = 0`` drops a term, as in W Fig. 3)."""
-    spec = _losses.linear_spectrum_loss if recipe == "rate" else _losses.spectrum_loss
+    spec = _losses.linear_spectrum_loss if recipe.name == "rate" else _losses.spectrum_loss
+    a, c = recipe.spectrum_weight, recipe.c
 
     def loss(x):
         val = jnp.zeros((), x.dtype)
         if a > 0:
-            val = val + a * spec(x, fset, method=method, eps=eps)
+            val = val + a * spec(x, fset, method=recipe.method, eps=recipe.nufft_eps)
         if c > 0:
             val = val + c * _losses.sliced_wasserstein_loss(x, directions_deg)
         return val
@@ -115,37 +261,40 @@ def _make_loss(fset, directions_deg, c, recipe, method, eps, a=1.0):
     return loss
 
 
-def _make_chunk(loss, n, steps, opts, chunk):
-    """A jitted function running ``chunk`` optimizer steps from a state (lax.scan)."""
-    lr0 = opts["learning_rate"] / math.sqrt(n)
-    decay = opts["final_lr_fraction"] ** (1.0 / max(steps - 1, 1))
-    b1, b2, eps = opts["b1"], opts["b2"], opts["adam_eps"]
-    wrap = opts["boundary"] == "wrap"
+def _make_chunk(losses, n, recipe: Recipe, chunk):
+    """A jitted function running ``chunk`` optimizer steps on ``B`` sets at once: the state is
+    one ``(x, m, v)`` triple of ``(n, 2)`` arrays per set and a shared step count, and set ``b``
+    is updated by the gradient of its own loss ``losses[b]`` (its own frequency plan). Each
+    set's part of the program is the one a single set runs, so batched and single synthesis give
+    the same bits."""
+    lr0 = recipe.learning_rate / math.sqrt(n)
+    decay = recipe.final_lr_fraction ** (1.0 / max(recipe.steps - 1, 1))
+    wrap = recipe.boundary == "wrap"
     hi = 1.0 - 2.0**-53
 
     def one(state, _):
-        x, m, v, t = state
-        val, g = jax.value_and_grad(loss)(x)
-        tf = (t + 1).astype(x.dtype)
-        lr = lr0 * decay ** t.astype(x.dtype)
-        dx, (m, v) = adam_update(g, (m, v), tf, lr=lr, b1=b1, b2=b2, eps=eps)
-        x = x + dx
-        x = x - jnp.floor(x) if wrap else jnp.clip(x, 0.0, hi)
-        return (x, m, v, t + 1), val
+        sets, t = state
+        lr = lr0 * decay ** t.astype(jnp.float64)
+        out, vals = [], []
+        for fn, (x, m, v) in zip(losses, sets, strict=True):
+            val, g = jax.value_and_grad(fn)(x)
+            dx, (m, v) = adam_update(g, (m, v), (t + 1).astype(x.dtype), lr=lr, b1=recipe.b1,
+                                     b2=recipe.b2, eps=recipe.adam_eps)
+            x = x + dx
+            x = x - jnp.floor(x) if wrap else jnp.clip(x, 0.0, hi)
+            out.append((x, m, v))
+            vals.append(val)
+        return (tuple(out), t + 1), jnp.stack(vals)
 
     @jax.jit
     def run(state):
         return jax.lax.scan(one, state, None, length=chunk)
 
-    return run
+    @jax.jit
+    def values(sets):
+        return jnp.stack([fn(x) for fn, (x, _, _) in zip(losses, sets, strict=True)])
 
-
-def _initial_points(key, n, init):
-    from . import samplers
-
-    if init not in samplers.names():
-        raise ValueError(f"init must be one of {samplers.names()}, got {init!r}")
-    return samplers.get(init)(key, n)
+    return run, values
 
 
 def _to_float32_unit(x) -> np.ndarray:
@@ -160,236 +309,242 @@ def _key_record(key) -> list[int]:
     return [int(k) for k in np.asarray(key).reshape(-1)]
 
 
-def synthesize(
-    key,
-    n: int,
-    directions_deg,
-    *,
-    recipe: str = "rate",
-    steps: int | None = None,
-    learning_rate: float | None = None,
-    c: float | None = None,
-    spectrum_weight: float = 1.0,
-    boundary: str | None = None,
-    init: str = "jittered",
-    method: str = "auto",
-    frequency_options: dict | None = None,
-    checkpoint: str | Path | None = None,
-    checkpoint_every: int = 50,
-    show_progress: bool = True,
-    callback=None,
-    return_info: bool = False,
-    **adam_options,
-):
+_BYTES_PER_POINT = 512  # float64 x, m, v, gradient and the transforms' work arrays per point
+
+
+def _check_size(n: int, directions_deg) -> None:
+    """Refuse a size whose state and frequency set would not fit in half the memory, and more
+    directions than :func:`max_directions` allows, before anything is allocated."""
+    k = len(directions_deg)
+    if k > max_directions(n):
+        raise ValueError(
+            f"directions_deg holds {k} directions, too many for n={n} points: at most "
+            f"{max_directions(n)} (max(4, sqrt(n) / 2)); use fewer directions or more points")
+    freqs = math.pi * n / 2 + 4 * k * n**0.8  # the rate design's disk and wedges, generously
+    need = _BYTES_PER_POINT * n + 64 * freqs
+    have = _spectrum.memory_bytes()
+    if need > have // 2:
+        raise ValueError(
+            f"n={n} needs about {need / 2**30:.1f} GiB for the optimizer state and its "
+            f"{freqs:.3g} frequencies, more than half of this machine's {have / 2**30:.1f} GiB;"
+            " choose a smaller n")
+
+
+def _read_checkpoint(path: Path, meta: dict, shape: tuple, steps: int):
+    """The state saved at ``path``, checked against this run (settings, shape, finiteness,
+    step range): ``(x, m, v, step, history)`` or a ``ValueError`` naming the file."""
+    arrays, old = _io.load_npz(path)  # a damaged or foreign file: ValueError naming it
+    same = {k: old.get(k) for k in meta}
+    if same != _io.to_jsonable(meta):
+        raise ValueError(f"checkpoint {path} was made with other settings; delete it or "
+                         "choose another path")
+    missing = [k for k in ("x", "m", "v", "step", "history") if k not in arrays]
+    if missing:
+        raise ValueError(f"checkpoint {path} lacks {missing}; delete it")
+    for name in ("x", "m", "v"):
+        a = arrays[name]
+        if a.shape != shape or a.dtype != np.float64:
+            raise ValueError(f"checkpoint {path}: {name} must be float64 of shape {shape}, got "
+                             f"{a.dtype} {a.shape}; delete it")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"checkpoint {path}: {name} contains NaN or Inf; delete it")
+    step = arrays["step"]
+    if step.shape != () or not np.issubdtype(step.dtype, np.integer):
+        raise ValueError(f"checkpoint {path}: step must be an integer, got {step!r}")
+    step = int(step)
+    if not 0 <= step < steps:
+        raise ValueError(f"checkpoint {path}: step {step} is outside [0, steps={steps}); "
+                         "delete it")
+    hist = np.asarray(arrays["history"], np.float64)
+    if hist.shape[0] != step or not np.all(np.isfinite(hist)):
+        raise ValueError(f"checkpoint {path}: its loss history does not match step {step}")
+    return arrays["x"], arrays["m"], arrays["v"], step, hist
+
+
+def _iterate(losses, x_init: np.ndarray, recipe: Recipe, n: int, *, meta: dict,
+             checkpoint=None, checkpoint_every: int = 50, callback=None, bar_desc: str = "",
+             show_progress: bool = True, single: bool = True):
+    """The one optimizer loop: Adam on the stacked sets ``x_init`` ``(B, n, 2)`` (float64),
+    ``checkpoint_every`` steps per compiled chunk, checkpointed and resumed, with progress.
+    Returns ``(x (B, n, 2), history (B, steps + 1), final (B,))``."""
+    steps = recipe.steps
+    b = x_init.shape[0]
+    with jax.enable_x64(True):
+        x, m, v = x_init, np.zeros_like(x_init), np.zeros_like(x_init)
+        done = 0
+        hist = np.zeros((0, b))
+        shape = x_init.shape[1:] if single else x_init.shape
+        if checkpoint is not None and Path(checkpoint).exists():
+            x, m, v, done, h = _read_checkpoint(Path(checkpoint), meta, shape, steps)
+            if single:
+                x, m, v = x[None], m[None], v[None]
+            hist = h.reshape(done, b)
+        state = (tuple((jnp.asarray(x[i]), jnp.asarray(m[i]), jnp.asarray(v[i]))
+                       for i in range(b)), jnp.asarray(done, jnp.int64))
+        runners = {}
+        bar = _progress(total=steps, initial=done, desc=bar_desc,
+                        disable=None if show_progress else True)
+
+        def stacked(j):
+            return np.stack([np.asarray(s[j]) for s in state[0]])
+
+        try:
+            while done < steps:
+                k = min(checkpoint_every, steps - done)
+                if k not in runners:
+                    runners[k] = _make_chunk(losses, n, recipe, k)
+                state, vals = runners[k][0](state)
+                hist = np.concatenate([hist, np.asarray(vals)])
+                done = int(state[1])
+                bar.update(k)
+                bar.set_postfix(loss=f"{float(hist[-1].max()):.3e}")
+                if checkpoint is not None and done < steps:
+                    sq = (lambda a: a[0]) if single else (lambda a: a)
+                    _io.save_npz(checkpoint, {"x": sq(stacked(0)), "m": sq(stacked(1)),
+                                              "v": sq(stacked(2)), "step": np.int64(done),
+                                              "history": hist[:, 0] if single else hist},
+                                 meta, overwrite=True)
+                if callback is not None:
+                    callback(done, float(hist[-1, 0]) if single else hist[-1].copy())
+        finally:
+            bar.close()
+        final = np.asarray(next(iter(runners.values()))[1](state[0]))
+        x = stacked(0)
+    if checkpoint is not None and Path(checkpoint).exists():
+        Path(checkpoint).unlink()
+    return x, np.concatenate([hist, final[None]]).T, final
+
+
+def _initial_points(key, n, init):
+    from . import samplers
+
+    return np.asarray(samplers.get(init)(key, n), np.float64)
+
+
+def synthesize(key, n: int, directions_deg, *, recipe: str | Recipe = "rate",
+               checkpoint: str | Path | None = None, checkpoint_every: int = 50,
+               show_progress: bool = True, callback=None, return_info: bool = False,
+               **options) -> SynthesisResult:
     """Synthesize ``n`` points whose spectrum is dark along the spectral ``directions_deg``.
 
     Args:
         key: JAX PRNG key (the initial stratified set).
         n: number of points, ``>= 2``.
         directions_deg: spectral directions in ``[0, 180)`` (include 0 and 90 for the axes, as W
-            always does), distinct.
-        recipe: ``"rate"`` (default, reaches the rate) or ``"paper"`` (W Eqs. 10-15).
-        steps, learning_rate, c, boundary: override the recipe's value (see
-            :func:`recipe_defaults`); ``c >= 0`` weighs the SW term (W Eq. 10).
-        spectrum_weight: weight of the spectrum term (0 leaves SW alone, W Fig. 3 b).
-        init: a sampler name for the initial set (default ``"jittered"``).
-        method: spectrum evaluation, ``"auto" | "direct" | "nufft1" | "nufft3"`` (see
-            :mod:`anisosample.losses`; ``auto`` takes the lattice-aligned type-1 grids).
-        frequency_options: overrides for :func:`anisosample.frequencies.design`.
-        checkpoint: ``.npz`` path; saved every ``checkpoint_every`` steps, resumed if present.
+            always does), distinct, at most :func:`max_directions` of them.
+        recipe: ``"rate"`` (default, reaches the rate), ``"paper"`` (W Eqs. 10-15) or a
+            :class:`Recipe`.
+        options: any of :data:`OPTIONS` overriding the recipe (``steps``, ``learning_rate``,
+            ``c``, ``boundary``, ``init``, ``method`` ``"auto" | "direct" | "nufft1" |
+            "nufft3"``, ``frequency_options``, ``b1``, ``b2``, ``adam_eps``,
+            ``final_lr_fraction``, ``nufft_eps``; see :class:`Recipe`).
+        checkpoint: ``.npz`` path; saved every ``checkpoint_every`` steps, resumed if present
+            (a checkpoint of other settings, shape or a step past ``steps`` is refused).
         callback: ``callback(step, loss)`` after each chunk (may raise to stop).
-        return_info: also return a dict (loss history, options, frequency design).
-        adam_options: ``b1``, ``b2``, ``adam_eps``, ``final_lr_fraction``, ``nufft_eps`` (the
-            NUFFT tolerance; 1e-7 keeps ``P_S`` accurate to ~1e-6 of white noise).
+        return_info: kept for old callers: return ``(points, result.info)`` instead.
 
     Returns:
-        ``(n, 2)`` float32 in ``[0, 1)^2`` (and ``info`` if asked).
+        a :class:`SynthesisResult` (``result.points``: ``(n, 2)`` float32 in ``[0, 1)^2``).
     """
     key = check_key("key", key)
     n = check_int("n", n, minimum=2)
     directions_deg = check_directions_deg("directions_deg", directions_deg)
-    recipe = check_choice("recipe", recipe, RECIPES)
-    opts = recipe_defaults(recipe)
-    for name, val in adam_options.items():
-        if name not in ("b1", "b2", "adam_eps", "final_lr_fraction", "nufft_eps"):
-            raise TypeError(f"synthesize() got an unexpected keyword argument {name!r}")
-        opts[name] = check_positive_float(name, val)
-    if steps is not None:
-        opts["steps"] = check_int("steps", steps, minimum=1)
-    if learning_rate is not None:
-        opts["learning_rate"] = check_positive_float("learning_rate", learning_rate)
-    if c is not None:
-        opts["c"] = check_positive_float("c", c, allow_zero=True)
-    opts["spectrum_weight"] = check_positive_float("spectrum_weight", spectrum_weight,
-                                                   allow_zero=True)
-    if opts["spectrum_weight"] == 0 and opts["c"] == 0:
-        raise ValueError("spectrum_weight and c must not both be 0 (nothing to minimise)")
-    if boundary is not None:
-        opts["boundary"] = check_choice("boundary", boundary, BOUNDARIES)
-    method = _spectrum.check_method(method)
+    rec = make_recipe(recipe, **options)
     checkpoint_every = check_int("checkpoint_every", checkpoint_every, minimum=1)
-    fset = _freq.design(n, directions_deg, opts["design"], **(frequency_options or {}))
-    steps = opts["steps"]
-    meta = {
-        "n": n,
-        "directions_deg": list(directions_deg),
-        "recipe": recipe,
-        "options": opts,
-        "init": init,
-        "method": method,
-        "frequency_design": fset.params,
-        "key": _key_record(key),
-    }
-
-    x_init = np.asarray(_initial_points(key, n, init), np.float64)
-    with jax.enable_x64(True):
-        x0 = jnp.asarray(x_init, jnp.float64)
-        state = (x0, jnp.zeros_like(x0), jnp.zeros_like(x0), jnp.asarray(0, jnp.int64))
-        history: list[float] = []
-        if checkpoint is not None and Path(checkpoint).exists():
-            arrays, old = _io.load_npz(checkpoint)
-            same = {
-                k: old.get(k)
-                for k in (
-                    "n",
-                    "directions_deg",
-                    "recipe",
-                    "options",
-                    "key",
-                    "init",
-                    "frequency_design",
-                )
-            }
-            want = {k: _io._to_jsonable(meta[k]) for k in same}
-            if same != want:
-                raise ValueError(
-                    f"checkpoint {checkpoint} was made with other settings;"
-                    " delete it or choose another path"
-                )
-            state = (
-                jnp.asarray(arrays["x"]),
-                jnp.asarray(arrays["m"]),
-                jnp.asarray(arrays["v"]),
-                jnp.asarray(int(arrays["step"]), jnp.int64),
-            )
-            history = [float(h) for h in arrays["history"]]
-        loss = _make_loss(fset, directions_deg, opts["c"], recipe, method, opts["nufft_eps"],
-                          opts["spectrum_weight"])
-        done = int(state[3])
-        runners = {}
-        bar = _progress(
-            total=steps,
-            initial=done,
-            desc=f"synthesize n={n}",
-            disable=None if show_progress else True,
-        )
-        try:
-            while done < steps:
-                k = min(checkpoint_every, steps - done)
-                if k not in runners:
-                    runners[k] = _make_chunk(loss, n, steps, opts, k)
-                state, vals = runners[k](state)
-                history.extend(np.asarray(vals).tolist())
-                done = int(state[3])
-                bar.update(k)
-                bar.set_postfix(loss=f"{history[-1]:.3e}")
-                if checkpoint is not None and done < steps:
-                    _io.save_npz(
-                        checkpoint,
-                        {
-                            "x": state[0],
-                            "m": state[1],
-                            "v": state[2],
-                            "step": done,
-                            "history": np.asarray(history),
-                        },
-                        meta,
-                        overwrite=True,
-                    )
-                if callback is not None:
-                    callback(done, history[-1])
-        finally:
-            bar.close()
-        final = float(loss(state[0]))
-    points = _to_float32_unit(state[0])
-    if checkpoint is not None and Path(checkpoint).exists():
-        Path(checkpoint).unlink()
-    if return_info:
-        info = dict(meta, history=history + [final], final_loss=final, frequency_count=len(fset))
-        return jnp.asarray(points), info
-    return jnp.asarray(points)
+    _check_size(n, directions_deg)
+    fset = _freq.design(n, directions_deg, rec.design, **dict(rec.frequency_options))
+    meta = {"n": n, "directions_deg": list(directions_deg), "recipe": rec.name,
+            "options": rec.record(), "frequency_design": fset.params, "key": _key_record(key)}
+    x, hist, final = _iterate([_make_loss(fset, directions_deg, rec)],
+                              _initial_points(key, n, rec.init)[None], rec, n, meta=meta,
+                              checkpoint=checkpoint, checkpoint_every=checkpoint_every,
+                              callback=callback, bar_desc=f"synthesize n={n}",
+                              show_progress=show_progress)
+    result = SynthesisResult(jnp.asarray(_to_float32_unit(x[0])), hist[0], float(final[0]),
+                             rec, n, tuple(directions_deg), meta["key"], fset.params, len(fset))
+    return (result.points, result.info) if return_info else result
 
 
-def save_result(path, points, info, *, overwrite: bool = False) -> Path:
-    """Write a synthesized set and its ``info`` (from ``return_info=True``) to ``.npz``."""
-    history = np.asarray(info.get("history", []), np.float64)
-    meta = {k: v for k, v in info.items() if k != "history"}
-    return _io.save_npz(
-        path, {"points": np.asarray(points), "loss_history": history}, meta, overwrite=overwrite
-    )
+def synthesize_batch(key, n: int, direction_sets, *, recipe: str | Recipe = "rate",
+                     devices=None, checkpoint: str | Path | None = None,
+                     checkpoint_every: int = 50, show_progress: bool = True,
+                     return_info: bool = False, **options) -> SynthesisResult:
+    """``B`` sets at once through the same loop as :func:`synthesize`: ``direction_sets`` is a
+    list of ``B`` direction lists of equal length; ``result.points`` is ``(B, n, 2)``. Set ``b``
+    starts from ``jax.random.split(key, B)[b]`` and equals ``synthesize(that key, n,
+    direction_sets[b], ...)`` bit for bit: each set keeps its own frequency plan (the
+    lattice-aligned type-1 grids batch too), and one compiled step updates them all.
 
-
-def load_result(path):
-    """Inverse of :func:`save_result`: ``(points, metadata)``."""
-    arrays, meta = _io.load_npz(path)
-    return jnp.asarray(arrays["points"]), dict(meta, history=arrays.get("loss_history"))
-
-
-def _expected_options(recipe, options) -> dict:
-    opts = recipe_defaults(recipe)
-    for k in ("steps", "learning_rate", "c", "boundary", "b1", "b2", "adam_eps",
-              "final_lr_fraction", "nufft_eps"):
-        if options.get(k) is not None:
-            opts[k] = options[k]
-    opts["spectrum_weight"] = options.get("spectrum_weight", 1.0)
-    return opts
-
-
-def load_or_synthesize(path, key, n: int, directions_deg, **options):
-    """Load the set saved at ``path`` if it was made with the same settings, else synthesize it
-    (checkpointed beside ``path``, so an interrupted run resumes) and save it there.
-
-    Returns ``(points, info)``.  Experiments use this to reuse finished sets on rerun.
+    ``devices``: split the sets into one contiguous slice per device; each device runs the loop
+    on its slice in its own thread (XLA releases the GIL), and the results are the same bits as
+    on one device. On the CPU, try it with ``XLA_FLAGS=--xla_force_host_platform_device_count=2``.
+    ``checkpoint`` (one device): as in :func:`synthesize`, for the whole batch.
     """
-    path = Path(path)
     key = check_key("key", key)
-    directions_deg = check_directions_deg("directions_deg", directions_deg)
-    recipe = options.get("recipe", "rate")
-    if path.exists():
-        pts, meta = load_result(path)
-        want = _io._to_jsonable(_expected_options(recipe, options))
-        if (meta.get("n") == n and meta.get("directions_deg") == list(directions_deg)
-                and meta.get("key") == _key_record(key) and meta.get("recipe") == recipe
-                and meta.get("options") == want
-                and meta.get("frequency_design") == _io._to_jsonable(_freq.design(
-                    n, directions_deg, want["design"],
-                    **(options.get("frequency_options") or {})).params)):
-            return pts, meta
-    options = dict(options)
-    options.pop("return_info", None)
-    ckpt = path.with_name(path.stem + ".ckpt.npz")
-    pts, info = synthesize(key, n, directions_deg, checkpoint=ckpt, return_info=True, **options)
-    save_result(path, pts, info, overwrite=True)
-    return pts, info
+    n = check_int("n", n, minimum=2)
+    if isinstance(direction_sets, str) or not hasattr(direction_sets, "__len__"):
+        raise TypeError("direction_sets must be a list of direction lists")
+    sets = [check_directions_deg(f"direction_sets[{i}]", d) for i, d in enumerate(direction_sets)]
+    if not sets:
+        raise ValueError("direction_sets must hold at least one direction set")
+    if len({len(d) for d in sets}) != 1:
+        raise ValueError("direction_sets must all have the same number of directions, got "
+                         f"{[len(d) for d in sets]}")
+    rec = make_recipe(recipe, **options)
+    checkpoint_every = check_int("checkpoint_every", checkpoint_every, minimum=1)
+    for d in sets:
+        _check_size(n, d)
+    devs = _check_devices(devices)
+    if checkpoint is not None and len(devs) > 1:
+        raise ValueError("checkpoint needs devices=None (one device)")
+    b = len(sets)
+    keys = jax.random.split(key, b)
+    fsets = [_freq.design(n, d, rec.design, **dict(rec.frequency_options)) for d in sets]
+    x_init = np.stack([_initial_points(k, n, rec.init) for k in keys])
+    slices = np.array_split(np.arange(b), len(devs))
+    out: dict[int, tuple] = {}
+    errors: list[BaseException] = []
+
+    def run(i, idx, device):
+        meta = {"n": n, "direction_sets": [list(sets[j]) for j in idx], "recipe": rec.name,
+                "options": rec.record(), "frequency_design": [fsets[j].params for j in idx],
+                "key": _key_record(key), "indices": [int(j) for j in idx]}
+        try:
+            with jax.default_device(device) if device is not None else _nullcontext():
+                out[i] = _iterate([_make_loss(fsets[j], sets[j], rec) for j in idx],
+                                  x_init[idx], rec, n, meta=meta, checkpoint=checkpoint,
+                                  checkpoint_every=checkpoint_every, single=False,
+                                  bar_desc=f"synthesize_batch {len(idx)} x n={n}",
+                                  show_progress=show_progress and i == 0)
+        except BaseException as exc:  # noqa: BLE001 -- re-raised in the calling thread
+            errors.append(exc)
+
+    work = [(i, idx, d) for i, (idx, d) in enumerate(zip(slices, devs, strict=True)) if len(idx)]
+    if len(work) == 1:
+        run(*work[0])
+    else:
+        threads = [threading.Thread(target=run, args=w, daemon=True) for w in work]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    if errors:
+        raise errors[0]
+    x = np.concatenate([out[i][0] for i, _, _ in work])
+    hist = np.concatenate([out[i][1] for i, _, _ in work])
+    final = np.concatenate([out[i][2] for i, _, _ in work])
+    result = SynthesisResult(jnp.asarray(_to_float32_unit(x)), hist, final, rec, n,
+                             [tuple(d) for d in sets], _key_record(key),
+                             [fs.params for fs in fsets], [len(fs) for fs in fsets])
+    return (result.points, result.info) if return_info else result
 
 
-def _padded_groups(fsets, dtype):
-    """Stack the per-direction groups of several frequency sets, padding each group to the
-    largest size with zero-weight copies of its first frequency (so the loss is unchanged)."""
-    k = len(fsets[0].group_sizes)
-    out = []
-    for g in range(k):
-        groups = [list(fs.groups())[g] for fs in fsets]
-        m = max(len(fg) for _, fg, _ in groups)
-        vs, ws, rs = [], [], []
-        for theta, fg, wg in groups:
-            pad = m - len(fg)
-            vs.append(np.concatenate([fg, np.repeat(fg[:1], pad, axis=0)]).astype(np.float64))
-            ws.append(np.concatenate([wg, np.zeros(pad)]))
-            rs.append(np.asarray(_spectrum.rotation(theta, jnp.float64)))
-        out.append((jnp.asarray(np.stack(vs), dtype), jnp.asarray(np.stack(ws), dtype),
-                    jnp.asarray(np.stack(rs), dtype)))
-    return out
+class _nullcontext:
+    def __enter__(self):
+        return None
+
+    def __exit__(self, *exc):
+        return False
 
 
 def _check_devices(devices) -> list:
@@ -406,153 +561,55 @@ def _check_devices(devices) -> list:
     return devs
 
 
-def synthesize_batch(key, n: int, direction_sets, *, recipe: str = "rate",
-                     steps: int | None = None, learning_rate: float | None = None,
-                     c: float | None = None, init: str = "jittered", method: str = "nufft3",
-                     devices=None, show_progress: bool = True, return_info: bool = False,
-                     **adam_options):
-    """Several sets at once: ``direction_sets`` is a list of ``B`` direction lists of equal
-    length; returns ``(B, n, 2)``.  One optimizer loop, the loss ``vmap``ped over the sets
-    (frequency groups padded to a common size with zero weights), so a batch costs one
-    compilation and runs as batched type-3 NUFFTs (the sets' directions differ, so the
-    lattice-aligned grids of :func:`synthesize` do not batch).  Set ``b`` starts from
-    ``jax.random.split(key, B)[b]`` and equals ``synthesize(that key, n, direction_sets[b])``
-    up to rounding.  No checkpoints (use :func:`synthesize` for long single runs).
+# --- results on disk --------------------------------------------------------------------------
 
-    ``devices``: shard the sets over these devices with ``jax.shard_map`` on a one-axis
-    ``jax.sharding.Mesh`` (``"sets"``); each device runs the loop on its own slice of the batch
-    (the sets do not interact, so no collectives). ``B`` is padded to a multiple of the device
-    count with copies of the last set, which are dropped. Default: the default device only. On
-    the CPU, try it with ``XLA_FLAGS=--xla_force_host_platform_device_count=2``."""
+
+def save_result(path, result, info=None, *, overwrite: bool = False) -> Path:
+    """Write a :class:`SynthesisResult` (or old-style ``points, info``) to ``.npz``."""
+    if isinstance(result, SynthesisResult):
+        points, info = result.points, result.info
+    else:
+        points, info = result, dict(info or {})
+    history = np.asarray(info.get("history", []), np.float64)
+    meta = {k: v for k, v in info.items() if k != "history"}
+    return _io.save_npz(path, {"points": np.asarray(points), "loss_history": history}, meta,
+                        overwrite=overwrite)
+
+
+def load_result(path):
+    """Inverse of :func:`save_result`: ``(points, metadata)``."""
+    arrays, meta = _io.load_npz(path)
+    if "points" not in arrays:
+        raise ValueError(f"{path} holds no 'points' array (not a saved synthesis result)")
+    return jnp.asarray(arrays["points"]), dict(meta, history=arrays.get("loss_history"))
+
+
+def load_or_synthesize(path, key, n: int, directions_deg, **options) -> SynthesisResult:
+    """The result saved at ``path`` if it was made with the same settings (the same
+    :meth:`Recipe.record`, n, directions, key and frequency design), else synthesize it
+    (checkpointed beside ``path``, so an interrupted run resumes) and save it there.
+
+    Experiments use this to reuse finished sets on rerun.
+    """
+    path = Path(path)
     key = check_key("key", key)
-    n = check_int("n", n, minimum=2)
-    recipe = check_choice("recipe", recipe, RECIPES)
-    sets = [check_directions_deg("direction_sets[i]", d) for d in direction_sets]
-    if not sets:
-        raise ValueError("direction_sets must hold at least one direction set")
-    if len({len(d) for d in sets}) != 1:
-        raise ValueError("direction_sets must all have the same number of directions, got "
-                         f"{[len(d) for d in sets]}")
-    method = check_choice("method", method, ("direct", "nufft3"))
-    devs = _check_devices(devices)
-    opts = recipe_defaults(recipe)
-    for name, val in adam_options.items():
-        if name not in ("b1", "b2", "adam_eps", "final_lr_fraction", "nufft_eps"):
-            raise TypeError(f"synthesize_batch() got an unexpected keyword argument {name!r}")
-        opts[name] = check_positive_float(name, val)
-    if steps is not None:
-        opts["steps"] = check_int("steps", steps, minimum=1)
-    if learning_rate is not None:
-        opts["learning_rate"] = check_positive_float("learning_rate", learning_rate)
-    if c is not None:
-        opts["c"] = check_positive_float("c", c, allow_zero=True)
-    b = len(sets)
-    keys = jax.random.split(key, b)
-    x_init = np.stack([np.asarray(_initial_points(k, n, init), np.float64) for k in keys])
-    fsets = [_freq.design(n, d, opts["design"]) for d in sets]
-    pad = -b % len(devs)  # copies of the last set so that every device gets as many sets
-    x_init = np.concatenate([x_init, np.repeat(x_init[-1:], pad, axis=0)])
-    fsets_padded = fsets + [fsets[-1]] * pad
-    sets_padded = sets + [sets[-1]] * pad
-    eps = opts["nufft_eps"]
-    spec_sq = recipe == "paper"
-    cw = opts["c"]
-    with jax.enable_x64(True):
-        groups = _padded_groups(fsets_padded, jnp.float64)
-        th = jnp.asarray(np.deg2rad(np.asarray(sets_padded)), jnp.float64)  # (B, k)
-        u = jnp.asarray((np.arange(n) + 0.5) / n - 0.5, jnp.float64)
-
-        def loss_one(x, grp, theta):
-            num = jnp.zeros((), x.dtype)
-            den = jnp.zeros((), x.dtype)
-            for v, w, r in grp:
-                p = _spectrum._power(x, v, r, method, eps)
-                num = num + jnp.sum(w * (p * p * n if spec_sq else p))
-                den = den + jnp.sum(w)
-            val = n * num / den
-            if cw > 0:  # sliced Wasserstein (W Eqs. 12-15) with traced directions
-                d = jnp.stack([jnp.cos(theta), jnp.sin(theta)], 1)
-                tgt = _losses.square_projection_quantile(jnp.rad2deg(theta)[:, None], u[None])
-                srt = jnp.sort((x - 0.5) @ d.T, axis=0).T
-                val = val + cw * jnp.mean(jnp.sum((srt - tgt) ** 2, axis=1))
-            return val
-
-        def total(xb, grps, ths):
-            if method == "direct":
-                vals = jax.vmap(loss_one)(xb, grps, ths)
-            else:  # jax-finufft 1.3.1's batching rule fails under jax 0.10 (no
-                # batching.not_mapped): map over the sets inside the same jit instead
-                vals = jax.lax.map(lambda a: loss_one(*a), (xb, grps, ths))
-            return jnp.sum(vals), vals
-
-        lr0 = opts["learning_rate"] / math.sqrt(n)
-        decay = opts["final_lr_fraction"] ** (1.0 / max(opts["steps"] - 1, 1))
-        wrap = opts["boundary"] == "wrap"
-
-        def run(state, grps, ths, length):
-            def one(st, _):
-                x, m, v, t = st
-                (_, vals), g = jax.value_and_grad(total, has_aux=True)(x, grps, ths)
-                lr = lr0 * decay ** t.astype(x.dtype)
-                dx, (m, v) = adam_update(g, (m, v), (t + 1).astype(x.dtype), lr=lr,
-                                         b1=opts["b1"], b2=opts["b2"], eps=opts["adam_eps"])
-                x = x + dx
-                x = x - jnp.floor(x) if wrap else jnp.clip(x, 0.0, 1.0 - 2.0**-53)
-                return (x, m, v, t + 1), vals
-
-            return jax.lax.scan(one, state, None, length=length)
-
-        def final_values(xb, grps, ths):
-            return total(xb, grps, ths)[1]
-
-        if len(devs) > 1:
-            from jax.sharding import Mesh
-            from jax.sharding import PartitionSpec as P
-
-            mesh = Mesh(np.asarray(devs), ("sets",))
-            per_set, rep = P("sets"), P()
-
-            def sharded(fn, in_specs, out_specs):
-                # check_vma=False: the NUFFT custom calls carry no varying-axis rules; the sets
-                # are independent, so every output is exactly its shard's.
-                return jax.jit(jax.shard_map(fn, mesh=mesh, in_specs=in_specs,
-                                             out_specs=out_specs, check_vma=False))
-
-            make_runner = lambda k: sharded(  # noqa: E731
-                lambda st, g, t: run(st, g, t, k),
-                ((per_set, per_set, per_set, rep), per_set, per_set),
-                ((per_set, per_set, per_set, rep), P(None, "sets")))
-            final_fn = sharded(final_values, (per_set, per_set, per_set), per_set)
-        else:
-            make_runner = lambda k: jax.jit(lambda st, g, t: run(st, g, t, k))  # noqa: E731
-            final_fn = jax.jit(final_values)
-
-        chunk = 25
-        runners = {}
-        x0 = jnp.asarray(x_init)
-        if len(devs) == 1 and devs[0] is not None:
-            x0 = jax.device_put(x0, devs[0])
-        state = (x0, jnp.zeros_like(x0), jnp.zeros_like(x0), jnp.asarray(0, jnp.int64))
-        history = []
-        bar = _progress(total=opts["steps"], desc=f"synthesize_batch {b} x n={n}"
-                        + (f" on {len(devs)} devices" if len(devs) > 1 else ""),
-                        disable=None if show_progress else True)
-        done = 0
-        while done < opts["steps"]:
-            k = min(chunk, opts["steps"] - done)
-            if k not in runners:
-                runners[k] = make_runner(k)
-            state, vals = runners[k](state, groups, th)
-            history.append(np.asarray(vals)[:, :b])
-            done += k
-            bar.update(k)
-        bar.close()
-        final = np.asarray(final_fn(state[0], groups, th))[:b]
-        state = (np.asarray(state[0])[:b],) + tuple(state[1:])
-    pts = jnp.asarray(np.stack([_to_float32_unit(x) for x in np.asarray(state[0])]))
-    if return_info:
-        hist = np.concatenate(history + [final[None]], axis=0).T
-        return pts, {"n": n, "direction_sets": [list(d) for d in sets], "recipe": recipe,
-                     "options": opts, "history": hist, "final_loss": final,
-                     "frequency_design": [fs.params for fs in fsets]}
-    return pts
+    directions_deg = check_directions_deg("directions_deg", directions_deg)
+    options = {k: v for k, v in options.items() if k != "return_info"}
+    recipe = options.pop("recipe", "rate")
+    run = {k: options.pop(k) for k in ("checkpoint_every", "show_progress", "callback")
+           if k in options}
+    rec = make_recipe(recipe, **options)
+    if path.exists():
+        pts, meta = load_result(path)
+        fset = _freq.design(n, directions_deg, rec.design, **dict(rec.frequency_options))
+        if (meta.get("n") == n and meta.get("directions_deg") == list(directions_deg)
+                and meta.get("key") == _key_record(key) and meta.get("options") == rec.record()
+                and meta.get("frequency_design") == _io.to_jsonable(fset.params)):
+            hist = np.asarray(meta.get("history"), np.float64)
+            return SynthesisResult(pts, hist, float(meta.get("final_loss", hist[-1])), rec, n,
+                                   tuple(directions_deg), meta["key"], meta["frequency_design"],
+                                   int(meta.get("frequency_count", len(fset))))
+    ckpt = path.with_name(path.stem + ".ckpt.npz")
+    result = synthesize(key, n, directions_deg, recipe=rec, checkpoint=ckpt, **run)
+    save_result(path, result, overwrite=True)
+    return result

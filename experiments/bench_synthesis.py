@@ -61,17 +61,17 @@ def main(argv=None):
             spectrum.NUFFT_THREADS = 1
         t = time.perf_counter()
         c0 = time.process_time()
-        _, info = synthesis.synthesize(jax.random.key(0), n, dirs, steps=args.steps,
-                                       return_info=True, show_progress=True)
+        result = synthesis.synthesize(jax.random.key(0), n, dirs, steps=args.steps,
+                                      show_progress=True)
         wall = time.perf_counter() - t
         cpu = time.process_time() - c0
         load = os.getloadavg()[0]
         print(f"n=2^{k}: {len(fset)} frequencies; gradient {grad_s['auto']:.3f} s (FINUFFT on "
               f"its own threads, not deterministic: {grad_s['auto threads']:.3f} s; type-3 NUFFT: "
               f"{grad_s['nufft3']:.3f} s; first call incl. "
-              f"compile {compile_s:.1f} s); synthesize {len(info['history']) - 1} steps: "
+              f"compile {compile_s:.1f} s); synthesize {len(result.history) - 1} steps: "
               f"{wall:.1f} s wall, {cpu:.1f} s CPU (load average {load:.1f}); "
-              f"loss {info['history'][0]:.3g} -> {info['final_loss']:.3g}",
+              f"loss {result.history[0]:.3g} -> {result.final_loss:.3g}",
               flush=True)
 
 

@@ -37,9 +37,9 @@ def main(argv=None):
     sets = {}
     for n in ns:
         print(f"synthesizing n = {n} for spectral directions {directions} ...", flush=True)
-        pts, _ = asp.synthesis.load_or_synthesize(
+        pts = asp.synthesis.load_or_synthesize(
             out / "sets" / f"aligned_n{n}.npz", jax.random.fold_in(key, n), n, directions
-        )
+        ).points
         sets[n] = np.asarray(pts)
 
     def aligned(_key, n):

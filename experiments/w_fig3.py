@@ -58,9 +58,10 @@ def main(argv=None):
     radius = int(3 * np.sqrt(n))
     for col, (label, kw) in enumerate(progress(list(VARIANTS.items()), desc="w_fig3")):
         slug = label.replace(" ", "_")
-        pts, info = synthesis.load_or_synthesize(
+        result = synthesis.load_or_synthesize(
             out / f"{slug}.npz", jax.random.key(3), n, DIRS, recipe="paper", steps=cfg["steps"],
             show_progress=True, **kw)
+        pts = result.points
         nn = nn_distances(pts)
         sw = {f"{d:g}": float(losses.sliced_wasserstein_loss(pts, [d])) for d in DIRS}
         grid = np.asarray(spectrum.power_spectrum_grid(pts, radius))
@@ -69,8 +70,8 @@ def main(argv=None):
             "nn_distance_mean": float(nn.mean()),
             "nn_histogram": np.histogram(nn, bins=20, range=(0, 1.2))[0].tolist(),
             "n_sw_per_direction": sw,
-            "loss_first": float(np.asarray(info["history"])[0]),
-            "loss_final": float(np.asarray(info["history"])[-1]),
+            "loss_first": float(result.history[0]),
+            "loss_final": float(result.history[-1]),
         }
         ax = axes[0][col]
         p = np.asarray(pts)

@@ -77,8 +77,8 @@ def main(argv=None):
         grids = []
         for s in range(cfg["seeds"]):
             name = "_".join(f"{d:g}" for d in dirs) + f"_n{n}_s{s}.npz"
-            pts, _ = synthesis.load_or_synthesize(out / "sets" / name, jax.random.key(500 + s),
-                                                  n, dirs, show_progress=True)
+            pts = synthesis.load_or_synthesize(out / "sets" / name, jax.random.key(500 + s),
+                                               n, dirs, show_progress=True).points
             grids.append(np.asarray(spectrum.power_spectrum_grid(pts, RADIUS)))
         grid = np.mean(grids, axis=0)
         edges, prof = line_profile(grid, n, dirs)
@@ -96,9 +96,9 @@ def main(argv=None):
     fig2, axes2 = plot.new_figure(1, 2, size=4.0)
     res["diagnostic"] = {"n": nd, "integrand": "edges([30])"}
     for ax, recipe in zip(axes2[0], ("rate", "paper"), strict=True):
-        pts, _ = synthesis.load_or_synthesize(out / "sets" / f"diag_{recipe}_n{nd}.npz",
-                                              jax.random.key(77), nd, [0.0, 90.0, 30.0],
-                                              recipe=recipe, show_progress=True)
+        pts = synthesis.load_or_synthesize(out / "sets" / f"diag_{recipe}_n{nd}.npz",
+                                           jax.random.key(77), nd, [0.0, 90.0, 30.0],
+                                           recipe=recipe, show_progress=True).points
         d = diagnostics.variance_decomposition(pts, f)
         res["diagnostic"][recipe] = diagnostics.summary(d)
         diagnostics.plot_decomposition(ax, d, title=f"{recipe} recipe, n={nd}: "

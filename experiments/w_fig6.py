@@ -62,9 +62,9 @@ def our_sets(out: Path, dirs, ns, seeds, bar, frequency_options=None):
     for n in ns:
         for s in range(seeds):
             name = "_".join(f"{d:g}" for d in dirs) + f"_n{n}_s{s}.npz"
-            pts, _ = synthesis.load_or_synthesize(out / "sets" / name, jax.random.key(1000 + s),
-                                                  n, dirs, show_progress=False,
-                                                  frequency_options=frequency_options)
+            pts = synthesis.load_or_synthesize(out / "sets" / name, jax.random.key(1000 + s),
+                                               n, dirs, show_progress=False,
+                                               frequency_options=frequency_options).points
             sets[(n, s)] = pts
             bar.update(1)
     return sets

@@ -17,25 +17,31 @@ SMALL = dict(steps=30, method="direct", show_progress=False)
 def test_contract_and_suppression(getkey):
     key = getkey()
     n = 64
-    pts, info = asp.synthesize(key, n, [0.0, 90.0, 30.0], return_info=True, **SMALL)
+    result = asp.synthesize(key, n, [0.0, 90.0, 30.0], **SMALL)
+    assert isinstance(result, synthesis.SynthesisResult)
+    pts = result.points
     assert pts.shape == (n, 2) and pts.dtype == jnp.float32
     assert float(pts.min()) >= 0.0 and float(pts.max()) < 1.0
-    h = np.asarray(info["history"])
-    assert h[-1] < 0.5 * h[0]
+    np.testing.assert_array_equal(np.asarray(result), np.asarray(pts))
+    h = result.history
+    assert h.shape == (SMALL["steps"] + 1,) and h[-1] < 0.5 * h[0]
+    assert result.final_loss == h[-1]
+    assert result.recipe == synthesis.make_recipe("rate", steps=30, method="direct")
     # the weighted spectrum on the design's frequencies is far below the initial jittered set
     fset = fr.design(n, [0.0, 90.0, 30.0])
     before = float(L.linear_spectrum_loss(asp.samplers.get("jittered")(key, n), fset))
     after = float(L.linear_spectrum_loss(pts, fset))
     assert after < 0.5 * before
-    again = asp.synthesize(key, n, [0.0, 90.0, 30.0], **SMALL)
-    np.testing.assert_array_equal(np.asarray(pts), np.asarray(again))
+    again = asp.synthesize(key, n, [0.0, 90.0, 30.0], recipe=result.recipe,
+                           show_progress=False)
+    np.testing.assert_array_equal(np.asarray(pts), np.asarray(again.points))
 
 
 @pytest.mark.slow
 def test_paper_recipe_stratifies(getkey):
     n = 64
     key = getkey()
-    pts = asp.synthesize(key, n, [0.0, 90.0, 45.0], recipe="paper", c=1.0, **SMALL)
+    pts = asp.synthesize(key, n, [0.0, 90.0, 45.0], recipe="paper", c=1.0, **SMALL).points
     init = asp.samplers.get("jittered")(key, n)
     sw0 = float(L.sliced_wasserstein_loss(init, [0.0, 90.0, 45.0]))
     sw1 = float(L.sliced_wasserstein_loss(pts, [0.0, 90.0, 45.0]))
@@ -73,16 +79,17 @@ def test_checkpoint_resume_same_result(getkey, tmp_path):
 
 
 def test_save_and_load_result(getkey, tmp_path):
-    pts, info = asp.synthesize(getkey(), 16, [0.0, 90.0], return_info=True, steps=3,
-                               method="direct", show_progress=False)
-    path = synthesis.save_result(tmp_path / "set.npz", pts, info)
+    result = asp.synthesize(getkey(), 16, [0.0, 90.0], steps=3, method="direct",
+                            show_progress=False)
+    path = synthesis.save_result(tmp_path / "set.npz", result)
     back, meta = synthesis.load_result(path)
-    np.testing.assert_array_equal(np.asarray(back), np.asarray(pts))
+    np.testing.assert_array_equal(np.asarray(back), np.asarray(result.points))
+    assert meta["options"] == result.recipe.record()
     assert meta["n"] == 16 and meta["directions_deg"] == [0.0, 90.0]
     assert meta["frequency_design"]["design"] == "rate"
     assert "anisosample_version" in meta and len(meta["history"]) == 4
     with pytest.raises(FileExistsError):
-        synthesis.save_result(path, pts, info)
+        synthesis.save_result(path, result)
 
 
 @pytest.mark.slow
@@ -116,6 +123,10 @@ def test_bad_input(getkey):
         asp.synthesize(0, 16, [0.0])
     with pytest.raises(TypeError, match="unexpected"):
         asp.synthesize(key, 16, [0.0], lr=0.1)
+    with pytest.raises(ValueError, match="too many for n=64 points: at most 4"):
+        asp.synthesize(key, 64, list(range(0, 180, 5)))
+    with pytest.raises(ValueError, match="GiB"):
+        asp.synthesize(key, 100_000_000, [0.0, 90.0, 30.0])
 
 
 def _shift_variance(points, f, k=64, seed=0):
@@ -148,18 +159,21 @@ def test_variance_decomposition_matches_measured_variance(getkey):
     assert "freqs" not in s and len(s["by_radius"]["elsewhere"]) == len(s["radius_edges"]) - 1
 
 
-def test_batch_matches_single_runs(getkey):
+@pytest.mark.parametrize("method", ["direct", "nufft1"])
+def test_batch_matches_single_runs(getkey, method):
+    """One loop: set b of a batch is synthesize(split(key, B)[b]) bit for bit (each set keeps
+    its own frequency plan, the lattice type-1 grids included)."""
     key = getkey()
     sets = [[0.0, 90.0, 30.0], [0.0, 90.0, 67.0]]
-    opts = dict(steps=10, method="direct", show_progress=False)
-    batch, info = synthesis.synthesize_batch(key, 64, sets, return_info=True, **opts)
-    assert batch.shape == (2, 64, 2) and batch.dtype == jnp.float32
-    assert info["history"].shape == (2, 11)
+    opts = dict(steps=10, method=method, show_progress=False, checkpoint_every=4)
+    batch = synthesis.synthesize_batch(key, 64, sets, **opts)
+    assert batch.points.shape == (2, 64, 2) and batch.points.dtype == jnp.float32
+    assert batch.history.shape == (2, 11)
     keys = jax.random.split(key, 2)
     for b, dirs in enumerate(sets):
-        single, sinfo = asp.synthesize(keys[b], 64, dirs, return_info=True, **opts)
-        np.testing.assert_allclose(np.asarray(batch[b]), np.asarray(single), atol=1e-5)
-        np.testing.assert_allclose(info["history"][b], sinfo["history"], rtol=1e-6)
+        single = asp.synthesize(keys[b], 64, dirs, **opts)
+        assert np.asarray(batch.points[b]).tobytes() == np.asarray(single.points).tobytes()
+        np.testing.assert_array_equal(batch.history[b], single.history)
     with pytest.raises(ValueError, match="same number"):
         synthesis.synthesize_batch(key, 64, [[0.0, 90.0], [0.0, 90.0, 30.0]], **opts)
 
@@ -170,7 +184,7 @@ import jax, numpy as np
 import anisosample as asp
 x = asp.synthesize(jax.random.key(7), 1024, (0, 90, 30), steps=100, method="nufft1",
                    show_progress=False)
-print(hashlib.sha256(np.asarray(x).tobytes()).hexdigest())
+print(hashlib.sha256(np.asarray(x.points).tobytes()).hexdigest())
 """
 
 
@@ -194,7 +208,7 @@ def test_same_key_same_bits_across_processes_and_thread_counts():
         digests.append(out.stdout.strip().splitlines()[-1])
     here = asp.synthesize(jax.random.key(7), 1024, (0, 90, 30), steps=100, method="nufft1",
                           show_progress=False)
-    digests.append(hashlib.sha256(np.asarray(here).tobytes()).hexdigest())
+    digests.append(hashlib.sha256(np.asarray(here.points).tobytes()).hexdigest())
     assert len(set(digests)) == 1, digests
 
 
@@ -204,7 +218,7 @@ def test_killed_run_resumes_to_the_same_bits(tmp_path):
     path (type-1 lattice grids) at the default thread count."""
     key = jax.random.key(11)
     opts = dict(steps=100, method="nufft1", show_progress=False, checkpoint_every=16)
-    full = np.asarray(asp.synthesize(key, 1024, (0, 90, 30), **opts))
+    full = np.asarray(asp.synthesize(key, 1024, (0, 90, 30), **opts).points)
     ck = tmp_path / "run.ckpt.npz"
 
     class Killed(Exception):
@@ -220,4 +234,4 @@ def test_killed_run_resumes_to_the_same_bits(tmp_path):
     resumed = asp.synthesize(key, 1024, (0, 90, 30), checkpoint=ck,
                              callback=lambda s, v: steps_seen.append(s), **opts)
     assert steps_seen[0] == 64  # resumed at step 48, not from 0
-    assert np.asarray(resumed).tobytes() == full.tobytes()
+    assert np.asarray(resumed.points).tobytes() == full.tobytes()
