@@ -183,10 +183,13 @@ def recipe_defaults(recipe: str) -> dict:
 
 def max_directions(n: int) -> int:
     """The most spectral directions a set of ``n`` points is synthesized for:
-    ``max(4, floor(sqrt(n) / 2))`` (W's tables use 3 and 4). Each direction's wedge and its
-    robust offsets take frequencies the ``2 n`` coordinates must darken; past this many the
-    optimizer no longer lowers the loss of every direction (36 directions at n = 64 made the
-    loss worse, issue 17)."""
+    ``max(4, floor(sqrt(n) / 2))`` (W's tables use 3 and 4). Every direction's wedge takes
+    frequencies the ``2 n`` coordinates must darken, so the reachable depth falls as directions
+    are added: the rate loss (white noise = 1) after the default 200 steps, evenly spaced
+    directions, key 0, measured at n = 64: 0.026 (3 directions), 0.047 (4), 0.070 (8),
+    0.088 (12), 0.10 (18), 0.11 (36); at n = 256: 0.011 (3), 0.019 (4), 0.023 (8), 0.027
+    (12), 0.042 (18). The bound keeps a request within the range where every direction still
+    gets dark, and names the count instead of quietly returning a set that is not."""
     return max(4, int(math.isqrt(check_int("n", n, minimum=2)) // 2))
 
 
