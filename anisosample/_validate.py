@@ -55,8 +55,10 @@ def check_key(name: str, key) -> jax.Array:
     )
 
 
-def check_points(name: str, points, *, check_range: bool = True) -> np.ndarray | jax.Array:
-    """A point set of shape ``(n, 2)``, finite, in ``[0, 1)^2``.
+def check_points(name: str, points, *, check_range: bool = True,
+                 closed: bool = False) -> np.ndarray | jax.Array:
+    """A point set of shape ``(n, 2)``, finite, in ``[0, 1)^2`` (``[0, 1]^2`` if ``closed``:
+    primary samples entering a warp may touch 1).
 
     Arrays that are being traced are only shape-checked; concrete arrays are also range-checked.
     """
@@ -72,8 +74,9 @@ def check_points(name: str, points, *, check_range: bool = True) -> np.ndarray |
         p = np.asarray(points)
         if not np.all(np.isfinite(p)):
             raise ValueError(f"{name} contains NaN or Inf")
-        if p.min() < 0.0 or p.max() >= 1.0:
-            raise ValueError(f"{name} must lie in [0, 1)^2, got values in [{p.min()}, {p.max()}]")
+        if p.min() < 0.0 or p.max() > 1.0 or (p.max() == 1.0 and not closed):
+            square = "[0, 1]^2" if closed else "[0, 1)^2"
+            raise ValueError(f"{name} must lie in {square}, got values in [{p.min()}, {p.max()}]")
     return points
 
 

@@ -24,9 +24,9 @@ from typing import ClassVar
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from .._types import Array, Float
+from .._validate import check_points
 
 
 def _check_point(name: str, x, dim: int) -> jax.Array:
@@ -155,20 +155,7 @@ def sample_batch(warp: AbstractWarp, u: Float[Array, "n 2"]) -> tuple[Array, Arr
     """
     if not isinstance(warp, AbstractWarp):
         raise TypeError(f"warp must be a warp (AbstractWarp), got {type(warp).__name__}")
-    shape = getattr(u, "shape", None)
-    if shape is None:
-        u = jnp.asarray(u)
-        shape = u.shape
-    if len(shape) != 2 or shape[1] != 2:
-        raise ValueError(f"u must have shape (n, 2), got {tuple(shape)}")
-    if not isinstance(u, jax.core.Tracer):
-        a = np.asarray(u)
-        if not np.issubdtype(a.dtype, np.floating):
-            raise TypeError(f"u must be a floating-point array, got dtype {a.dtype}")
-        if a.size and not np.all(np.isfinite(a)):
-            raise ValueError("u contains NaN or Inf; primary samples must lie in [0, 1]^2")
-        if a.size and (a.min() < 0.0 or a.max() > 1.0):
-            raise ValueError(f"u must lie in [0, 1]^2, got values in [{a.min()}, {a.max()}]")
+    u = check_points("u", u, closed=True)
     return _sample_batch(warp, u)
 
 
