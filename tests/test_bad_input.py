@@ -157,13 +157,16 @@ def prepare(d: Path) -> None:
     # a copy of the shipped 256-point table, then three damaged copies
     if not (d / "table").exists():
         shutil.copytree(TABLE_256, d / "table")
-    for name in ("table_missing", "table_damaged", "table_json"):
+    for name in ("table_missing", "table_damaged", "table_flipped", "table_json"):
         if (d / name).exists():
             shutil.rmtree(d / name)
         shutil.copytree(TABLE_256, d / name)
     (d / "table_missing" / "psi_030.npz").unlink()
     s = (d / "table_damaged" / "psi_030.npz").read_bytes()
     (d / "table_damaged" / "psi_030.npz").write_bytes(s[: len(s) // 2])
+    s = bytearray((d / "table_flipped" / "psi_045.npz").read_bytes())
+    s[len(s) // 2] ^= 0x01
+    (d / "table_flipped" / "psi_045.npz").write_bytes(bytes(s))
     (d / "table_json" / "table.json").write_text('{"kind": 3, "n": ')
     (d / "not_a_table").mkdir(exist_ok=True)
 
@@ -931,6 +934,7 @@ cli("tables-info-missing", "tables info {d}/nosuch", r"nosuch")
 cli("tables-info-not-a-table", "tables info {d}/not_a_table", r"not_a_table.*table\.json")
 cli("tables-info-damaged-json", "tables info {d}/table_json", r"table_json.*table\.json")
 cli("tables-info-damaged-set", "tables info {d}/table_damaged", r"psi_030\.npz.*damaged")
+cli("tables-info-bitflipped-set", "tables info {d}/table_flipped", r"psi_045\.npz.*damaged")
 cli("tables-info-deleted-set", "tables info {d}/table_missing",
     r"(45/46|missing).*psi_030|psi_030.*(missing|incomplete)")
 cli("tables-build-n-zero", "tables build --n 0 --out {o}/t0", r"n must be >= ")
@@ -1113,6 +1117,44 @@ PENDING = {
 }
 
 
+ISSUE_EXAMPLES = {
+    # every example issue 17 lists -> the case that holds it
+    "spectrum --radius 100000 aborts inside XLA": "cli-spectrum-radius-huge",
+    "a NaN in a synthesis checkpoint segfaults synthesize": "cli-synthesize-checkpoint-nan",
+    "jax.grad of spectrum_loss with one NaN point segfaults": "proc-losses-grad-nan-point",
+    "... also under jit": "api-losses-jit-grad-nan-point",
+    "truncated .npz (points)": "cli-spectrum-truncated-npz",
+    "bit-flipped .npz (points)": "cli-spectrum-bitflip-npz",
+    "truncated .npz (checkpoints)": "cli-synthesize-checkpoint-damaged",
+    "truncated .npz (table sets)": "cli-tables-info-damaged-set",
+    "bit-flipped .npz (table sets)": "cli-tables-info-bitflipped-set",
+    "a non-numpy file is 'pickled (object) data'": "cli-spectrum-foreign-npy",
+    "a checkpoint of the wrong shape": "cli-synthesize-checkpoint-wrong-shape",
+    "synthesize -n 100000000 MemoryError": "cli-synthesize-n-huge",
+    "a 100000x100000 render MemoryError": "cli-render-huge-image",
+    "a bad EXR raises RuntimeError": "cli-directions-bad-exr",
+    "points sheared fails with a signature error": "cli-points-sheared-without-direction",
+    "a table with a set file deleted is reported complete": "cli-tables-info-deleted-set",
+    "render --set nosuch=1 ignores the override": "cli-render-unknown-override",
+    "load_xml(path, nosuch=3) ignores the override": "api-render-load-unknown-override",
+    "--exposure nan writes a black PNG": "cli-render-exposure-nan",
+    "a collinear triangle light renders black": "cli-render-collinear-light",
+    "vmf.pdf takes a negative kappa": "api-vmf-pdf-negative-kappa",
+    "vmf.bin_masses takes a negative kappa": "api-vmf-bin-masses-negative-kappa",
+    "fit_pointwise with a negative factor becomes uniform":
+        "api-warps-fit-pointwise-negative-factor",
+    "fit_pointwise with a NaN factor becomes uniform": "api-warps-fit-pointwise-nan-factor",
+    "sample_batch clamps u outside [0, 1]": "api-warps-sample-batch-u-above-one",
+    "sample_batch maps NaN u to a finite direction": "api-warps-sample-batch-u-nan",
+    "a checkpoint step beyond --steps is written as optimized":
+        "cli-synthesize-checkpoint-step-beyond-steps",
+    "write_exr('x.txt') writes an EXR named .txt": "api-io-write-exr-txt",
+    "36 directions at n = 64 are accepted": "cli-synthesize-36-directions-at-64",
+    "an unknown light_warp lists the allowed names (issue 14)": "cli-render-light-warp-unknown",
+    "aligned/sheared without directions (issue 14)": "cli-points-aligned-without-directions",
+}
+
+
 def _marks(case):
     reason = case.xfail or PENDING.get(case.id)
     return [pytest.mark.xfail(strict=True, reason=reason)] if reason else []
@@ -1131,6 +1173,11 @@ def test_the_catalogue_is_large_and_covers_every_subcommand():
             "render"} <= commands
     assert sum(c.subprocess for c in CASES) <= 6  # the catalogue stays fast
     assert set(PENDING) <= {c.id for c in CASES}
+
+
+def test_every_example_of_the_issue_has_its_case():
+    ids = {c.id for c in CASES}
+    assert not [c for c in ISSUE_EXAMPLES.values() if c not in ids]
 
 
 def main() -> int:
