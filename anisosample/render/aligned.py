@@ -1,7 +1,7 @@
 """The renderer's per-block aligned sampler (W Sec. 5.3-5.4, with a per-pixel gate).
 
 ``render(scene, key, sampler="aligned")`` (or ``"sheared"``) resolves to a :class:`BlockSampler`
-made by :func:`block_sampler` from three steps, each in its own module:
+made by :func:`block_sampler`; the steps live in their own modules:
 
 * **Estimation (W Sec. 5.3)**, :mod:`anisosample.render.estimation`: one tiled ``s x s`` grid of
   integrand samples per block of ``B x B`` pixels and one direction estimate per block (W: 96,
@@ -35,23 +35,23 @@ import numpy as np
 
 from .. import selection
 from .._validate import check_choice, check_int, check_key
-from ..plot import direction_rgb, save_direction_map
-from .estimation import (
-    BlockEstimate,
-    block_grid_values,
-    estimate_blocks,
-    estimation_grid,
-    gate_estimate,
-    strongest_directions,
-)
+from ..plot import direction_rgb as direction_rgb  # re-exports: see the note below __all__
+from ..plot import save_direction_map as save_direction_map
+from .estimation import BlockEstimate as BlockEstimate
+from .estimation import block_grid_values as block_grid_values
+from .estimation import estimate_blocks as estimate_blocks
+from .estimation import estimation_grid as estimation_grid
+from .estimation import gate_estimate
+from .estimation import strongest_directions as strongest_directions
 from .scene import Scene
 
 __all__ = [
-    "BLOCK_SAMPLERS", "METHODS", "PIXEL_CODES", "BlockEstimate", "BlockSampler", "aligned_set",
-    "block_grid_values", "block_sampler", "block_sets", "direction_rgb", "estimate_blocks",
-    "estimation_grid", "render_chunk_sets", "resolve_sampler", "save_direction_map",
-    "strongest_directions", "table_direction",
+    "BLOCK_SAMPLERS", "METHODS", "PIXEL_CODES", "BlockSampler", "block_sampler", "block_sets",
+    "render_chunk_sets", "resolve_sampler", "table_direction",
 ]
+# Also importable from here, as before the split (scripts use them): BlockEstimate,
+# estimate_blocks, estimation_grid, block_grid_values, strongest_directions (render.estimation),
+# aligned_set (selection), direction_rgb, save_direction_map (plot).
 
 METHODS = ("aligned", "sheared", "pmj02bn")
 """Per-block point-set choices: the aligned table set, pmj02bn sheared to the block's strongest
