@@ -193,7 +193,7 @@ class BlockSampler:
                 + " (Python: build_missing=True), or pick --spp among the tables' sizes"
             )
         for extra in bar(missing, desc=f"aligned sets n={n}", unit="set",
-                         disable=None if progress else True):
+                         disable=None if progress and missing else True):
             tables.lookup(extra, n, kind=len(extra) + 2, table=self.table, build_missing=True,
                           **self.build_options)
 
