@@ -389,6 +389,59 @@ api("losses-jit-grad-nan-point", lambda d: __import__("jax").jit(__import__("jax
     lambda x: A().losses.spectrum_loss(x, F)))(np.load(d / "nan.npy")), (ValueError, RuntimeError),
     r"(NaN|finite)", owner="losses")
 
+# --- frequencies, diagnostics, selection --------------------------------------------------------
+
+Q = "frequencies"
+api("frequencies-design-n-zero", lambda d: A().frequencies.design(0, [0, 90]), ValueError,
+    r"n must be >= ", owner=Q)
+api("frequencies-design-direction-200", lambda d: A().frequencies.design(64, [200]), ValueError,
+    r"directions_deg must lie in \[0, 180\)", owner=Q)
+api("frequencies-design-kind", lambda d: A().frequencies.design(64, [0, 90], kind="x"),
+    ValueError, r"kind must be one of", owner=Q)
+api("frequencies-disk-negative", lambda d: A().frequencies.disk(-1.0), ValueError,
+    r"radius must be finite and > 0", owner=Q)
+api("frequencies-disk-nan", lambda d: A().frequencies.disk(NAN), ValueError,
+    r"radius must be finite and > 0", owner=Q)
+api("frequencies-wedge-length-nan", lambda d: A().frequencies.wedge(30.0, NAN), ValueError,
+    r"length must be finite and > 0", owner=Q)
+api("frequencies-wedge-direction-200", lambda d: A().frequencies.wedge(200.0, 10.0), ValueError,
+    r"direction_deg must lie in \[0, 180\)", owner=Q)
+api("frequencies-custom-fractional", lambda d: A().frequencies.custom_set([[0.5, 1.0]], [30.0]),
+    ValueError, r"freqs must hold integer", owner=Q)
+api("frequencies-custom-weights-nan", lambda d: A().frequencies.custom_set([[1, 1]], [30.0],
+    weights=[NAN]), ValueError, r"weights must be finite", owner=Q)
+api("frequencies-edge-weights-negative-spread", lambda d: A().frequencies.edge_weights(
+    [[1, 1]], [30.0], spread_deg=-1.0), ValueError, r"spread_deg must be", owner=Q)
+api("diagnostics-nan-points", lambda d: A().diagnostics.variance_decomposition(
+    np.load(d / "nan.npy"), f_edge()), ValueError, r"points contains NaN or Inf",
+    owner="diagnostics")
+api("diagnostics-plain-function", lambda d: A().diagnostics.variance_decomposition(
+    PTS, lambda x: x[..., 0]), (TypeError, ValueError), r"integrand", owner="diagnostics")
+api("diagnostics-band-negative", lambda d: A().diagnostics.variance_decomposition(
+    PTS, f_edge(), band=-1.0), ValueError, r"band must be finite and > 0", owner="diagnostics")
+api("selection-table-directions-nan", lambda d: A().selection.table_directions([NAN]),
+    ValueError, r"directions_deg must be finite", owner="selection")
+api("selection-table-directions-k-zero", lambda d: A().selection.table_directions([30.0], k=0),
+    ValueError, r"k must be >= 1", owner="selection")
+api("selection-aligned-set-n-zero", lambda d: A().selection.aligned_set((30,), 0), ValueError,
+    r"n must be >= ", owner="selection")
+api("selection-aligned-values-nan", lambda d: A().samplers.get("aligned",
+    values=np.full((32, 32), NAN)), ValueError, r"values contains NaN or Inf", owner="selection")
+api("selection-aligned-k-three", lambda d: A().samplers.get("aligned", directions_deg=[30.0],
+    k=3), ValueError, r"k must be <= 2", owner="selection")
+api("selection-aligned-fallback", lambda d: A().samplers.get("aligned", directions_deg=[30.0],
+    fallback="aligned"), ValueError, r"fallback must be one of", owner="selection")
+api("spectrum-angular-bins-zero", lambda d: A().spectrum.angular_profile(np.ones((5, 5)),
+    bins=0), ValueError, r"bins must be >= 1", owner="spectrum")
+api("spectrum-angular-r-min-negative", lambda d: A().spectrum.angular_profile(np.ones((5, 5)),
+    r_min=-1.0), ValueError, r"r_min", owner="spectrum")
+api("spectrum-radial-3d", lambda d: A().spectrum.radial_profile(np.ones((5, 5, 5))), ValueError,
+    r"grid must be a centred", owner="spectrum")
+api("spectrum-save-nan-grid", lambda d: A().spectrum.save_spectrum_image(d / "o_nan.png",
+    np.full((5, 5), NAN), n=16), ValueError, r"NaN or Inf", owner="spectrum")
+api("spectrum-save-n-zero", lambda d: A().spectrum.save_spectrum_image(d / "o_n0.png",
+    np.ones((5, 5)), n=0), ValueError, r"n must be >= 1", owner="spectrum")
+
 # --- synthesis ---------------------------------------------------------------------------------
 
 S = SYNTH_OWNER
@@ -1114,6 +1167,9 @@ PENDING = {
     "api-render-tonemap-exposure-nan": "render.tonemap(exposure=nan) returns NaN pixels",
     "api-render-tonemap-nan-image": "render.tonemap of a NaN image returns NaN pixels",
     "cli-render-light-warp-unknown": "the render subcommand has no --light-warp option yet",
+    "api-frequencies-custom-fractional": "frequencies.custom_set rounds [0.5, 1] to [0, 1]",
+    "api-frequencies-edge-weights-negative-spread": "edge_weights takes a negative spread_deg",
+    "api-diagnostics-plain-function": "variance_decomposition of a plain function: AttributeError",
 }
 
 
