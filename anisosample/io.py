@@ -332,11 +332,21 @@ def read_exr(path) -> np.ndarray:
         raise _damaged(path, ".exr", RuntimeError(detail)) from None
 
 
+def _flush_c_streams() -> None:
+    import ctypes
+
+    try:
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):  # no C library to ask (not POSIX)
+        pass
+
+
 @contextlib.contextmanager
 def _c_output_captured():
-    """Collect what C libraries write to file descriptors 1 and 2 inside the block (OpenEXR
-    reports a damaged chunk there while it raises) into the yielded list's first item; a clean
-    read passes it on to ``sys.stderr``, a failed one lets the caller fold it into one error."""
+    """Collect what a library writes to file descriptors 1 and 2 and to ``sys.stdout`` /
+    ``sys.stderr`` inside the block (OpenEXR reports a damaged chunk there while it raises) into
+    the yielded list's first item; a clean read passes it on to ``sys.stderr``, a failed one
+    lets the caller fold it into one error message."""
     import sys
 
     said: list[str] = []
@@ -347,21 +357,24 @@ def _c_output_captured():
     except (OSError, ValueError):  # no real descriptors (embedded interpreters)
         yield said
         return
+    py_text = io.StringIO()  # what the binding writes through sys.stdout (PySys_WriteStdout)
     with tempfile.TemporaryFile() as buf:
         os.dup2(buf.fileno(), 1)
         os.dup2(buf.fileno(), 2)
         failed = False
         try:
-            yield said
+            with contextlib.redirect_stdout(py_text), contextlib.redirect_stderr(py_text):
+                yield said
         except BaseException:
             failed = True
             raise
         finally:
+            _flush_c_streams()  # C++ writes to stdout go through C's buffer: empty it here
             for fd, old in zip((1, 2), saved, strict=True):
                 os.dup2(old, fd)
                 os.close(old)
             buf.seek(0)
-            said.append(buf.read().decode("utf-8", "replace"))
+            said.append(buf.read().decode("utf-8", "replace") + py_text.getvalue())
             if said[0] and not failed:
                 sys.stderr.write(said[0])
 

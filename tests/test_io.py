@@ -38,3 +38,38 @@ def test_writers_refuse_to_overwrite(tmp_path):
         io.save_json(path, {"a": 2})
     io.save_json(path, {"a": 2}, overwrite=True)
     assert io.load_json(path) == {"a": 2}
+
+
+def test_a_damaged_exr_is_one_error_and_no_stray_output(tmp_path, capfd):
+    """OpenEXR prints its complaint about a damaged chunk to the C streams; read_exr folds it
+    into the one ValueError naming the file, so the CLI's one-line message stays one line."""
+    good = io.write_exr(tmp_path / "g.exr", np.arange(64, dtype=np.float32).reshape(8, 8))
+    blob = good.read_bytes()
+    bad = tmp_path / "bad.exr"
+    bad.write_bytes(blob[: len(blob) - 40])
+    capfd.readouterr()
+    with pytest.raises(ValueError, match=r"bad\.exr is a damaged or truncated OpenEXR image"):
+        io.read_exr(bad)
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""
+    np.testing.assert_array_equal(io.read_exr(good), np.arange(64).reshape(8, 8))
+
+
+def test_load_npz_reads_file_objects_and_names_damaged_ones(tmp_path):
+    import io as std_io
+
+    path = io.save_npz(tmp_path / "p.npz", {"points": np.zeros((2, 2), np.float32)}, {"n": 2})
+    arrays, meta = io.load_npz(std_io.BytesIO(path.read_bytes()))
+    assert arrays["points"].shape == (2, 2) and meta["n"] == 2
+    path.write_bytes(path.read_bytes()[:-30])
+    with pytest.raises(ValueError, match=r"p\.npz is a damaged or truncated NumPy \.npz"):
+        io.load_npz(path)
+
+
+def test_points_round_trip_through_every_format_bit_for_bit(tmp_path):
+    pts = np.random.default_rng(1).random((33, 2)).astype(np.float32)
+    for suffix in io.POINT_SUFFIXES:
+        p = io.save_points(tmp_path / f"p{suffix}", pts, {"sampler": "test"})
+        np.testing.assert_array_equal(io.load_points(p).view(np.uint32), pts.view(np.uint32))
+    with pytest.raises(ValueError, match=r"must end in \.npy or \.npz or \.txt or \.csv"):
+        io.save_points(tmp_path / "p.bin", pts)
