@@ -43,8 +43,8 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from . import _table_store as _t
 from . import io as _io
-from . import tables as _t
 from ._validate import check_int
 from .progress import progress as _progress
 
@@ -82,10 +82,10 @@ def _resolved(synthesis: dict) -> dict:
     from . import frequencies as _freq
     from . import synthesis as _synthesis
 
-    options = {k: v for k, v in synthesis.items() if k != "batch"}
+    options = {k: v for k, v in synthesis.items() if k not in ("batch", "warm_start")}
     recipe = _synthesis.make_recipe(**options)
-    resolved = dict(recipe.record(), **({"batch": synthesis["batch"]} if "batch" in synthesis
-                                        else {}))
+    resolved = dict(recipe.record(), **{k: synthesis[k] for k in ("batch", "warm_start")
+                                        if k in synthesis})
     # The frequency design's formulas (wedge length, width, weights' offsets, ...) evaluated at a
     # probe size: a change of the design changes the fingerprint, so a table of the old design
     # is not resumed with sets of the new one.
@@ -94,6 +94,44 @@ def _resolved(synthesis: dict) -> dict:
     resolved["frequency_design_at_n1024"] = {k: v for k, v in probe.items()
                                              if k not in ("n", "directions_deg")}
     return dict(sorted(resolved.items()))
+
+
+WARM_STEPS = 100
+"""Steps of a warm-started set (the cold recipe's default is 200)."""
+WARM_LEARNING_RATE = 0.2
+"""Learning rate of a warm-started set (in units of the point spacing; cold: 0.5)."""
+
+
+def warm_source(n: int, *, exclude=None) -> _t.Table | None:
+    """The complete 3-direction table for ``n`` on the search path (the shipped tables first
+    after ``$ANISOSAMPLE_TABLES``), the fixed source a 4-direction set is warm-started from."""
+    for root in _t.table_dirs():
+        path = root / _t.table_name(3, n)
+        if exclude is not None and path == Path(exclude):
+            continue
+        if (path / "table.json").exists():
+            try:
+                tab = _t.open_table(path, n=n, kind=3)
+            except ValueError:
+                continue
+            if tab.complete:
+                return tab
+    return None
+
+
+def warm_points(n: int, extra, fingerprint: str) -> np.ndarray:
+    """The warm start of the 4-direction set ``extra = (a, b)``: the set of the 3-direction
+    table ``fingerprint`` for ``a`` (dark along 0, 90 and ``a``), turned by the symmetry that
+    maps its canonical set to ``a``. Deterministic: it depends on the source table only."""
+    for root in _t.table_dirs():
+        path = root / _t.table_name(3, n)
+        if (path / "table.json").exists():
+            tab = _t.open_table(path, n=n, kind=3)
+            if tab.settings["fingerprint"] == fingerprint:
+                c = _t.canonicalize((int(extra[0]),), kind=3)
+                return _t.transform_points(tab.load(c.extra), c.transform)
+    raise FileNotFoundError(f"the 3-direction table for n={n} this table is warm-started from "
+                            f"(fingerprint {fingerprint[:12]}...) is not on the search path")
 
 
 def _key_for(seed: int, index: int):
@@ -108,12 +146,15 @@ def _set_ok(table: _t.Table, extra) -> bool:
         return False
 
 
-def _build_one(table: _t.Table, index: int, extra, device, checkpoint_every: int) -> float:
+def _build_one(table: _t.Table, index: int, extra, device, checkpoint_every: int,
+               show_progress: bool = False) -> float:
     from . import synthesis
 
     settings = table.settings
     opts = dict(settings["synthesis"])
     opts.pop("batch", None)
+    warm = opts.pop("warm_start", None)
+    init = None if warm is None else warm_points(table.n, extra, warm["fingerprint"])
     ckdir = table.path / ".ckpt"
     ckdir.mkdir(exist_ok=True)
     ckpt = ckdir / f"{_t.set_name(extra)}.npz"
@@ -121,7 +162,8 @@ def _build_one(table: _t.Table, index: int, extra, device, checkpoint_every: int
     with jax.default_device(device):
         result = synthesis.synthesize(
             _key_for(settings["seed"], index), table.n, _t.set_directions(extra),
-            checkpoint=ckpt, checkpoint_every=checkpoint_every, show_progress=False, **opts,
+            initial_points=init, checkpoint=ckpt, checkpoint_every=checkpoint_every,
+            show_progress=show_progress, **opts,
         )
     pts = result.points
     extra_meta = {
@@ -144,6 +186,9 @@ def _build_group(table: _t.Table, indices, group, devices, checkpoint_every: int
     settings = table.settings
     opts = dict(settings["synthesis"])
     opts.pop("batch", None)
+    warm = opts.pop("warm_start", None)
+    init = None if warm is None else np.stack([warm_points(table.n, e, warm["fingerprint"])
+                                               for e in group])
     ckpt = None
     if len(devices) == 1:
         (table.path / ".ckpt").mkdir(exist_ok=True)
@@ -153,7 +198,7 @@ def _build_group(table: _t.Table, indices, group, devices, checkpoint_every: int
         result = synthesis.synthesize_batch(
             _key_for(settings["seed"], indices[0]), table.n,
             [_t.set_directions(e) for e in group], show_progress=False,
-            devices=devices if len(devices) > 1 else None, checkpoint=ckpt,
+            devices=devices if len(devices) > 1 else None, checkpoint=ckpt, initial_points=init,
             checkpoint_every=checkpoint_every, **opts,
         )
     pts = result.points
@@ -213,7 +258,7 @@ def _finalize(table: _t.Table, all_sets) -> bool:
         return False
     for e in all_sets:
         _t.read_set(table, e)  # raises on a damaged set rather than blessing it
-    sums = {table.set_path(e).name: _t._sha256_file(table.set_path(e)) for e in all_sets}
+    sums = {table.set_path(e).name: _t.sha256_file(table.set_path(e)) for e in all_sets}
     settings = dict(table.settings, complete=True, checksums=sums,
                     anisosample_version=_io.package_version())
     _io.save_json(table.path / "table.json", settings, overwrite=True)
@@ -231,7 +276,7 @@ def _remove_empty_checkpoints(table: _t.Table) -> None:
 
 def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: int = 1,
           devices=None, checkpoint_every: int = 25, show_progress: bool = True,
-          **synthesis_options) -> dict:
+          warm_start: bool = False, **synthesis_options) -> dict:
     """Synthesize the canonical sets of the ``kind``-direction table for ``n`` points.
 
     Args:
@@ -253,13 +298,17 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
             them, one thread each; ``batch > 1`` splits each group over all of them (the
             same bits as a one-device build).
         checkpoint_every: synthesis checkpoint interval in steps (resume granularity).
+        warm_start: a 4-direction table only: start each set ``(a, b)`` from the set for ``a``
+            of the complete 3-direction table for ``n`` (:func:`warm_source`, :func:`warm_points`)
+            with :data:`WARM_STEPS` steps at :data:`WARM_LEARNING_RATE` unless ``steps`` /
+            ``learning_rate`` are given; no such table: cold. Part of the table's settings.
         synthesis_options: passed to :func:`anisosample.synthesize` (``recipe``, ``steps``, ...).
 
     Returns a summary dict (``path``, ``built``, ``skipped``, ``seconds`` per built set,
     ``complete``).
     """
     n = check_int("n", n, minimum=2)
-    kind = _t._check_kind(kind)
+    kind = _t.check_kind(kind)
     seed = check_int("seed", seed, minimum=0)
     checkpoint_every = check_int("checkpoint_every", checkpoint_every, minimum=1)
     batch = check_int("batch", batch, minimum=1)
@@ -270,6 +319,15 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
     synth = {k: v for k, v in synthesis_options.items() if v is not None}
     if batch > 1:
         synth["batch"] = batch
+    if not isinstance(warm_start, bool):
+        raise TypeError(f"warm_start must be True or False, got {warm_start!r}")
+    out = Path(out) if out is not None else _t.cache_dir() / _t.table_name(kind, n)
+    src = warm_source(n, exclude=out) if warm_start and kind == 4 else None
+    if src is not None:
+        synth["warm_start"] = {"table": _t.table_name(3, n),
+                               "fingerprint": src.settings["fingerprint"]}
+        synth.setdefault("steps", WARM_STEPS)
+        synth.setdefault("learning_rate", WARM_LEARNING_RATE)
     all_sets = _t.canonical_sets(kind)
     index = {e: i for i, e in enumerate(all_sets)}
     if sets is None:
@@ -283,7 +341,6 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
                                  f" table (see tables.canonical_sets({kind})), got {list(e)}")
             if e not in todo:
                 todo.append(e)
-    out = Path(out) if out is not None else _t.cache_dir() / _t.table_name(kind, n)
     table = create_table(out, n, kind, seed=seed, synthesis=synth)
 
     # Work units: one set (batch 1) or a fixed group of sets (batch B). Hosts split the units
@@ -322,7 +379,8 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
                 return
             try:
                 if batch == 1:
-                    sec = [_build_one(table, index[u[0]], u[0], device, checkpoint_every)]
+                    sec = [_build_one(table, index[u[0]], u[0], device, checkpoint_every,
+                                      show_progress and len(remaining) == 1)]
                 else:
                     sec = _build_group(table, [index[e] for e in u], u, device,
                                        checkpoint_every)
@@ -360,3 +418,27 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
         "devices": [str(d) for d in devices],
         "complete": complete,
     }
+
+
+def build_set(n: int, kind: int, extra, *, out, show_progress: bool = True,
+              **build_options) -> dict:
+    """Build one missing canonical set on demand (what :func:`anisosample.tables.lookup` does).
+
+    An existing table at ``out`` is finished with its own settings (seed, batch, synthesis
+    options, warm start); given ``build_options`` must then match them (else ``ValueError``).
+    A new table gets ``build_options`` and, for ``kind=4``, ``warm_start=True`` unless
+    ``build_options`` say otherwise. One set builds with its own progress bar.
+    """
+    out = Path(out)
+    if (out / "table.json").exists() and not build_options:
+        tab = _t.open_table(out, n=n, kind=kind)
+        opts = dict(tab.settings["synthesis"])
+        batch = opts.pop("batch", 1)
+        warm = opts.pop("warm_start", None)
+        if warm is not None:  # the warm defaults are in opts already
+            build_options = {"warm_start": True}
+        return build(n, kind, out=out, sets=[tuple(extra)], seed=tab.settings["seed"],
+                     batch=batch, show_progress=show_progress, **build_options, **opts)
+    build_options.setdefault("warm_start", kind == 4)
+    return build(n, kind, out=out, sets=[tuple(extra)], show_progress=show_progress,
+                 **build_options)

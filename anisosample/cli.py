@@ -355,9 +355,13 @@ def _run_tables(args):
         have = [e for e in sets if tab.has(e)]
         for e in have:
             tab.load(e)
+        missing = tab.missing()
         print(f"{tab.path}: {tab.kind}-direction table, n={tab.n}, {len(have)}/{len(sets)} sets "
               f"(all verified), complete={tab.complete}, seed={tab.settings['seed']}, "
-              f"synthesis={tab.settings['synthesis']}")
+              f"synthesis={tab.settings['synthesis']}"
+              + (f"; missing: {', '.join(tables.set_name(e) for e in missing[:8])}"
+                 + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
+                 if missing else ""))
         return
     given = [a is not None for a in (args.coordinator, args.num_processes, args.process_id)]
     if any(given) and not args.distributed:
@@ -484,6 +488,11 @@ def _add_render(sub):
                         "averaging over the pixel area")
     p.add_argument("--technique", default="area", choices=["area", "solid_angle", "parametric"],
                    help="light sampling technique")
+    p.add_argument("--light-warp", default="none", metavar="NAME",
+                   help="warp chain fitted at every shading point in front of (or instead of) "
+                        "--technique (H Sec. 4): none, cosine-bilinear, cosine-biquadratic, "
+                        "arvo2001, product-bilinear, product-biquadratic, product-tabulated, "
+                        "patch-three-warp")
     p.add_argument("--dimension", default="auto", choices=["auto", "light", "lens"],
                    help="which 2D sample the sampler drives")
     p.add_argument("--mis", default=None, action=argparse.BooleanOptionalAction,
@@ -514,12 +523,14 @@ def _run_render(args):
         k, v = item.split("=", 1)
         params[k.strip()] = v.strip()
     scene = render.load_xml(args.scene, **params)
+    render.light_warps.check_light_warp(scene, args.light_warp)  # before any estimation
     reference = io.read_exr(args.reference) if args.reference else None
     sampler = _block_sampler(args, scene)
     result = render.render(
         scene, jax.random.key(args.seed), spp=args.spp, sampler=sampler,
         realizations=args.realizations, pixel_center=args.pixel_center,
-        dimension=args.dimension, technique=args.technique, mis=args.mis,
+        dimension=args.dimension, technique=args.technique, light_warp=args.light_warp,
+        mis=args.mis,
     )
     written = render.save_result(
         out, result, overwrite=args.force, exposure=args.exposure,

@@ -78,6 +78,11 @@ def variance_decomposition(points, integrand, *, directions_deg=None, disk_radiu
         ``region`` arrays (one of each ``+-v``).
     """
     check_points("points", points)
+    if not callable(getattr(integrand, "power_spectrum", None)) or not hasattr(
+            integrand, "directions_deg"):
+        raise TypeError("integrand must have a closed-form power_spectrum(v) and directions_deg "
+                        "(an anisosample.integrands integrand such as edges([30])), got "
+                        f"{type(integrand).__name__}")
     x = np.asarray(points, np.float64)
     n = x.shape[0]
     if directions_deg is None:

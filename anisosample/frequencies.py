@@ -175,6 +175,11 @@ def edge_weights(freqs, directions_deg, spread_deg: float = 0.0,
     measured from that edge's ray, so the loss is the sum of the (W Eq. 5) variances of the
     aligned edge and of the edges misaligned by each offset.
     """
+    spread_deg = check_positive_float("spread_deg", spread_deg, allow_zero=True)
+    core_deg = check_positive_float("core_deg", core_deg, allow_zero=True)
+    if spread_deg >= 45.0 or core_deg >= 45.0:
+        raise ValueError(f"spread_deg and core_deg must lie in [0, 45), got {spread_deg}, "
+                         f"{core_deg}")
     v = np.asarray(freqs, dtype=np.float64)
     r2 = np.sum(v * v, axis=1)
     w = np.zeros(v.shape[0])
@@ -226,6 +231,12 @@ def _group(freqs: np.ndarray, weights: np.ndarray, directions_deg, params) -> Fr
 def custom_set(freqs, directions_deg, weights=None) -> FrequencySet:
     """A :class:`FrequencySet` from your own frequencies (grouped by ``directions_deg``)."""
     directions_deg = check_directions_deg("directions_deg", directions_deg)
+    f = np.asarray(freqs)
+    if not (np.issubdtype(f.dtype, np.integer) or np.issubdtype(f.dtype, np.floating)):
+        raise TypeError(f"freqs must be an (m, 2) array of integers, got dtype {f.dtype}")
+    if f.size and (not np.all(np.isfinite(f)) or np.any(f != np.round(f))):
+        raise ValueError("freqs must hold integer frequency vectors (v_x, v_y), got "
+                         f"fractional or non-finite values such as {f[f != np.round(f)][:3]}")
     rows = canonical_half_rows(freqs)
     if weights is None:
         w = np.ones(rows.shape[0])

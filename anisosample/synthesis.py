@@ -41,6 +41,7 @@ loss history, key, package version).
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 import threading
 from pathlib import Path
@@ -60,6 +61,7 @@ from ._validate import (
     check_directions_deg,
     check_int,
     check_key,
+    check_points,
     check_positive_float,
 )
 from .progress import progress as _progress
@@ -425,9 +427,9 @@ def _initial_points(key, n, init):
 
 
 def synthesize(key, n: int, directions_deg, *, recipe: str | Recipe = "rate",
-               checkpoint: str | Path | None = None, checkpoint_every: int = 50,
-               show_progress: bool = True, callback=None, return_info: bool = False,
-               **options) -> SynthesisResult:
+               initial_points=None, checkpoint: str | Path | None = None,
+               checkpoint_every: int = 50, show_progress: bool = True, callback=None,
+               return_info: bool = False, **options) -> SynthesisResult:
     """Synthesize ``n`` points whose spectrum is dark along the spectral ``directions_deg``.
 
     Args:
@@ -441,6 +443,9 @@ def synthesize(key, n: int, directions_deg, *, recipe: str | Recipe = "rate",
             ``c``, ``boundary``, ``init``, ``method`` ``"auto" | "direct" | "nufft1" |
             "nufft3"``, ``frequency_options``, ``b1``, ``b2``, ``adam_eps``,
             ``final_lr_fraction``, ``nufft_eps``; see :class:`Recipe`).
+        initial_points: start from these ``(n, 2)`` points in ``[0, 1)^2`` instead of the
+            recipe's ``init`` sampler (a warm start; the key is then unused, and the points'
+            SHA-256 is part of the record).
         checkpoint: ``.npz`` path; saved every ``checkpoint_every`` steps, resumed if present
             (a checkpoint of other settings, shape or a step past ``steps`` is refused).
         callback: ``callback(step, loss)`` after each chunk (may raise to stop).
@@ -458,8 +463,15 @@ def synthesize(key, n: int, directions_deg, *, recipe: str | Recipe = "rate",
     fset = _freq.design(n, directions_deg, rec.design, **dict(rec.frequency_options))
     meta = {"n": n, "directions_deg": list(directions_deg), "recipe": rec.name,
             "options": rec.record(), "frequency_design": fset.params, "key": _key_record(key)}
-    x, hist, final = _iterate([_make_loss(fset, directions_deg, rec)],
-                              _initial_points(key, n, rec.init)[None], rec, n, meta=meta,
+    if initial_points is None:
+        x0 = _initial_points(key, n, rec.init)
+    else:
+        x0 = np.asarray(check_points("initial_points", initial_points), np.float64)
+        if x0.shape != (n, 2):
+            raise ValueError(f"initial_points must have shape ({n}, 2), got {x0.shape}")
+        meta["initial_points_sha256"] = hashlib.sha256(x0.astype("<f8").tobytes()).hexdigest()
+    x, hist, final = _iterate([_make_loss(fset, directions_deg, rec)], x0[None], rec, n,
+                              meta=meta,
                               checkpoint=checkpoint, checkpoint_every=checkpoint_every,
                               callback=callback, bar_desc=f"synthesize n={n}",
                               show_progress=show_progress)
@@ -469,7 +481,7 @@ def synthesize(key, n: int, directions_deg, *, recipe: str | Recipe = "rate",
 
 
 def synthesize_batch(key, n: int, direction_sets, *, recipe: str | Recipe = "rate",
-                     devices=None, checkpoint: str | Path | None = None,
+                     initial_points=None, devices=None, checkpoint: str | Path | None = None,
                      checkpoint_every: int = 50, show_progress: bool = True,
                      return_info: bool = False, **options) -> SynthesisResult:
     """``B`` sets at once through the same loop as :func:`synthesize`: ``direction_sets`` is a
@@ -482,6 +494,7 @@ def synthesize_batch(key, n: int, direction_sets, *, recipe: str | Recipe = "rat
     on its slice in its own thread (XLA releases the GIL), and the results are the same bits as
     on one device. On the CPU, try it with ``XLA_FLAGS=--xla_force_host_platform_device_count=2``.
     ``checkpoint`` (one device): as in :func:`synthesize`, for the whole batch.
+    ``initial_points``: ``(B, n, 2)`` warm starts instead of the ``init`` sampler.
     """
     key = check_key("key", key)
     n = check_int("n", n, minimum=2)
@@ -503,7 +516,14 @@ def synthesize_batch(key, n: int, direction_sets, *, recipe: str | Recipe = "rat
     b = len(sets)
     keys = jax.random.split(key, b)
     fsets = [_freq.design(n, d, rec.design, **dict(rec.frequency_options)) for d in sets]
-    x_init = np.stack([_initial_points(k, n, rec.init) for k in keys])
+    if initial_points is None:
+        x_init = np.stack([_initial_points(k, n, rec.init) for k in keys])
+    else:
+        x_init = np.asarray(initial_points, np.float64)
+        if x_init.shape != (b, n, 2):
+            raise ValueError(f"initial_points must have shape ({b}, {n}, 2), got {x_init.shape}")
+        for i in range(b):
+            check_points(f"initial_points[{i}]", x_init[i])
     slices = np.array_split(np.arange(b), len(devs))
     out: dict[int, tuple] = {}
     errors: list[BaseException] = []
@@ -512,6 +532,9 @@ def synthesize_batch(key, n: int, direction_sets, *, recipe: str | Recipe = "rat
         meta = {"n": n, "direction_sets": [list(sets[j]) for j in idx], "recipe": rec.name,
                 "options": rec.record(), "frequency_design": [fsets[j].params for j in idx],
                 "key": _key_record(key), "indices": [int(j) for j in idx]}
+        if initial_points is not None:
+            meta["initial_points_sha256"] = hashlib.sha256(
+                x_init[idx].astype("<f8").tobytes()).hexdigest()
         try:
             with jax.default_device(device) if device is not None else _nullcontext():
                 out[i] = _iterate([_make_loss(fsets[j], sets[j], rec) for j in idx],
