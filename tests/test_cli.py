@@ -106,7 +106,8 @@ def test_help_does_not_import_jax():
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stderr
-    assert r.stdout.split() == ["10", "False", "False"]
+    count, jax_loaded, numpy_loaded = r.stdout.split()
+    assert int(count) >= 10 and jax_loaded == "False" and numpy_loaded == "False"
 
 
 def test_help_lists_every_builtin_sampler():
