@@ -1,29 +1,23 @@
-"""Image-level plumbing of the Hart et al. experiments (H Sec. 4: Fig. 2, Tables 4-5).
+"""Measurement plumbing of the Hart et al. image experiments (H Sec. 4: Fig. 2, Tables 4-5).
 
-No science lives here beyond wiring library pieces together: the primary hit of every pixel
-centre comes from the ray caster (:mod:`anisosample.render`), the light-sampling technique is a
-warp chain from :mod:`anisosample.warps` fitted per shading point (as H fits per shading
-point), and one sample of the pixel is the MIS combination of one light sample through that
-chain and one BSDF sample (power heuristic, H Sec. 4: "one light sample and one BSDF sample").
-The light pdf of the BSDF-sampled direction is the chain's H Algorithm 2 pdf (``warp.pdf``).
-
-Visibility and emission of *both* strategies come from tracing the ray through the scene (the
-emitter must be scene geometry), so every technique estimates the same pixel value. For an area
-base warp (``measure == "area"``) the area density is converted to solid angle by
-``d^2 / |cos_l|`` with the light's normal at the sampled point.
+The images come from the library's renderer, nothing here renders: a technique is a pair
+``(technique, light_warp)`` of :func:`anisosample.render.render` (the base light-sampling
+technique and the warp chain fitted at every shading point, :mod:`anisosample.render.light_warps`),
+and one realization is ``render(scene, key, spp=..., sampler="random", pixel_center=True,
+technique=..., light_warp=..., mis=True)``: pixel-centre primary hits, one light sample through
+the chain and one BSDF sample combined with the power heuristic (H Sec. 4: "one light sample and
+one BSDF sample"), the BSDF sample's light pdf being the chain's H Algorithm 2 pdf at the same
+ray origin. This module holds what is specific to the experiments:
 
 MSE (H: mean over pixels of the squared error against a converged reference; MRSE divides each
-pixel's squared error by ``ref^2 + 0.01``), time (the jitted fit + sampling + evaluation of one
-whole-image realization, ``block_until_ready``, after compilation; min over 9 round-robin rounds
-of 4 images each)
-and Monte Carlo efficiency ``1 / (MSE x time)`` (H Sec. 4) are computed by :func:`measure`.
+pixel's squared error by ``ref^2 + 0.01``), time (one whole-image realization through
+``render``, after compilation; min over 9 round-robin rounds) and Monte Carlo efficiency
+``1 / (MSE x time)`` (H Sec. 4) are computed by :func:`measure`; tables and plots.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
 
 import equinox as eqx
 import jax
@@ -33,28 +27,26 @@ from common import cached_json
 
 import anisosample as asp
 from anisosample.progress import progress
-from anisosample.render.bsdf import eval_bsdf, pdf_bsdf, sample_bsdf
 from anisosample.render.camera import generate_ray
-from anisosample.render.geometry import intersect, offset_origin
-from anisosample.render.integrator import LUMINANCE
-from anisosample.render.lights import emitted
+from anisosample.render.geometry import intersect
 
-_LUM = jnp.asarray(LUMINANCE, jnp.float32)
+_LUM = np.asarray(asp.render.integrator.LUMINANCE, np.float64)
 
 
 class Shading(eqx.Module):
-    """The primary hit of one pixel centre (batched over pixels by :func:`shading_points`)."""
+    """The primary hit of one pixel centre (batched over pixels by :func:`shading_points`);
+    ``n`` is the geometric normal flipped to the side of ``wi``."""
 
     p: jax.Array
-    n: jax.Array  # geometric normal, flipped to the side of wi
+    n: jax.Array
     wi: jax.Array
     mat: jax.Array
     valid: jax.Array  # a non-emitting surface was hit
-    Le: jax.Array  # luminance of emission seen directly
 
 
 def shading_points(scene) -> Shading:
-    """Primary hits of all pixel centres, row-major (``scene.height * scene.width``)."""
+    """Primary hits of all pixel centres, row-major (``scene.height * scene.width``), for
+    experiments that fit warps per pixel outside the renderer (``beyond_warped_aligned``)."""
     w, h = scene.width, scene.height
     cols, rows = np.meshgrid(np.arange(w), np.arange(h), indexing="xy")
     films = jnp.asarray(
@@ -66,134 +58,24 @@ def shading_points(scene) -> Shading:
         o, d = generate_ray(scene.camera, film, half)
         hit = intersect(scene, o, d)
         wi = -d
-        front = jnp.dot(hit.n, wi) > 0
-        seen = hit.valid & (hit.light >= 0) & front
-        le = jnp.where(seen, emitted(scene, jnp.maximum(hit.light, 0), hit.uv), 0.0)
-        n = jnp.where(front, hit.n, -hit.n)
-        return Shading(
-            p=hit.p,
-            n=n,
-            wi=wi,
-            mat=hit.material,
-            valid=hit.valid & (hit.light < 0),
-            Le=jnp.dot(le, _LUM),
-        )
+        n = jnp.where(jnp.dot(hit.n, wi) > 0, hit.n, -hit.n)
+        return Shading(p=hit.p, n=n, wi=wi, mat=hit.material, valid=hit.valid & (hit.light < 0))
 
     return jax.jit(jax.vmap(one))(films)
 
 
-@dataclass(frozen=True)
-class Light:
-    """What the estimator needs of the sampled light beyond the warp chain.
-
-    ``normal(x)``: unit normal at a point ``x`` of the sampled surface (area bases only);
-    ``snap(x)``: a traced hit on the emitter's geometry moved onto the surface the area base
-    samples (identity for flat lights; the projection onto a bilinear patch for its
-    tessellation).
-    """
-
-    normal: Callable
-    snap: Callable = staticmethod(lambda x: x)
-
-
-def _power(a, b):
-    a2, b2 = a * a, b * b
-    s = a2 + b2
-    return jnp.where(s > 0, a2 / jnp.where(s > 0, s, 1.0), 0.0)
-
-
-def _finite_pos(x):
-    return jnp.isfinite(x) & (x > 0)
-
-
-def _emission_along(scene, sp: Shading, w):
-    """Luminance of the emitter first hit from ``sp.p`` along ``w`` (0 if none), and the hit."""
-    origin = offset_origin(scene, sp.p, sp.n, w)
-    hit = intersect(scene, origin, w)
-    ok = hit.valid & (hit.light >= 0) & (jnp.dot(hit.n, -w) > 0)
-    le = jnp.dot(emitted(scene, jnp.maximum(hit.light, 0), hit.uv), _LUM)
-    return jnp.where(ok, le, 0.0), hit
-
-
-def _to_solid_angle(warp, light: Light, p, x, pdf):
-    if warp.measure != "area":
-        return x, pdf
-    v = x - p
-    d2 = jnp.dot(v, v)
-    w = v * jax.lax.rsqrt(jnp.maximum(d2, 1e-30))
-    cos_l = jnp.abs(jnp.dot(light.normal(x), w))
-    return w, jnp.where(cos_l > 0, pdf * d2 / jnp.maximum(cos_l, 1e-30), 0.0)
-
-
-def one_sample(scene, light: Light, sp: Shading, warp, u_light, u_bsdf, *, mis: bool = True):
-    """Luminance of one MIS sample (one light sample through ``warp``, one BSDF sample)."""
-    mats = scene.materials
-    x, pdf = warp.sample_and_pdf(u_light)
-    wl, pl = _to_solid_angle(warp, light, sp.p, x, pdf)
-    le, hit_l = _emission_along(scene, sp, wl)
-    if warp.measure == "area":  # the traced hit must be the sampled point (not a fold in front)
-        dist = jnp.linalg.norm(x - sp.p)
-        le = jnp.where(hit_l.t >= 0.99 * dist, le, 0.0)
-    f = jnp.dot(eval_bsdf(mats, sp.mat, sp.n, sp.wi, wl), _LUM)  # includes the cosine
-    wgt = _power(pl, pdf_bsdf(mats, sp.mat, sp.n, sp.wi, wl)) if mis else 1.0
-    ok = _finite_pos(pl) & jnp.all(jnp.isfinite(wl))
-    total = jnp.where(ok, f * le * wgt / jnp.where(ok, pl, 1.0), 0.0)
-    if mis:
-        wb, pb = sample_bsdf(mats, sp.mat, sp.n, sp.wi, u_bsdf)
-        leb, hit = _emission_along(scene, sp, wb)
-        if warp.measure == "area":
-            xb = light.snap(hit.p)
-            _, plb = _to_solid_angle(warp, light, sp.p, xb, warp.pdf(xb))
-        else:
-            plb = warp.pdf(wb)
-        plb = jnp.where(jnp.isfinite(plb) & (leb > 0), plb, 0.0)
-        fb = jnp.dot(eval_bsdf(mats, sp.mat, sp.n, sp.wi, wb), _LUM)
-        okb = _finite_pos(pb)
-        total = total + jnp.where(okb, fb * leb * _power(pb, plb) / jnp.where(okb, pb, 1.0), 0.0)
-    total = jnp.where(sp.valid & jnp.isfinite(total), total, 0.0)
-    return sp.Le + total
-
-
-def make_render(scene, light: Light, make_warp: Callable, spp: int, *, mis: bool = True):
-    """Jitted ``render(key) -> (h*w,)`` one realization: per-pixel fit, then ``spp`` samples.
-
-    ``make_warp(sp)`` builds the technique's warp chain for one shading point (vmapped).
-    """
-    sps = shading_points(scene)
-    npix = sps.p.shape[0]
-
-    @jax.jit
-    def render(key):
-        keys = jax.random.split(key, npix)
-
-        def pixel(sp, k):
-            warp = make_warp(sp)
-            u = jax.random.uniform(k, (spp, 4), jnp.float32, 0.0, 1.0 - 2.0**-24)
-            vals = jax.vmap(lambda ul, ub: one_sample(scene, light, sp, warp, ul, ub, mis=mis))(
-                u[:, :2], u[:, 2:]
-            )
-            return jnp.mean(vals)
-
-        return jax.lax.map(lambda a: jax.vmap(pixel)(*a), _blocks(sps, keys, npix))
+def make_render(scene, tech: tuple, spp: int, *, mis: bool = True):
+    """``render(key) -> (h*w,)`` luminance of one realization of technique ``tech =
+    (technique, light_warp)`` with ``spp`` samples per pixel (the library renderer)."""
+    technique, light_warp = tech
 
     def call(key):
-        return render(key).reshape(-1)[:npix]
+        res = asp.render.render(scene, key, spp=spp, sampler="random", pixel_center=True,
+                                technique=technique, light_warp=light_warp, mis=mis,
+                                progress=False)
+        return res.mean.reshape(-1, 3).astype(np.float64) @ _LUM
 
     return call
-
-
-_BLOCK = 1024
-
-
-def _blocks(sps, keys, npix):
-    nb = -(-npix // _BLOCK)
-    pad = nb * _BLOCK - npix
-
-    def r(a):
-        a = jnp.concatenate([a, jnp.repeat(a[-1:], pad, axis=0)]) if pad else a
-        return a.reshape(nb, _BLOCK, *a.shape[1:])
-
-    return jax.tree.map(r, sps), r(keys)
 
 
 def best_time(fn, *args, repeats: int = 9, calls: int = 4) -> float:
@@ -209,10 +91,10 @@ def best_time(fn, *args, repeats: int = 9, calls: int = 4) -> float:
     return best
 
 
-def reference(scene, light, make_warp, spp_total: int, key, *, chunk_spp: int = 64):
-    """Converged image (mean of ``spp_total`` MIS samples per pixel) and its per-pixel variance
-    of the mean (from the spread of the ``chunk_spp``-sample chunks)."""
-    render = make_render(scene, light, make_warp, chunk_spp)
+def reference(scene, tech: tuple, spp_total: int, key, *, chunk_spp: int = 64):
+    """Converged image (mean of ``spp_total`` MIS samples per pixel with technique ``tech``) and
+    its per-pixel variance of the mean (from the spread of the ``chunk_spp``-sample chunks)."""
+    render = make_render(scene, tech, chunk_spp)
     n = max(spp_total // chunk_spp, 2)
     chunks = np.stack(
         [np.asarray(render(k), np.float64) for k in progress(jax.random.split(key, n),
@@ -221,9 +103,10 @@ def reference(scene, light, make_warp, spp_total: int, key, *, chunk_spp: int = 
     return chunks.mean(0), chunks.var(0, ddof=1) / n
 
 
-def measure(scene, light, techniques: dict, ref, spp: int, realizations: int, key, *,
+def measure(scene, techniques: dict, ref, spp: int, realizations: int, key, *,
             mis: bool = True, relative: bool = False, timing_rounds: int = 9):
-    """Per technique: MSE (or MRSE) image and value, bias check, time per image, efficiency.
+    """Per technique (name -> ``(technique, light_warp)``): MSE (or MRSE) image and value, bias
+    check, time per image, efficiency.
 
     Every technique sees the same keys (common random numbers do not matter here: the
     warps change what the numbers mean).
@@ -231,8 +114,8 @@ def measure(scene, light, techniques: dict, ref, spp: int, realizations: int, ke
     keys = jax.random.split(key, realizations)
     rows, images, renders, per = {}, {}, {}, {}
     denom = ref**2 + 0.01 if relative else np.ones_like(ref)
-    for name, make in progress(techniques.items(), desc="techniques", total=len(techniques)):
-        render = make_render(scene, light, make, spp, mis=mis)
+    for name, tech in progress(techniques.items(), desc="techniques", total=len(techniques)):
+        render = make_render(scene, tech, spp, mis=mis)
         est = np.stack([np.asarray(render(k), np.float64) for k in keys])  # (R, P)
         renders[name] = render
         err = est - ref[None, :]
@@ -341,7 +224,7 @@ def image_settings(name: str, args, scales: dict) -> tuple[dict, dict | None]:
     ``jax.random.uniform``) and the finished record under ``args.out`` when it was made with the
     same settings (rerun reuse; ``--fresh`` ignores it)."""
     settings = dict(scales[args.scale], scale=args.scale, seed=args.seed, mis=True,
-                    sampler="random (jax.random.uniform)", pixel="centre")
+                    sampler="random", pixel="centre", renderer="anisosample.render.render")
     record = cached_json(args.out / f"{name}.json", args.fresh)
     if record is not None and record.get("settings") == settings:
         print(f"reusing {args.out / (name + '.json')}")

@@ -4,15 +4,17 @@ Scene ``experiments/scenes/triangle_light.xml`` (floor, a small box, one triangl
 pixel-centre primary hits (a fixed shading point per pixel, the papers' 2D-integrand setting),
 one light sample + one BSDF sample per pixel sample combined with the power heuristic (H Sec. 4:
 "all images were rendered ... using multiple importance sampling with one light sample and one
-BSDF sample"). Light-sampling techniques, fitted at every shading point (H Sec. 4.1):
+BSDF sample"). Light-sampling techniques, the library renderer's light warps fitted at every
+shading point's ray origin (``render(technique="solid_angle", light_warp=...)``, H Sec. 4.1):
 
-* uniform solid angle (Arvo 1995, ``warps.SphericalTriangle``);
-* + bilinear PSS warp fitted point-wise to the incident cosine (H Eq. 9, Sec. 3.3);
-* + biquadratic PSS warp fitted the same way;
-* Arvo 2001 cosine-weighted spherical triangle (``warps.CosineSphericalTriangle``). Where a
-  vertex lies below the shading point's horizon (box sides) that warp is not defined (no
-  clipping); there it is weighted by the cosine about the direction to the triangle's centroid
-  instead, which keeps it exact and unbiased but no longer cosine-proportional.
+* uniform solid angle (Arvo 1995, ``light_warp="none"``);
+* + bilinear PSS warp fitted point-wise to the incident cosine (H Eq. 9, Sec. 3.3;
+  ``"cosine-bilinear"``);
+* + biquadratic PSS warp fitted the same way (``"cosine-biquadratic"``);
+* Arvo 2001 cosine-weighted spherical triangle (``"arvo2001"``). Where a vertex lies below the
+  shading point's horizon (box sides) that warp is not defined (no clipping); there the library
+  weights by the cosine about the light plane's normal instead, which keeps it exact and
+  unbiased but no longer cosine-proportional.
 
 Two scenes: the shipped one (the light 2.2 above the floor: the cosine hardly varies across
 it) and a "near" variant (the triangle enlarged 1.4x, 0.8 above the floor), written next to the
@@ -35,12 +37,9 @@ import time
 
 import _h_render as H
 import jax
-import jax.numpy as jnp
-import numpy as np
 from common import ROOT, parser, write_record
 
 import anisosample as asp
-import anisosample.warps as W
 
 NAME = "h_fig2"
 VARIANTS = ("shipped", "near")
@@ -55,37 +54,12 @@ HART = {
 }
 
 
-def triangle_of(scene):
-    lights = scene.lights
-    p0, e1, e2 = (np.asarray(a[0], np.float32) for a in (lights.p0, lights.e1, lights.e2))
-    return jnp.asarray(np.stack([p0, p0 + e1, p0 + e2]))
-
-
-def techniques(verts):
-    centroid = jnp.mean(verts, axis=0)
-
-    def base(sp):
-        return W.SphericalTriangle(verts, sp.p)
-
-    def cosine(sp):
-        return lambda w: jnp.maximum(jnp.dot(w, sp.n), 0.0)
-
-    def warped(kind):
-        return lambda sp: W.compose(W.fit_pointwise(kind, cosine(sp), [base(sp)]), base(sp))
-
-    def arvo(sp):
-        d = verts - sp.p
-        above = jnp.all(d @ sp.n > 0)
-        c = centroid - sp.p
-        n = jnp.where(above, sp.n, c / jnp.linalg.norm(c))
-        return W.CosineSphericalTriangle(verts, sp.p, n)
-
-    return {
-        "uniform solid angle": base,
-        "+ bilinear cosine warp": warped(W.Bilinear),
-        "+ biquadratic cosine warp": warped(W.Biquadratic),
-        "Arvo 2001 (cosine-weighted)": arvo,
-    }
+TECHNIQUES = {  # name -> (technique, light_warp) of asp.render.render
+    "uniform solid angle": ("solid_angle", "none"),
+    "+ bilinear cosine warp": ("solid_angle", "cosine-bilinear"),
+    "+ biquadratic cosine warp": ("solid_angle", "cosine-biquadratic"),
+    "Arvo 2001 (cosine-weighted)": ("solid_angle", "arvo2001"),
+}
 
 
 SHIPPED = ROOT / "experiments/scenes/triangle_light.xml"
@@ -114,16 +88,12 @@ def run(settings, seed, variant, out):
     scene = asp.render.load_xml(
         scene_path(variant, out), width=settings["width"], height=settings["height"]
     )
-    verts = triangle_of(scene)
-    light = H.Light(normal=lambda x: jnp.asarray(scene.lights.normal[0]))
-    techs = techniques(verts)
+    techs = TECHNIQUES
     k_ref, k_run = jax.random.split(jax.random.key(seed))
     ref, ref_var = H.reference(
-        scene, light, techs["Arvo 2001 (cosine-weighted)"], settings["reference_spp"], k_ref
+        scene, techs["Arvo 2001 (cosine-weighted)"], settings["reference_spp"], k_ref
     )
-    rows, images = H.measure(
-        scene, light, techs, ref, settings["spp"], settings["realizations"], k_run
-    )
+    rows, images = H.measure(scene, techs, ref, settings["spp"], settings["realizations"], k_run)
     return scene, ref, images, dict(
         scene=variant,
         methods=rows,

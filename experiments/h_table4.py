@@ -5,18 +5,19 @@ a twisted, non-planar bilinear-patch light with one short edge (H Fig. 3's situa
 downwards. The ray caster traces the exact patch (``<shape type="bilinear">``,
 :mod:`anisosample.render.patch`, Reshetov 2019), so the surface that rays hit (visibility,
 BSDF-sampled emission) is the surface that light sampling draws points on
-(``warps.BilinearPatch``); a traced light-sample ray must reach the emitter within 1% of the
-sampled point's distance (where the patch folds in front of the sampled point, that point is
-hidden).
+(``warps.BilinearPatch``, inverted by tracing from the ray origin); where the patch folds in
+front of a sampled point, the shadow ray meets the patch and that point is hidden.
 
 Pixel-centre primary hits, one light + one BSDF sample per pixel sample with the power
-heuristic (H: "All images were rendered using MIS"). Techniques, fitted per shading point:
+heuristic (H: "All images were rendered using MIS"). Techniques, the library renderer's
+``(technique, light_warp)`` fitted at every shading point's ray origin:
 
-* uniform parametric (area pdf ``1/|p_u x p_v|``, H Eq. 11);
-* bilinear approximate equal-area warp (H Sec. 4.2, ``warps.patch_area_warp``);
-* biquadratic approximate equal-area warp (point-wise fit of the area element, H Eq. 9);
+* uniform parametric (area pdf ``1/|p_u x p_v|``, H Eq. 11; ``technique="parametric"``);
+* bilinear approximate equal-area warp (H Sec. 4.2, ``technique="area"``);
+* biquadratic approximate equal-area warp (point-wise fit of the area element, H Eq. 9; this
+  script's :func:`biquadratic_area`, passed as ``light_warp``);
 * three-warp approximate cosine: bilinear area -> biquadratic ``cos_l / r^2`` -> biquadratic
-  ``cos_r`` (H Sec. 4.2, the list after Eq. 11).
+  ``cos_r`` (H Sec. 4.2, the list after Eq. 11; ``light_warp="patch-three-warp"``).
 
 MSE image against a converged reference (three-warp technique, many spp), time of the jitted
 per-pixel fit + sampling + evaluation of one image, efficiency ``1/(MSE x time)``; factors
@@ -32,7 +33,6 @@ import time
 
 import _h_render as H
 import jax
-import jax.numpy as jnp
 import numpy as np
 from common import ROOT, parser, write_record
 
@@ -68,55 +68,30 @@ def load_scene(settings):
     return scene
 
 
-def techniques():
-    corners = jnp.asarray(PATCH, jnp.float32)
-    patch = W.BilinearPatch(corners)
+def biquadratic_area(base, rec):
+    """H Sec. 4.2's biquadratic approximate equal-area warp: a biquadratic fitted point-wise
+    (H Eq. 9) to the patch's area element, in front of uniform parametric sampling (``base``)."""
+    return W.compose(
+        W.fit_pointwise(W.Biquadratic, lambda x: base.area_element(base.inverse(x)), [base]), base
+    )
 
-    def normal(x):
-        du, dv = jax.jacfwd(patch.point)(patch.inverse(x)).T
-        nl = jnp.cross(du, dv)
-        return nl / jnp.linalg.norm(nl)
 
-    def area_element(x):
-        return patch.area_element(patch.inverse(x))
-
-    def three_warp(sp):
-        def geometry(x):  # cos at the light / r^2
-            d = x - sp.p
-            r2 = jnp.dot(d, d)
-            return jnp.abs(jnp.dot(d, normal(x))) / (r2 * jnp.sqrt(r2))
-
-        def cos_r(x):
-            d = x - sp.p
-            return jnp.maximum(jnp.dot(d, sp.n), 0.0) / jnp.linalg.norm(d)
-
-        w_area = W.Bilinear(patch.corner_area_elements())
-        w_geom = W.fit_pointwise(W.Biquadratic, geometry, [w_area, patch])
-        w_cos = W.fit_pointwise(W.Biquadratic, cos_r, [w_geom, w_area, patch])
-        return W.compose(w_cos, w_geom, w_area, patch)
-
-    techs = {
-        "uniform parametric": lambda sp: patch,
-        "bilinear approx. area": lambda sp: W.patch_area_warp(corners),
-        "biquadratic approx. area": lambda sp: W.compose(
-            W.fit_pointwise(W.Biquadratic, area_element, [patch]), patch
-        ),
-        "three-warp approx. cosine": three_warp,
-    }
-    light = H.Light(normal=normal)  # the traced hit already lies on the exact patch
-    return techs, light
+TECHNIQUES = {  # name -> (technique, light_warp) of asp.render.render
+    "uniform parametric": ("parametric", "none"),
+    "bilinear approx. area": ("area", "none"),
+    "biquadratic approx. area": ("parametric", biquadratic_area),
+    "three-warp approx. cosine": ("area", "patch-three-warp"),
+}
 
 
 def run(settings, seed, out):
     scene = load_scene(settings)
-    techs, light = techniques()
+    techs = TECHNIQUES
     k_ref, k_run = jax.random.split(jax.random.key(seed))
     ref, ref_var = H.reference(
-        scene, light, techs["three-warp approx. cosine"], settings["reference_spp"], k_ref
+        scene, techs["three-warp approx. cosine"], settings["reference_spp"], k_ref
     )
-    rows, images = H.measure(
-        scene, light, techs, ref, settings["spp"], settings["realizations"], k_run
-    )
+    rows, images = H.measure(scene, techs, ref, settings["spp"], settings["realizations"], k_run)
     data = dict(
         methods=rows,
         reference=dict(

@@ -3,15 +3,16 @@
 Scene ``experiments/scenes/glossy.xml`` (rough gold floor, alpha 0.25; smoother copper panel,
 alpha 0.08; a diffuse sphere; one tilted quad light). Pixel-centre primary hits, one light
 sample + one BSDF sample with the power heuristic (H Sec. 4.3: "Multiple importance sampling was
-used for all cases"). Light-sampling techniques, fitted at every shading point (H Sec. 4.3):
+used for all cases"). Light-sampling techniques, the library renderer's ``(technique,
+light_warp)`` fitted at every shading point's ray origin (H Sec. 4.3):
 
-* uniform solid angle (Urena et al. 2013, ``warps.SphericalRectangle``) -- the baseline;
-* cosine bilinear warp in front of it (H Sec. 3.3);
+* uniform solid angle (Urena et al. 2013, ``technique="solid_angle"``) -- the baseline;
+* cosine bilinear warp in front of it (H Sec. 3.3, ``"cosine-bilinear"``);
 * BSDF product bilinear / biquadratic warps (control values = BSDF x cosine at the control
-  points, H Eq. 9) in front of the solid-angle warp *and* in front of uniform area sampling
-  (``warps.Parallelogram``);
+  points, H Eq. 9; ``"product-bilinear"`` / ``"product-biquadratic"``) in front of the
+  solid-angle warp *and* in front of uniform area sampling (``technique="area"``);
 * BSDF product reference: the 32x32 tabulated distribution of BSDF x cosine
-  (``warps.fit_tabulated``, H Sec. 4.3's exhaustive reference), with both base warps;
+  (``"product-tabulated"``, H Sec. 4.3's exhaustive reference), with both base warps;
 * (ours, extra row) uniform area sampling alone.
 
 MRSE (H Sec. 4.3: squared error divided by ``ref^2 + 0.01`` per pixel, mean over pixels) against
@@ -30,13 +31,10 @@ import time
 
 import _h_render as H
 import jax
-import jax.numpy as jnp
 import numpy as np
 from common import ROOT, parser, write_record
 
 import anisosample as asp
-import anisosample.warps as W
-from anisosample.render.bsdf import eval_bsdf
 
 NAME = "h_table5"
 SCALES = {
@@ -57,62 +55,31 @@ HART = {  # H Table 5, three scenes (rows: MRSE, time, efficiency per base warp)
     "BSDF product reference": {"solid angle": [[0.760], [0.628], [0.802]],
                                "area": [[0.565], [0.600], [0.732]]},
 }
-_LUM = jnp.asarray(asp.render.integrator.LUMINANCE, jnp.float32)
 
 
-def techniques(scene):
-    lights = scene.lights
-    p0, e1, e2 = (jnp.asarray(np.asarray(a[0], np.float32)) for a in
-                  (lights.p0, lights.e1, lights.e2))
-    nl = jnp.asarray(np.asarray(lights.normal[0], np.float32))
-    mats = scene.materials
-
-    def sa(sp):
-        return W.SphericalRectangle(p0, e1, e2, sp.p)
-
-    def area(sp):
-        return W.Parallelogram(p0, e1, e2)
-
-    def product_dir(sp):  # BSDF x cosine (eval_bsdf includes the cosine), luminance
-        return lambda w: jnp.dot(eval_bsdf(mats, sp.mat, sp.n, sp.wi, w), _LUM)
-
-    def product_point(sp):
-        f = product_dir(sp)
-        return lambda x: f((x - sp.p) / jnp.linalg.norm(x - sp.p))
-
-    def cosine(sp):
-        return lambda w: jnp.maximum(jnp.dot(w, sp.n), 0.0)
-
-    def fitted(kind, factor, base):
-        return lambda sp: W.compose(W.fit_pointwise(kind, factor(sp), [base(sp)]), base(sp))
-
-    def tabulated(factor, base):
-        return lambda sp: W.compose(W.fit_tabulated(factor(sp), [base(sp)]), base(sp))
-
-    techs = {
-        "uniform solid angle": sa,
-        "cosine bilinear warp (solid angle)": fitted(W.Bilinear, cosine, sa),
-        "BSDF product bilinear warp (solid angle)": fitted(W.Bilinear, product_dir, sa),
-        "BSDF product biquadratic warp (solid angle)": fitted(W.Biquadratic, product_dir, sa),
-        "BSDF product reference 32x32 (solid angle)": tabulated(product_dir, sa),
-        "uniform area": area,
-        "BSDF product bilinear warp (area)": fitted(W.Bilinear, product_point, area),
-        "BSDF product biquadratic warp (area)": fitted(W.Biquadratic, product_point, area),
-        "BSDF product reference 32x32 (area)": tabulated(product_point, area),
-    }
-    return techs, H.Light(normal=lambda x: nl)
+TECHNIQUES = {  # name -> (technique, light_warp) of asp.render.render
+    "uniform solid angle": ("solid_angle", "none"),
+    "cosine bilinear warp (solid angle)": ("solid_angle", "cosine-bilinear"),
+    "BSDF product bilinear warp (solid angle)": ("solid_angle", "product-bilinear"),
+    "BSDF product biquadratic warp (solid angle)": ("solid_angle", "product-biquadratic"),
+    "BSDF product reference 32x32 (solid angle)": ("solid_angle", "product-tabulated"),
+    "uniform area": ("area", "none"),
+    "BSDF product bilinear warp (area)": ("area", "product-bilinear"),
+    "BSDF product biquadratic warp (area)": ("area", "product-biquadratic"),
+    "BSDF product reference 32x32 (area)": ("area", "product-tabulated"),
+}
 
 
 def run(settings, seed):
     scene = asp.render.load_xml(
         ROOT / "experiments/scenes/glossy.xml", width=settings["width"], height=settings["height"]
     )
-    techs, light = techniques(scene)
+    techs = TECHNIQUES
     k_ref, k_run = jax.random.split(jax.random.key(seed))
     ref_name = "BSDF product reference 32x32 (solid angle)"
-    ref, ref_var = H.reference(scene, light, techs[ref_name], settings["reference_spp"], k_ref)
+    ref, ref_var = H.reference(scene, techs[ref_name], settings["reference_spp"], k_ref)
     rows, images = H.measure(
-        scene, light, techs, ref, settings["spp"], settings["realizations"], k_run, relative=True
+        scene, techs, ref, settings["spp"], settings["realizations"], k_run, relative=True
     )
     data = dict(
         methods=rows,

@@ -111,6 +111,20 @@ def test_intersection_matches_newton_on_random_rays():
     assert compared > 0.9 * n and 60 < hit_count < n - 20, (compared, hit_count)
 
 
+METHODS = ("parametric", "area")
+
+
+def _sample_patch(c, xi, method, ref=None):
+    """The renderer's patch light techniques (light_warps.base_warp): ``(p, uv, pdf)``."""
+    seen = P.SeenPatch(c, jnp.zeros(3, jnp.float32) if ref is None else ref)
+    if method == "area":
+        uv, j = warps.Bilinear(seen.corner_area_elements()).sample_and_pdf(xi)
+    else:
+        uv, j = xi, jnp.ones((), jnp.float32)
+    p, pa = seen.sample_and_pdf(uv)
+    return p, uv, j * pa
+
+
 def test_uv_round_trips():
     c = jnp.asarray(TWISTED, jnp.float32)
     x = jax.random.uniform(jax.random.key(0), (256, 2), jnp.float32)
@@ -120,8 +134,8 @@ def test_uv_round_trips():
     @jax.jit
     def chain(xi):
         out = {}
-        for method in P.METHODS:
-            p, _, uv, _ = P.sample_patch(c, xi, method)
+        for method in METHODS:
+            p, uv, _ = _sample_patch(c, xi, method)
             back, found = P.uv_towards(c, ref, p)
             out[method] = dict(p=p, uv=uv, back=back, found=found, again=P.patch_point(c, uv),
                                gauss_newton=warps.BilinearPatch(c).inverse(p),
@@ -139,16 +153,16 @@ def test_uv_round_trips():
             np.testing.assert_allclose(np.asarray(r["x_back"]), np.asarray(x), atol=2e-4)
 
 
-@pytest.mark.parametrize("method", P.METHODS)
+@pytest.mark.parametrize("method", METHODS)
 def test_area_pdf_is_the_inverse_jacobian_and_integrates_to_one(method):
     c = jnp.asarray(TWISTED, jnp.float32)
     x = jax.random.uniform(jax.random.key(1), (4096, 2), jnp.float32, 0.01, 0.99)
 
     def jac_area(xi):  # |dp/dx0 x dp/dx1| of the map x -> p, by autodiff
-        jm = jax.jacfwd(lambda a: P.sample_patch(c, a, method)[0])(xi)
+        jm = jax.jacfwd(lambda a: _sample_patch(c, a, method)[0])(xi)
         return jnp.linalg.norm(jnp.cross(jm[:, 0], jm[:, 1]))
 
-    pdf, ja = jax.jit(jax.vmap(lambda xi: (P.sample_patch(c, xi, method)[3], jac_area(xi))))(x)
+    pdf, ja = jax.jit(jax.vmap(lambda xi: (_sample_patch(c, xi, method)[2], jac_area(xi))))(x)
     np.testing.assert_allclose(np.asarray(pdf * ja), 1.0, rtol=2e-3)
     # E[1 / pdf] = area (Gauss-Legendre, float64); 4.5 standard errors
     inv = 1.0 / np.asarray(pdf, np.float64)
@@ -158,7 +172,14 @@ def test_area_pdf_is_the_inverse_jacobian_and_integrates_to_one(method):
     m = 256
     g = (np.arange(m) + 0.5) / m
     uv = jnp.asarray(np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2), jnp.float32)
-    dens = jax.jit(jax.vmap(lambda a: P.patch_pdf(c, a, method) * P.patch_frame(c, a)[1]))(uv)
+    bil = warps.Bilinear(warps.BilinearPatch(c).corner_area_elements())
+
+    def patch_pdf(a):  # the area pdf at the point with parameters a
+        j = bil.pdf(a) if method == "area" else 1.0
+        _, ae = P.patch_frame(c, a)
+        return j / ae
+
+    dens = jax.jit(jax.vmap(lambda a: patch_pdf(a) * P.patch_frame(c, a)[1]))(uv)
     assert float(jnp.mean(dens)) == pytest.approx(1.0, abs=1e-4)
 
 
@@ -294,9 +315,7 @@ def test_bad_bilinear_xml_names_the_problem(tmp_path, points, emission, match):
         R.load_xml(p)
 
 
-def test_bad_sampling_method():
-    c = jnp.asarray(TWISTED, jnp.float32)
-    with pytest.raises(ValueError, match="method must be one of parametric, area"):
-        P.sample_patch(c, jnp.full(2, 0.5, jnp.float32), "solid_angle")
-    with pytest.raises(ValueError, match="method"):
-        P.patch_pdf(c, jnp.full(2, 0.5, jnp.float32), "magic")
+def test_bad_technique_on_a_patch_scene():
+    scene = _patch_scene(TWISTED, radiance=5.0)
+    with pytest.raises(ValueError, match="technique must be one of"):
+        R.render(scene, jax.random.key(0), spp=1, technique="magic", progress=False)

@@ -6,11 +6,14 @@ Scenes come from Mitsuba 3's XML format (:func:`load_xml`) or from :class:`Scene
 estimator; :func:`render` renders images over realizations; :func:`save_result` writes EXR/PNG.
 Per-block aligned sampling (W Sec. 5.3-5.4, with a per-pixel gate):
 :mod:`anisosample.render.aligned` (the sampler), :mod:`anisosample.render.estimation` (the block
-estimate and the gate), ``render(scene, key, sampler="aligned")``.
+estimate and the gate), ``render(scene, key, sampler="aligned")``. Light warps (H Sec. 4):
+``render(scene, key, technique=..., light_warp=...)`` with a name of :data:`LIGHT_WARPS`
+(:mod:`anisosample.render.light_warps`).
 """
 
 from . import aligned as aligned
 from . import estimation as estimation
+from . import light_warps as light_warps
 from . import mitsuba_compat as mitsuba_compat
 from . import pixel_classes as pixel_classes
 from .aligned import BlockSampler as BlockSampler
@@ -23,6 +26,8 @@ from .image import tonemap as tonemap
 from .integrator import PixelIntegrand as PixelIntegrand
 from .integrator import pixel_integrand as pixel_integrand
 from .integrator import radiance as radiance
+from .light_warps import LIGHT_WARPS as LIGHT_WARPS
+from .light_warps import Receiver as Receiver
 from .lights import TECHNIQUES as TECHNIQUES
 from .scene import Scene as Scene
 from .xml import SceneFormatError as SceneFormatError

@@ -454,6 +454,7 @@ class SceneBuilder:
             delta=i32([e[2] for e in self._emitters]),
             patch=i32([x.get("patch", -1) for x in L]),
             n_prims=len(L),
+            kinds=tuple(sorted({int(x["kind"]) for x in L})),
         )
 
         if self._textures:

@@ -17,7 +17,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._validate import check_int, check_key
-from .integrator import _check_options, _render_chunk
+from .integrator import check_options, render_chunk
+from .light_warps import light_warp_name
 from .scene import Scene
 
 
@@ -27,6 +28,8 @@ class RenderResult(NamedTuple):
     spp: int
     realizations: int
     settings: dict
+    # per-block samplers: each pixel's decision (render.aligned.PIXEL_CODES), else None
+    pixel_sampler: np.ndarray | None = None
 
 
 def _get_sampler(sampler) -> tuple[Callable, str]:
@@ -49,6 +52,7 @@ def render(
     pixel_center: bool = False,
     dimension: str = "auto",
     technique: str = "area",
+    light_warp: str = "none",
     mis: bool | None = None,
     square_aperture: bool = False,
     chunk: int | None = None,
@@ -62,28 +66,34 @@ def render(
     ``spp`` defaults to the scene's sample count; ``mis`` defaults to the XML integrator's
     ``bsdf_samples > 0``. Deterministic for a given ``key``.
 
+    ``technique`` is the base light-sampling technique (``"area"``, ``"solid_angle"``,
+    ``"parametric"``) and ``light_warp`` the warp chain fitted at every shading point in front of
+    (or instead of) it: a name of :data:`~anisosample.render.light_warps.LIGHT_WARPS`
+    (H Sec. 4; ``"none"``: the base technique alone), or your own ``make(base, receiver)``.
+
     Per-block samplers (W Sec. 5.3-5.4, :mod:`anisosample.render.aligned`): ``sampler="aligned"``
     or ``"sheared"`` estimates each block's direction first (``sampler_options``: the keywords of
-    :func:`~anisosample.render.aligned.block_sampler`, e.g. ``block_px``, ``samples``, ``table``),
-    or pass a finished :class:`~anisosample.render.aligned.BlockSampler`; each pixel then uses
-    its block's set with its own toroidal shift.
+    :func:`~anisosample.render.aligned.block_sampler`, e.g. ``block_px``, ``samples``, ``k``,
+    ``gate``, ``table``), or pass a finished :class:`~anisosample.render.aligned.BlockSampler`;
+    each pixel then uses its block's set (or, gated, pmj02bn) with its own toroidal shift, and
+    ``RenderResult.pixel_sampler`` records which.
     """
     key = check_key("key", key)
     spp = check_int("spp", scene.spp if spp is None else spp, minimum=1)
     realizations = check_int("realizations", realizations, minimum=1)
-    dimension = _check_options(scene, dimension, technique)
+    dimension = check_options(scene, dimension, technique, light_warp)
     if mis is None:
         mis = scene.bsdf_samples > 0
     mis = bool(mis) and dimension == "light"
-    from .aligned import _render_chunk_sets, _resolve
+    from .aligned import render_chunk_sets, resolve_sampler
 
-    blocks = _resolve(scene, sampler, sampler_options, dimension=dimension, technique=technique,
-                     square_aperture=bool(square_aperture))
+    blocks = resolve_sampler(scene, sampler, sampler_options, dimension=dimension,
+                             technique=technique, square_aperture=bool(square_aperture))
     if blocks is None:
         sample_points, sampler_name = _get_sampler(sampler)
     else:
         sampler_name = blocks.name
-        blocks.check_tables(spp)
+        blocks.check_tables(spp, progress=progress)
     w, h = scene.width, scene.height
     npix = w * h
     # A chunk of pixels is vmapped (about ``chunk_samples`` samples: small enough to stay in
@@ -103,6 +113,7 @@ def render(
         mis=mis,
         pixel_center=bool(pixel_center),
         square_aperture=bool(square_aperture),
+        light_warp=light_warp,
     )
     with bar(
         total=realizations * n_chunks,
@@ -128,11 +139,11 @@ def render(
                 valid = idx < npix
                 idx = np.where(valid, idx, npix - 1).astype(np.int32)
                 if blocks is None:
-                    out = _render_chunk(scene, pts, k_pix,
+                    out = render_chunk(scene, pts, k_pix,
                                         jnp.asarray(idx.reshape(per_call, chunk)), **opts)
                 else:
-                    out = _render_chunk_sets(scene, sets, pixel_set, k_pix,
-                                             jnp.asarray(idx.reshape(per_call, chunk)), **opts)
+                    out = render_chunk_sets(scene, sets, pixel_set, k_pix,
+                                            jnp.asarray(idx.reshape(per_call, chunk)), **opts)
                 est[idx[valid]] = np.asarray(out, np.float64).reshape(-1, 3)[valid]
                 pb.update(1)
             if not np.all(np.isfinite(est)):
@@ -151,6 +162,7 @@ def render(
         pixel_center=bool(pixel_center),
         dimension=dimension,
         technique=technique,
+        light_warp=light_warp_name(light_warp),
         mis=mis,
         square_aperture=bool(square_aperture),
         width=w,
@@ -164,6 +176,7 @@ def render(
         spp=spp,
         realizations=realizations,
         settings=settings,
+        pixel_sampler=None if blocks is None else blocks.pixel_sampler,
     )
 
 

@@ -16,8 +16,14 @@ With ``pixel_center=True`` (W's setting) the film position is the pixel centre a
 Mitsuba's box-filtered film) the film position is uniform in the pixel, drawn from the key.
 
 MIS (``mis=True``): one light sample and one BSDF sample combined with the power heuristic
-(Veach & Guibas 1995; H renders with one light and one BSDF sample). Mitsuba's ``direct``
-integrator with ``emitter_samples = bsdf_samples = 1`` computes the same estimator.
+(Veach & Guibas 1995, :func:`anisosample.warps.power_heuristic`; H renders with one light and
+one BSDF sample). Mitsuba's ``direct`` integrator with ``emitter_samples = bsdf_samples = 1``
+computes the same estimator.
+
+Light warps (``light_warp``, :mod:`anisosample.render.light_warps`, H Sec. 4): one shading frame
+per sample. Every ray leaves from the offset point ``offset_origin(p, n, wi)`` on the viewer's
+side; the light's warp chain is fitted there, the light sample is drawn from there, and the BSDF
+sample's light pdf is H Algorithm 2 through the same chain from the same point.
 """
 
 from __future__ import annotations
@@ -29,15 +35,16 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from ..warps import power_heuristic
 from ._vec import dot
 from .bsdf import eval_bsdf, pdf_bsdf, sample_bsdf
 from .camera import generate_ray
 from .geometry import intersect, occluded, offset_origin
+from .light_warps import Receiver, check_light_warp
 from .lights import emitted, light_pdf, sample_light
-from .scene import THINLENS, Scene
+from .scene import LUMINANCE, THINLENS, Scene
 
 DIMENSIONS = ("light", "lens")
-LUMINANCE = (0.212671, 0.715160, 0.072169)  # linear sRGB (Rec. 709) luminance weights
 
 
 def _uniform(key, n: int) -> Float[Array, "n 2"]:
@@ -55,12 +62,6 @@ def _uniform(key, n: int) -> Float[Array, "n 2"]:
     return ((bits >> 8).astype(jnp.float32) * jnp.float32(2.0**-24)).reshape(n, 2)
 
 
-def _power(a, b):
-    a2, b2 = a * a, b * b
-    s = a2 + b2
-    return jnp.where(s > 0, a2 / jnp.where(s > 0, s, 1.0), 0.0)
-
-
 def radiance(
     scene: Scene,
     film: Float[Array, "2"],
@@ -69,6 +70,7 @@ def radiance(
     bsdf_u: Float[Array, "2"],
     *,
     technique: str = "area",
+    light_warp: str = "none",
     mis: bool = False,
     square_aperture: bool = False,
 ) -> Float[Array, "3"]:
@@ -81,36 +83,36 @@ def radiance(
     front = dot(hit.n, wi) > 0
     see_light = hit.valid & (hit.light >= 0) & front
     L = jnp.where(see_light, emitted(scene, jnp.maximum(hit.light, 0), hit.uv), 0.0)
+    # One shading frame: every ray leaves from here (the BSDFs reflect only, to wi's side).
+    rec = Receiver(origin=offset_origin(scene, hit.p, hit.n, wi), n=hit.n, wi=wi,
+                   material=hit.material)
 
     # Light sampling.
-    ls = sample_light(scene, light, hit.p, technique)
-    v = ls.p - hit.p
+    ls = sample_light(scene, light, rec, technique, light_warp)
+    v = ls.p - rec.origin
     d2 = jnp.maximum(dot(v, v), 1e-30)
     wo = v * jax.lax.rsqrt(d2)
     cos_l = jnp.where(ls.delta, 1.0, dot(ls.n, -wo))
     f = eval_bsdf(mats, hit.material, hit.n, wi, wo)
-    origin = offset_origin(scene, hit.p, hit.n, wo)
-    visible = ~occluded(scene, origin, ls.p)
+    visible = ~occluded(scene, rec.origin, ls.p)
     ok = hit.valid & (cos_l > 0) & (ls.pdf > 0) & visible & jnp.any(f > 0)
     contrib = f * ls.radiance * (cos_l / (d2 * jnp.where(ls.pdf > 0, ls.pdf, 1.0)))
     if mis:
         pdf_l_sa = ls.pdf * d2 / jnp.maximum(cos_l, 1e-30)
-        w = jnp.where(ls.delta, 1.0, _power(pdf_l_sa, pdf_bsdf(mats, hit.material, hit.n, wi, wo)))
-        contrib = contrib * w
+        pdf_b = pdf_bsdf(mats, hit.material, hit.n, wi, wo)
+        contrib = contrib * jnp.where(ls.delta, 1.0, power_heuristic(1, pdf_l_sa, 1, pdf_b))
     L = L + jnp.where(ok, contrib, 0.0)
 
     if mis:
         wb, pdf_b = sample_bsdf(mats, hit.material, hit.n, wi, bsdf_u)
-        ob = offset_origin(scene, hit.p, hit.n, wb)
-        h2 = intersect(scene, ob, wb)
+        h2 = intersect(scene, rec.origin, wb)
         cos2 = dot(h2.n, -wb)
         lit = hit.valid & h2.valid & (h2.light >= 0) & (cos2 > 0) & (pdf_b > 0)
         prim = jnp.maximum(h2.light, 0)
-        pdf_l_sa = (
-            light_pdf(scene, prim, h2.p, hit.p, technique) * h2.t**2 / jnp.maximum(cos2, 1e-30)
-        )
+        pdf_l = light_pdf(scene, prim, h2.p, rec, technique, light_warp)  # H Alg. 2, same chain
+        pdf_l_sa = pdf_l * h2.t**2 / jnp.maximum(cos2, 1e-30)
         fb = eval_bsdf(mats, hit.material, hit.n, wi, wb)
-        wgt = _power(pdf_b, pdf_l_sa)
+        wgt = power_heuristic(1, pdf_b, 1, pdf_l_sa)
         cb = fb * emitted(scene, prim, h2.uv) * (wgt / jnp.where(pdf_b > 0, pdf_b, 1.0))
         L = L + jnp.where(lit, cb, 0.0)
     return L
@@ -123,13 +125,16 @@ def default_dimension(scene: Scene) -> str:
     return "light"
 
 
-def _check_options(scene, dimension, technique):
+def check_options(scene, dimension, technique, light_warp="none") -> str:
+    """Validate a render's ``dimension`` (returned, ``"auto"`` resolved), ``technique`` and
+    ``light_warp`` for ``scene`` before tracing."""
     from .._validate import check_choice
     from .lights import TECHNIQUES
 
     dimension = default_dimension(scene) if dimension in (None, "auto") else dimension
     check_choice("dimension", dimension, DIMENSIONS)
     check_choice("technique", technique, TECHNIQUES)
+    check_light_warp(scene, light_warp)
     if dimension == "lens" and scene.camera.kind != THINLENS:
         raise ValueError("dimension='lens' needs a thinlens sensor; this scene's is perspective")
     if dimension == "lens" and scene.has_area_lights:
@@ -140,7 +145,11 @@ def _check_options(scene, dimension, technique):
     return dimension
 
 
-def _sample_fn(scene: Scene, dimension: str, technique: str, mis: bool, square_aperture: bool):
+_check_options = check_options  # old private name (render/aligned.py), until it moves over
+
+
+def _sample_fn(scene: Scene, dimension: str, technique: str, mis: bool, square_aperture: bool,
+               light_warp: str = "none"):
     """``g(x, film, other, bsdf_u) -> rgb`` where ``x`` drives ``dimension``."""
 
     def g(x, film, other, bsdf_u):
@@ -156,6 +165,7 @@ def _sample_fn(scene: Scene, dimension: str, technique: str, mis: bool, square_a
             light,
             bsdf_u,
             technique=technique,
+            light_warp=light_warp,
             mis=mis,
             square_aperture=square_aperture,
         )
@@ -172,10 +182,12 @@ class PixelIntegrand(eqx.Module):
     is fixed: the film position at the pixel centre (or at ``film`` if given), the lens at its
     centre, no BSDF sample (``mis`` is off: a 2D integrand has one sampling technique).
 
-    ``warp`` (optional): a primary-sample-space warp ``w`` from :mod:`anisosample.warps`
-    (``[0,1)^2 -> [0,1)^2``, e.g. a fitted ``Bilinear`` or a ``compose`` of them) applied before
-    the base technique, H Eqs. 2-6: the integrand becomes ``f_q(w(x)) / J_w(w(x))``, whose mean
-    is the same pixel value.
+    ``light_warp``: the light technique's warp chain fitted at each shading point
+    (:mod:`anisosample.render.light_warps`; ``"none"``: the base ``technique`` alone).
+    ``warp`` (optional): a further primary-sample-space warp ``w`` from
+    :mod:`anisosample.warps` (``[0,1)^2 -> [0,1)^2``, e.g. a fitted ``Bilinear`` or a
+    ``compose`` of them) applied in front of that, H Eqs. 2-6: the integrand becomes
+    ``f_q(w(x)) / J_w(w(x))``, whose mean is the same pixel value.
     """
 
     scene: Scene
@@ -185,6 +197,7 @@ class PixelIntegrand(eqx.Module):
     technique: str = eqx.field(static=True)
     square_aperture: bool = eqx.field(static=True)
     warp: eqx.Module | None = None
+    light_warp: str = eqx.field(static=True, default="none")
 
     def rgb(self, x: Float[Array, "... 2"]) -> Float[Array, "... 3"]:
         x = jnp.asarray(x, jnp.float32)
@@ -210,7 +223,7 @@ _BLOCK = 4096  # points per vmapped block: keeps the working set in cache (see i
 
 @eqx.filter_jit
 def _integrand_rgb(f: PixelIntegrand, flat):
-    g = _sample_fn(f.scene, f.dimension, f.technique, False, f.square_aperture)
+    g = _sample_fn(f.scene, f.dimension, f.technique, False, f.square_aperture, f.light_warp)
     half = jnp.full(2, 0.5, jnp.float32)
 
     def point(xi):
@@ -236,6 +249,7 @@ def pixel_integrand(
     *,
     dimension: str = "auto",
     technique: str = "area",
+    light_warp: str = "none",
     channel: str = "luminance",
     film: tuple[float, float] | None = None,
     square_aperture: bool = False,
@@ -244,13 +258,15 @@ def pixel_integrand(
     """The 2D integrand ``f_q`` of pixel ``pixel = (column, row)`` (row 0 at the image top).
 
     ``channel``: ``"luminance"`` (Rec. 709 weights), ``"r"``, ``"g"`` or ``"b"``. ``film``
-    overrides the film position inside ``[0, 1]^2`` (default: the pixel centre). ``warp``: a
+    overrides the film position inside ``[0, 1]^2`` (default: the pixel centre).
+    ``light_warp``: one of :data:`~anisosample.render.light_warps.LIGHT_WARPS`, the light
+    technique's warp chain fitted at the shading point (H Sec. 4). ``warp``: a
     primary-sample-space warp composed in front of the light/lens technique (see
     :class:`PixelIntegrand`).
     """
     from .._validate import check_choice, check_int
 
-    dimension = _check_options(scene, dimension, technique)
+    dimension = check_options(scene, dimension, technique, light_warp)
     col = check_int("pixel[0] (column)", pixel[0], minimum=0, maximum=scene.width - 1)
     row = check_int("pixel[1] (row)", pixel[1], minimum=0, maximum=scene.height - 1)
     check_choice("channel", channel, ("luminance", "r", "g", "b"))
@@ -265,14 +281,18 @@ def pixel_integrand(
         technique=technique,
         square_aperture=square_aperture,
         warp=warp,
+        light_warp=light_warp,
     )
 
 
 @functools.partial(
-    jax.jit, static_argnames=("dimension", "technique", "mis", "pixel_center", "square_aperture")
+    jax.jit,
+    static_argnames=("dimension", "technique", "mis", "pixel_center", "square_aperture",
+                     "light_warp"),
 )
-def _render_chunk(
-    scene: Scene, points, key, pixels, *, dimension, technique, mis, pixel_center, square_aperture
+def render_chunk(
+    scene: Scene, points, key, pixels, *, dimension, technique, mis, pixel_center, square_aperture,
+    light_warp="none",
 ):
     """Mean over the ``spp`` points of each pixel in ``pixels`` (flat indices): ``(..., 3)``.
 
@@ -281,7 +301,7 @@ def _render_chunk(
     """
     from ..samplers import toroidal_shift
 
-    g = _sample_fn(scene, dimension, technique, mis, square_aperture)
+    g = _sample_fn(scene, dimension, technique, mis, square_aperture, light_warp)
     w, h = scene.width, scene.height
     spp = points.shape[0]
 
@@ -309,3 +329,6 @@ def _render_chunk(
         return jax.vmap(one_pixel)(pixels)
     # (blocks, chunk): lax.map over cache-sized chunks keeps the working set small.
     return jax.lax.map(jax.vmap(one_pixel), pixels)
+
+
+_render_chunk = render_chunk  # old private name (render/aligned.py), until it moves over

@@ -3,23 +3,26 @@
 The 2D sample ``x`` in ``[0, 1)^2`` is the light sample of the per-pixel integrand (W Eq. 8):
 ``x[0]`` first picks an emitter uniformly (Mitsuba 3's ``sample_emitter``) and, for a mesh
 emitter, one of its triangles with probability proportional to area; the remainder of ``x[0]`` is
-rescaled to ``[0, 1)`` (sample reuse, pbrt-v4 ``SampleDiscrete``). The point on the primitive is
-then, by ``technique``:
+rescaled to ``[0, 1)`` (sample reuse, pbrt-v4 ``SampleDiscrete``). The point on the primitive then
+comes from the primitive's warp chain (:mod:`anisosample.render.light_warps`): the base
+technique chosen by ``technique``, with the PSS warp of ``light_warp`` in front, all fitted at
+the point the rays leave from.
 
 * ``"area"``: uniform by area. A parallelogram (Mitsuba ``rectangle``) maps ``x`` affinely
   onto itself, so straight shadow edges on the light stay straight in ``[0, 1)^2``; a triangle
   uses the square-root map (Shirley & Chiu; pbrt-v3 ``UniformSampleTriangle``); a sphere the
   uniform sphere map.
-* ``"solid_angle"``: uniform in the solid angle the primitive subtends from the shading point
-  (Ureña et al. 2013 for parallelograms, Arvo 1995 for triangles) through
-  :mod:`anisosample.warps`, with the area density converted back by ``cos / d^2``.
+* ``"solid_angle"``: uniform in the solid angle the primitive subtends from the origin
+  (Ureña et al. 2013 for parallelograms, Arvo 1995 for triangles), with the density converted
+  to area by ``cos / d^2``. Where the spherical warp declines (a tiny or degenerate solid angle)
+  both :func:`sample_light` and :func:`light_pdf` fall back to area sampling, as pbrt-v4 does.
 * ``"parametric"``: uniform in the primitive's own parameters; the same as ``"area"`` except on
   bilinear patches.
 
 Bilinear patches (:mod:`anisosample.render.patch`, H Sec. 4.2) are sampled by their approximate
-equal-area warp (``warps.patch_area_warp``'s bilinear warp of the corner area elements) under
-``"area"`` and, as in pbrt-v4 for non-rectangular patches, also under ``"solid_angle"``; under
-``"parametric"`` uniformly in ``(u, v)`` (area pdf ``1 / |p_u x p_v|``, H Eq. 11).
+equal-area warp under ``"area"`` and, as in pbrt-v4 for non-rectangular patches, also under
+``"solid_angle"``; under ``"parametric"`` uniformly in ``(u, v)`` (area pdf
+``1 / |p_u x p_v|``, H Eq. 11).
 
 Densities returned are per unit *area* on the light (including the selection probabilities) so
 that the integrator has one formula; point lights have ``delta = True`` and a density equal to
@@ -29,17 +32,18 @@ their selection probability.
 from __future__ import annotations
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
+from ..warps import Compose
 from ._vec import dot
-from .patch import patch_pdf, sample_patch, uv_towards
+from .light_warps import Receiver, chain, solid_angle_valid
 from .scene import (
     LIGHT_PARALLELOGRAM,
     LIGHT_PATCH,
     LIGHT_POINT,
     LIGHT_SPHERE,
-    LIGHT_TRIANGLE,
     Scene,
     Textures,
 )
@@ -90,13 +94,6 @@ def emitted(scene: Scene, prim, uv) -> Float[Array, "3"]:
     return lights.radiance[prim] * jnp.where(tex >= 0, textured, 1.0)
 
 
-def area_pdf(scene: Scene, prim) -> Float[Array, ""]:
-    """Area density of ``technique="area"`` sampling at any point of light primitive ``prim``."""
-    lights = scene.lights
-    n_em = lights.start.shape[0]
-    return lights.prim_prob[prim] / (n_em * jnp.maximum(lights.area[prim], 1e-30))
-
-
 def select(scene: Scene, x0):
     """Pick an emitter and a primitive from ``x0``; returns ``(prim, remapped x0)``."""
     lights = scene.lights
@@ -114,63 +111,8 @@ def select(scene: Scene, x0):
     return prim, xr
 
 
-def _uv_on(lights, prim, a, b):
-    return (
-        lights.uv0[prim]
-        + a * (lights.uv1[prim] - lights.uv0[prim])
-        + b * (lights.uv2[prim] - lights.uv0[prim])
-    )
-
-
-def sample_light(
-    scene: Scene, x: Float[Array, "2"], ref: Float[Array, "3"], technique: str = "area"
-) -> LightSample:
-    """Sample a point on the lights for shading point ``ref`` from ``x`` (see module doc)."""
-    lights = scene.lights
-    prim, x0 = select(scene, x[0])
-    x1 = x[1]
-    kind = lights.kind[prim]
-    p0, e1, e2 = lights.p0[prim], lights.e1[prim], lights.e2[prim]
-    # parallelogram
-    p_par = p0 + x0 * e1 + x1 * e2
-    uv_par = _uv_on(lights, prim, x0, x1)
-    # triangle: b1 = 1 - sqrt(x0) complement, uniform by area
-    sq = jnp.sqrt(x0)
-    ta, tb = sq * (1 - x1), sq * x1
-    p_tri = p0 + ta * e1 + tb * e2
-    uv_tri = _uv_on(lights, prim, ta, tb)
-    # sphere
-    z = 1 - 2 * x0
-    r = jnp.sqrt(jnp.maximum(1 - z * z, 0.0))
-    phi = 2 * jnp.pi * x1
-    dirs = jnp.stack([r * jnp.cos(phi), r * jnp.sin(phi), z])
-    p_sph = p0 + e1[0] * dirs
-    p = jnp.select(
-        [kind == LIGHT_PARALLELOGRAM, kind == LIGHT_TRIANGLE, kind == LIGHT_SPHERE],
-        [p_par, p_tri, p_sph],
-        p0,
-    )
-    n = jnp.where(kind == LIGHT_SPHERE, dirs, lights.normal[prim])
-    uv = jnp.where(kind == LIGHT_PARALLELOGRAM, uv_par, uv_tri)
-    pdf = area_pdf(scene, prim)
-    if technique == "solid_angle":
-        p, pdf = _solid_angle(scene, prim, x0, x1, ref, p, pdf)
-        # uv of the new point on a parallelogram / triangle, by solving in the edge basis
-        uv = _uv_of_point(lights, prim, p)
-    if scene.has_patches:  # bilinear patch lights (render/patch.py)
-        is_bp = kind == LIGHT_PATCH
-        c = scene.patches.corners[jnp.maximum(lights.patch[prim], 0)]
-        method = "parametric" if technique == "parametric" else "area"
-        p_bp, n_bp, uv_bp, pdf_bp = sample_patch(c, jnp.stack([x0, x1]), method)
-        p, n, uv = jnp.where(is_bp, p_bp, p), jnp.where(is_bp, n_bp, n), jnp.where(is_bp, uv_bp, uv)
-        pdf = jnp.where(is_bp, lights.prim_prob[prim] / lights.start.shape[0] * pdf_bp, pdf)
-    delta = kind == LIGHT_POINT
-    n_em = lights.start.shape[0]
-    pdf = jnp.where(delta, 1.0 / n_em, pdf)
-    return LightSample(p=p, n=n, radiance=emitted(scene, prim, uv), pdf=pdf, delta=delta, prim=prim)
-
-
 def _uv_of_point(lights, prim, p):
+    """Texture coordinates of point ``p`` of a parallelogram or triangle (its edge basis)."""
     e1, e2 = lights.e1[prim], lights.e2[prim]
     d = p - lights.p0[prim]
     g11, g12, g22 = dot(e1, e1), dot(e1, e2), dot(e2, e2)
@@ -179,63 +121,133 @@ def _uv_of_point(lights, prim, p):
     det = jnp.where(det == 0, 1.0, det)
     a = (g22 * r1 - g12 * r2) / det
     b = (g11 * r2 - g12 * r1) / det
-    return _uv_on(lights, prim, a, b)
+    uv0 = lights.uv0[prim]
+    return uv0 + a * (lights.uv1[prim] - uv0) + b * (lights.uv2[prim] - uv0)
 
 
-def _solid_angle(scene, prim, x0, x1, ref, p_area, pdf_area):
-    """Solid-angle sampling of parallelograms and triangles via :mod:`anisosample.warps`."""
-    from .. import warps  # issue 6; imported lazily so the renderer works without it
+def _area_point(kind: int, lights, prim, u):
+    """Uniform-by-area point of a parallelogram or triangle (the solid-angle fallback)."""
+    p0, e1, e2 = lights.p0[prim], lights.e1[prim], lights.e2[prim]
+    if kind == LIGHT_PARALLELOGRAM:
+        return p0 + u[0] * e1 + u[1] * e2
+    s = jnp.sqrt(u[0])
+    return p0 + s * (1 - u[1]) * e1 + s * u[1] * e2
 
+
+def _sample_kind(scene: Scene, kind: int, prim, u, rec: Receiver, technique, light_warp):
+    """``(p, n, uv, pdf)`` on primitive ``prim`` of static ``kind``; ``pdf`` per unit area on
+    the primitive (without the selection probability)."""
     lights = scene.lights
-    kind = lights.kind[prim]
-    p0, e1, e2, nl = lights.p0[prim], lights.e1[prim], lights.e2[prim], lights.normal[prim]
-    u = jnp.stack([x0, x1])
-    rect = warps.SphericalRectangle(p0, e1, e2, ref)
-    tri = warps.SphericalTriangle(jnp.stack([p0, p0 + e1, p0 + e2]), ref)
-    w_r, w_t = rect.sample(u), tri.sample(u)
-    w = jnp.where(kind == LIGHT_PARALLELOGRAM, w_r, w_t)
-    pdf_sa = jnp.where(kind == LIGHT_PARALLELOGRAM, rect.pdf(w), tri.pdf(w))
-    # Where the ray from ref along w meets the primitive's plane.
-    denom = dot(w, nl)
-    t = dot(p0 - ref, nl) / jnp.where(denom == 0, 1e-30, denom)
-    p = ref + t * w
-    cos_l = jnp.abs(denom)
-    d2 = t * t
-    pdf = lights.prim_prob[prim] / lights.start.shape[0] * pdf_sa * cos_l / jnp.maximum(d2, 1e-30)
-    valid = jnp.where(kind == LIGHT_PARALLELOGRAM, rect.valid, tri.valid)
-    use = ((kind == LIGHT_PARALLELOGRAM) | (kind == LIGHT_TRIANGLE)) & valid
-    # Where the warp declines (tiny or degenerate solid angle) fall back to area sampling,
-    # as pbrt-v4 does; light_pdf makes the same choice.
-    ok = use & jnp.isfinite(pdf) & (pdf > 0) & (t > 0)
-    return jnp.where(use, p, p_area), jnp.where(use, jnp.where(ok, pdf, 0.0), pdf_area)
+    p0 = lights.p0[prim]
+    if kind == LIGHT_POINT:
+        return p0, lights.normal[prim], jnp.zeros(2, jnp.float32), jnp.ones((), jnp.float32)
+    if kind == LIGHT_SPHERE:  # uniform by area
+        z = 1 - 2 * u[0]
+        r = jnp.sqrt(jnp.maximum(1 - z * z, 0.0))
+        phi = 2 * jnp.pi * u[1]
+        n = jnp.stack([r * jnp.cos(phi), r * jnp.sin(phi), z])
+        return p0 + lights.e1[prim][0] * n, n, jnp.zeros(2, jnp.float32), _inv_area(lights, prim)
+    warp = chain(scene, kind, prim, rec, technique, light_warp)
+    steps = warp.warps if isinstance(warp, Compose) else (warp,)
+    y, pdf = u, jnp.ones((), jnp.float32)
+    for w in steps[:-1]:  # H Algorithm 1, keeping the last warp's input (a patch's (u, v))
+        y, j = w.sample_and_pdf(y)
+        pdf = pdf * j
+    x, j = steps[-1].sample_and_pdf(y)
+    pdf = pdf * j
+    if kind == LIGHT_PATCH:
+        return x, steps[-1].normal(y), y, pdf
+    nl = lights.normal[prim]
+    if warp.measure == "solid angle":  # where the ray origin + t x meets the light's plane
+        denom = dot(x, nl)
+        t = dot(p0 - rec.origin, nl) / jnp.where(denom == 0, 1e-30, denom)
+        p = rec.origin + t * x
+        pdf = pdf * jnp.abs(denom) / jnp.maximum(t * t, 1e-30)
+        pdf = jnp.where(jnp.isfinite(pdf) & (pdf > 0) & (t > 0), pdf, 0.0)
+        use = solid_angle_valid(warp)
+        p = jnp.where(use, p, _area_point(kind, lights, prim, u))
+        pdf = jnp.where(use, pdf, _inv_area(lights, prim))
+    else:
+        p = x
+    uv = _uv_of_point(lights, prim, p) if scene.has_textures else jnp.zeros(2, jnp.float32)
+    return p, nl, uv, pdf
 
 
-def light_pdf(scene: Scene, prim, p, ref, technique: str = "area") -> Float[Array, ""]:
-    """Area density with which :func:`sample_light` produces point ``p`` on ``prim`` (for MIS)."""
-    pdf = area_pdf(scene, prim)
-    if technique == "solid_angle":
-        from .. import warps
+def _inv_area(lights, prim):
+    return 1.0 / jnp.maximum(lights.area[prim], 1e-30)
 
-        lights = scene.lights
-        kind = lights.kind[prim]
-        p0, e1, e2, nl = lights.p0[prim], lights.e1[prim], lights.e2[prim], lights.normal[prim]
-        v = p - ref
-        d2 = dot(v, v)
-        w = v / jnp.sqrt(jnp.maximum(d2, 1e-30))
-        rect = warps.SphericalRectangle(p0, e1, e2, ref)
-        tri = warps.SphericalTriangle(jnp.stack([p0, p0 + e1, p0 + e2]), ref)
-        pdf_sa = jnp.where(kind == LIGHT_PARALLELOGRAM, rect.pdf(w), tri.pdf(w))
-        conv = pdf_sa * jnp.abs(dot(w, nl)) / jnp.maximum(d2, 1e-30)
-        sa = lights.prim_prob[prim] / lights.start.shape[0] * conv
-        valid = jnp.where(kind == LIGHT_PARALLELOGRAM, rect.valid, tri.valid)
-        use = ((kind == LIGHT_PARALLELOGRAM) | (kind == LIGHT_TRIANGLE)) & valid
-        pdf = jnp.where(use, sa, pdf)
-    if scene.has_patches:  # bilinear patches: the (u, v) of p from the ray ref -> p
-        lights = scene.lights
-        c = scene.patches.corners[jnp.maximum(lights.patch[prim], 0)]
-        uv, found = uv_towards(c, ref, p)
-        method = "parametric" if technique == "parametric" else "area"
-        pb = jnp.where(found, patch_pdf(c, uv, method), 0.0)
-        sel = lights.prim_prob[prim] / lights.start.shape[0]
-        pdf = jnp.where(lights.kind[prim] == LIGHT_PATCH, sel * pb, pdf)
-    return pdf
+
+def _by_kind(scene: Scene, prim, per_kind):
+    """``per_kind(kind)`` for the kinds present in the scene, selected by ``prim``'s kind."""
+    kinds = scene.lights.kinds
+    outs = [per_kind(k) for k in kinds]
+    if len(kinds) == 1:
+        return outs[0]
+    which = scene.lights.kind[prim]
+    conds = [which == k for k in kinds]
+    return jax.tree.map(lambda *xs: jnp.select(conds, list(xs), xs[-1]), *outs)
+
+
+def _receiver(rec_or_origin) -> Receiver:
+    if isinstance(rec_or_origin, Receiver):
+        return rec_or_origin
+    o = jnp.asarray(rec_or_origin, jnp.float32)  # an origin only: enough for light_warp="none"
+    z = jnp.zeros(3, jnp.float32)
+    return Receiver(origin=o, n=z, wi=z, material=jnp.zeros((), jnp.int32))
+
+
+def sample_light(
+    scene: Scene,
+    x: Float[Array, "2"],
+    rec: Receiver | Float[Array, "3"],
+    technique: str = "area",
+    light_warp: str = "none",
+) -> LightSample:
+    """Sample a point on the lights for receiver ``rec`` from ``x`` (see the module doc).
+
+    ``rec``: the :class:`~anisosample.render.light_warps.Receiver` (or, for ``light_warp="none"``,
+    just the origin of the rays).
+    """
+    rec = _receiver(rec)
+    lights = scene.lights
+    prim, x0 = select(scene, x[0])
+    u = jnp.stack([x0, x[1]])
+    p, n, uv, pdf = _by_kind(
+        scene, prim, lambda k: _sample_kind(scene, k, prim, u, rec, technique, light_warp)
+    )
+    delta = lights.kind[prim] == LIGHT_POINT
+    n_em = lights.start.shape[0]
+    pdf = jnp.where(delta, 1.0 / n_em, pdf * lights.prim_prob[prim] / n_em)
+    return LightSample(p=p, n=n, radiance=emitted(scene, prim, uv), pdf=pdf, delta=delta, prim=prim)
+
+
+def _pdf_kind(scene: Scene, kind: int, prim, p, rec: Receiver, technique, light_warp):
+    lights = scene.lights
+    if kind == LIGHT_POINT:  # no ray hits a point light
+        return jnp.zeros((), jnp.float32)
+    if kind == LIGHT_SPHERE:
+        return _inv_area(lights, prim)
+    warp = chain(scene, kind, prim, rec, technique, light_warp)
+    if warp.measure != "solid angle":
+        return warp.pdf(p)  # H Algorithm 2
+    v = p - rec.origin
+    d2 = jnp.maximum(dot(v, v), 1e-30)
+    w = v * jax.lax.rsqrt(d2)
+    pdf = warp.pdf(w) * jnp.abs(dot(w, lights.normal[prim])) / d2  # H Algorithm 2, to area
+    return jnp.where(solid_angle_valid(warp), pdf, _inv_area(lights, prim))
+
+
+def light_pdf(
+    scene: Scene,
+    prim,
+    p: Float[Array, "3"],
+    rec: Receiver | Float[Array, "3"],
+    technique: str = "area",
+    light_warp: str = "none",
+) -> Float[Array, ""]:
+    """Area density with which :func:`sample_light` produces point ``p`` on ``prim`` for the
+    same receiver (for MIS): H Algorithm 2 through the same chain from the same origin."""
+    rec = _receiver(rec)
+    lights = scene.lights
+    pdf = _by_kind(scene, prim, lambda k: _pdf_kind(scene, k, prim, p, rec, technique, light_warp))
+    return pdf * lights.prim_prob[prim] / lights.start.shape[0]

@@ -22,8 +22,9 @@ use the cancellation-free form ``q = -(B + sign(B) sqrt(B^2 - 4AC)) / 2``, ``u =
 ``o + t d = p(u, v)`` then polishes ``(t, u, v)`` in float32 (skipped at grazing incidence).
 A ray can meet a non-planar patch twice; both hits are returned.
 
-**Light sampling** (H Sec. 4.2, through :mod:`anisosample.warps`): ``"parametric"`` is uniform
-in ``(u, v)`` with area pdf ``1 / |p_u x p_v|`` (H Eq. 11); ``"area"`` first warps ``x`` by the
+**Light sampling** (H Sec. 4.2) is a chain of :mod:`anisosample.warps` ending in
+:func:`SeenPatch` (:mod:`~anisosample.render.light_warps`): ``"parametric"`` is uniform in
+``(u, v)`` with area pdf ``1 / |p_u x p_v|`` (H Eq. 11); ``"area"`` first warps ``x`` by the
 bilinear PSS warp whose corner values are the area elements at the corners
 (:func:`anisosample.warps.patch_area_warp`), area pdf ``bilinear_pdf(u, v) / |p_u x p_v|``:
 approximately uniform by area, exactly for planar convex quads (Arvo & Novins 2007).
@@ -37,9 +38,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from ..warps import BilinearPatch
 from ._vec import cross, dot, norm
 
-METHODS = ("parametric", "area")
 _INF = np.float32(np.inf)  # numpy: importing must not start the XLA backend (jax.distributed)
 
 
@@ -154,36 +155,22 @@ def uv_towards(c: Float[Array, "2 2 3"], ref: Float[Array, "3"], p: Float[Array,
 # --- light sampling (H Sec. 4.2) --------------------------------------------------------------
 
 
-def _bilinear_warp(c):
-    from .. import warps
+class SeenPatch(BilinearPatch):
+    """``warps.BilinearPatch`` seen from ``origin``: its inverse (hence its pdf and every
+    chain's H Algorithm 2) finds ``(u, v)`` of a point by tracing the ray from ``origin``
+    through it (:func:`uv_towards`, exact) instead of Gauss-Newton from the patch centre.
+    The renderer's light chains end in it (:mod:`~anisosample.render.light_warps`)."""
 
-    return warps.Bilinear(warps.BilinearPatch(c).corner_area_elements())
+    origin: Float[Array, "3"]
 
+    def __init__(self, corners, origin):
+        self.corners = jnp.asarray(corners, jnp.float32)
+        self.newton_steps = 8
+        self.origin = jnp.asarray(origin, jnp.float32)
 
-def sample_patch(c: Float[Array, "2 2 3"], x: Float[Array, "2"], method: str = "area"):
-    """A point on patch ``c`` from ``x`` in ``[0, 1)^2``: ``(p, n, uv, pdf)``, ``pdf`` per unit
-    area (0 where the area element vanishes), ``n`` the front normal at ``p``."""
-    _check_method(method)
-    if method == "area":
-        uv, j = _bilinear_warp(c).sample_and_pdf(x)
-    else:
-        uv, j = x, jnp.ones((), x.dtype)
-    n, ae = patch_frame(c, uv)
-    pdf = jnp.where(ae > 0, j / jnp.where(ae > 0, ae, 1.0), 0.0)
-    return patch_point(c, uv), n, uv, pdf
-
-
-def patch_pdf(c: Float[Array, "2 2 3"], uv: Float[Array, "2"], method: str = "area"):
-    """Area density with which :func:`sample_patch` produces the point at ``uv``."""
-    _check_method(method)
-    j = _bilinear_warp(c).pdf(uv) if method == "area" else jnp.ones((), uv.dtype)
-    _, ae = patch_frame(c, uv)
-    return jnp.where(ae > 0, j / jnp.where(ae > 0, ae, 1.0), 0.0)
-
-
-def _check_method(method):
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    def _invert(self, x):
+        uv, found = uv_towards(self.corners, self.origin, x)
+        return jnp.where(found, uv, -1.0)  # not found: off the support (pdf 0)
 
 
 # --- building (numpy, float64) ----------------------------------------------------------------

@@ -26,8 +26,10 @@ DIFFUSE, CONDUCTOR, PLASTIC = 0, 1, 2
 # Light primitive kinds.
 LIGHT_PARALLELOGRAM, LIGHT_TRIANGLE, LIGHT_SPHERE, LIGHT_POINT = 0, 1, 2, 3
 LIGHT_PATCH = 4  # bilinear patch (render/patch.py)
+LIGHT_KIND_NAMES = {0: "parallelogram", 1: "triangle", 2: "sphere", 3: "point", 4: "bilinear patch"}
 # Camera kinds.
 PERSPECTIVE, THINLENS = 0, 1
+LUMINANCE = (0.212671, 0.715160, 0.072169)  # linear sRGB (Rec. 709) luminance weights
 
 
 class Camera(eqx.Module):
@@ -106,6 +108,7 @@ class Lights(eqx.Module):
     delta: Int[Array, " e"]  # 1 for point emitters
     patch: Int[Array, " l"]  # bilinear patch lights: index into Scene.patches, else -1
     n_prims: int = eqx.field(static=True, default=0)  # static: 1 lets kernels skip selection
+    kinds: tuple = eqx.field(static=True, default=(0, 1, 2, 3, 4))  # the kinds present (static)
 
 
 class Scene(eqx.Module):

@@ -28,6 +28,7 @@ from .patch import BilinearPatch as BilinearPatch
 from .patch import Parallelogram as Parallelogram
 from .patch import TriangleArea as TriangleArea
 from .patch import patch_area_warp as patch_area_warp
+from .patch import patch_three_warp as patch_three_warp
 from .planar import Bilinear as Bilinear
 from .planar import Biquadratic as Biquadratic
 from .planar import invert_linear_sample as invert_linear_sample

@@ -20,9 +20,17 @@ def balance_heuristic(n_f, p_f, n_g, p_g):
 
 
 def power_heuristic(n_f, p_f, n_g, p_g, beta: float = 2.0):
-    """``(n_f p_f)^beta / ((n_f p_f)^beta + (n_g p_g)^beta)``."""
-    f = (n_f * jnp.asarray(p_f, jnp.float32)) ** beta
-    g = (n_g * jnp.asarray(p_g, jnp.float32)) ** beta
+    """``(n_f p_f)^beta / ((n_f p_f)^beta + (n_g p_g)^beta)``.
+
+    The one power heuristic of the package: the renderer's MIS (light sample and BSDF sample,
+    :mod:`anisosample.render.integrator`) and every experiment use it.
+    """
+    f = n_f * jnp.asarray(p_f, jnp.float32)
+    g = n_g * jnp.asarray(p_g, jnp.float32)
+    if beta == 2:  # the usual exponent (Veach's): two multiplies instead of pow
+        f, g = f * f, g * g
+    else:
+        f, g = f**beta, g**beta
     s = f + g
     w = jnp.where(s > 0, f / jnp.where(s > 0, s, 1.0), 0.0)
     return jnp.where(jnp.isinf(f), 1.0, w)

@@ -177,6 +177,18 @@ class BilinearPatch(AbstractWarp):
     def sample(self, u):
         return self.point(_check_point("u", u, 2))
 
+    def sample_and_pdf(self, u):
+        """H Alg. 1 step: ``p(u)`` and ``1 / |p_u x p_v|`` at ``u`` itself (no inversion)."""
+        u = _check_point("u", u, 2)
+        ae = self.area_element(u)
+        return self.point(u), jnp.where(ae > 0, 1.0 / jnp.where(ae > 0, ae, 1.0), 0.0)
+
+    def normal(self, uv):
+        """Unit normal ``p_u x p_v / |p_u x p_v|`` at parameters ``uv`` (the front side)."""
+        du, dv = self._partials(uv)
+        n = jnp.cross(du, dv)
+        return n / jnp.maximum(norm(n), 1e-30)
+
     def _invert(self, x):
         def step(_, uv):
             du, dv = self._partials(uv)
@@ -204,3 +216,33 @@ def patch_area_warp(corners) -> Compose:
     """H Sec. 4.2: ``compose(Bilinear(corner area elements), BilinearPatch(corners))``."""
     patch = BilinearPatch(corners)
     return Compose(Bilinear(patch.corner_area_elements()), patch)
+
+
+def patch_three_warp(patch: BilinearPatch, origin, normal) -> Compose:
+    """H Sec. 4.2's approximate cosine chain for a bilinear-patch light seen from ``origin``.
+
+    ``compose(w_cos, w_geom, w_area, patch)``: ``w_area`` the bilinear approximate equal-area
+    warp (corner area elements), ``w_geom`` a biquadratic fitted (H Eq. 9) to the geometric
+    factor ``|cos_l| / r^2`` behind it, ``w_cos`` a biquadratic fitted to the receiver cosine
+    ``max(n . w, 0)`` about ``normal`` behind both (the list after H Eq. 11). ``patch`` is the
+    surface warp (a :class:`BilinearPatch`, or a subclass with its own inversion).
+    """
+    from .fit import fit_pointwise
+    from .planar import Biquadratic
+
+    origin = jnp.asarray(origin, jnp.float32)
+    normal = jnp.asarray(normal, jnp.float32)
+
+    def geometry(x):  # |cos_l| / r^2 = |d . n_l| / r^3
+        d = x - origin
+        r2 = jnp.dot(d, d)
+        return jnp.abs(jnp.dot(d, patch.normal(patch.inverse(x)))) / (r2 * jnp.sqrt(r2))
+
+    def cos_r(x):
+        d = x - origin
+        return jnp.maximum(jnp.dot(d, normal), 0.0) / norm(d)
+
+    w_area = Bilinear(patch.corner_area_elements())
+    w_geom = fit_pointwise(Biquadratic, geometry, [w_area, patch])
+    w_cos = fit_pointwise(Biquadratic, cos_r, [w_geom, w_area, patch])
+    return Compose(w_cos, w_geom, w_area, patch)
