@@ -276,7 +276,8 @@ def _check_grid(values, params: _Params, name="values"):
             f"{name} must be at least {params.min_size}x{params.min_size} for sigma_px="
             f"{params.sigma_px} (Gaussian + Sobel support), got shape {tuple(shape)}"
         )
-    if not np.issubdtype(np.dtype(values.dtype), np.number) or np.dtype(values.dtype) == bool:
+    dtype = np.dtype(values.dtype)
+    if not (np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating)):
         raise TypeError(f"{name} must be a real-valued array, got dtype {values.dtype}")
     if not isinstance(values, jax.core.Tracer) and not np.all(np.isfinite(np.asarray(values))):
         raise ValueError(f"{name} contains NaN or Inf samples")

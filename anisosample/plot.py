@@ -82,6 +82,8 @@ def points_panel(ax, points, *, title: str | None = None, color: str = "k",
     p = np.asarray(points, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 2:
         raise ValueError(f"points must have shape (n, 2), got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("points contains NaN or Inf")
     n = p.shape[0]
     size = marker_size if marker_size is not None else float(np.clip(2000.0 / max(n, 1), 0.05, 16))
     art = ax.scatter(p[:, 0], p[:, 1], s=size, c=color, linewidths=0)

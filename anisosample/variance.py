@@ -146,6 +146,19 @@ def _resolve_sampler(sampler, n: int):
     return sampler, None
 
 
+MAX_REALIZATIONS = 2**30
+"""The most realizations one variance estimate takes (their shifts alone are 8 GiB)."""
+
+
+def _check_pattern(points, n: int):
+    """A set a user's sampler made: ``(n, 2)``, finite, in ``[0, 1)^2``."""
+    pts = check_points("the sampler's points", points)
+    if pts.shape[0] != n:
+        raise ValueError(f"the sampler must return (n, 2) = ({n}, 2) points, got shape "
+                         f"{tuple(pts.shape)}")
+    return pts
+
+
 def _check_n_for(sampler, n: int) -> None:
     if getattr(sampler, "power_of_two", False) and n & (n - 1):
         name = getattr(sampler, "name", "this sampler")
@@ -204,7 +217,7 @@ def realization_estimates(
     integral is best). Results do not depend on ``chunk_elements``.
     """
     n = check_int("n", n, minimum=1)
-    realizations = check_int("realizations", realizations, minimum=2)
+    realizations = check_int("realizations", realizations, minimum=2, maximum=MAX_REALIZATIONS)
     patterns = check_int("patterns", patterns, minimum=1)
     chunk_elements = check_int("chunk_elements", chunk_elements, minimum=1)
     key = check_key("key", key)
@@ -237,6 +250,10 @@ def realization_estimates(
         bases = [
             jnp.asarray(sampler(jax.random.split(k_pat, realizations)[0], n), dtype=jnp.float32)
         ]
+    user_made = sampler is not None and not isinstance(sampler, _samplers.Sampler)
+    if user_made:  # a user's callable: its sets must be point sets of n points
+        for b in bases:
+            _check_pattern(b, n)
     if center is None:
         center = float(np.mean(np.asarray(f(bases[0]), dtype=np.float64)))
     c = jnp.float32(center)
@@ -275,7 +292,8 @@ def realization_estimates(
                 stop = min(start + chunk, realizations)
                 pts = jnp.stack(
                     [
-                        jnp.asarray(sampler(keys[r], n), dtype=jnp.float32)
+                        _check_pattern(jnp.asarray(sampler(keys[r], n), dtype=jnp.float32), n)
+                        if user_made else jnp.asarray(sampler(keys[r], n), dtype=jnp.float32)
                         for r in range(start, stop)
                     ]
                 )
@@ -568,7 +586,7 @@ def convergence(
     if not callable(f):
         raise TypeError(f"f must be a callable integrand over (..., 2), got {type(f).__name__}")
     # the arguments every estimate checks, checked before the progress bar starts
-    check_int("realizations", realizations, minimum=2)
+    check_int("realizations", realizations, minimum=2, maximum=MAX_REALIZATIONS)
     for opt, name in ((patterns, "patterns"),):
         for value in (opt.values() if isinstance(opt, Mapping) else (opt,)):
             check_int(name, value, minimum=1)

@@ -572,6 +572,10 @@ api("directions-empty-grid", lambda d: A().directions.estimate(np.zeros((0, 5)))
     r"values", owner=D)
 api("directions-k-negative", lambda d: A().directions.estimate(np.load(d / "grid.npy"), k=-1),
     ValueError, r"k must be >= 0", owner=D)
+api("directions-complex-grid", lambda d: A().directions.estimate(np.zeros((32, 32), complex)),
+    TypeError, r"values must be a real-valued array, got dtype complex128", owner=D)
+api("directions-bool-grid", lambda d: A().directions.estimate(np.zeros((32, 32), bool)),
+    TypeError, r"values must be a real-valued array, got dtype bool", owner=D)
 api("directions-k-float", lambda d: A().directions.estimate(np.load(d / "grid.npy"), k=1.5),
     TypeError, r"k must be an integer", owner=D)
 api("directions-method-unknown", lambda d: A().directions.estimate(np.load(d / "grid.npy"),
@@ -690,6 +694,21 @@ api("variance-randomization-unknown", lambda d: A().variance.estimator_variance(
 api("variance-nan-integrand", lambda d: A().variance.estimator_variance(
     lambda x: x[..., 0] * np.float32(NAN), "random", 64, key(), 16), ValueError,
     r"(NaN|finite)", owner=R)
+api("variance-user-sampler-outside", lambda d: A().variance.estimator_variance(
+    f_edge(), lambda k, n: np.full((n, 2), 2.0, np.float32), 64, key(), 16), ValueError,
+    r"the sampler's points must lie in \[0, 1\)\^2", owner=R)
+api("variance-user-sampler-nan", lambda d: A().variance.estimator_variance(
+    f_edge(), lambda k, n: np.full((n, 2), NAN, np.float32), 64, key(), 16), ValueError,
+    r"the sampler's points contains NaN or Inf", owner=R)
+api("variance-user-sampler-shape", lambda d: A().variance.estimator_variance(
+    f_edge(), lambda k, n: np.zeros((n, 3), np.float32), 64, key(), 16), ValueError,
+    r"the sampler's points must have shape \(n, 2\)", owner=R)
+api("variance-user-sampler-wrong-n", lambda d: A().variance.estimator_variance(
+    f_edge(), lambda k, n: np.zeros((n + 1, 2), np.float32), 64, key(), 16), ValueError,
+    r"the sampler must return \(n, 2\) = \(64, 2\) points, got shape \(65, 2\)", owner=R)
+api("variance-realizations-huge", lambda d: A().variance.estimator_variance(
+    f_edge(), "random", 64, key(), 10**12), ValueError, r"realizations must be <= 1073741824",
+    owner=R)
 api("variance-convergence-one-size", lambda d: A().variance.convergence(f_edge(), ["random"],
     [64], key(), 16), ValueError, r"ns must hold at least 2 sizes", owner=R)
 api("variance-convergence-size-zero", lambda d: A().variance.convergence(f_edge(), ["random"],
@@ -899,6 +918,8 @@ api("io-load-grid-bad-exr", lambda d: A().io.load_grid(d / "junk.exr"), ValueErr
     r"junk\.exr is a damaged", owner=O)
 api("plot-points-panel-shape", lambda d: A().plot.points_panel(None, np.zeros((4, 3))),
     ValueError, r"points must have shape \(n, 2\)", owner="plot")
+api("plot-points-nan", lambda d: A().plot.save_points_figure(d / "o_pts_nan.png",
+    np.load(d / "nan.npy")), ValueError, r"points contains NaN or Inf", owner="plot")
 api("plot-save-points-figure-suffix", lambda d: A().plot.save_points_figure(d / "p.bmp", PTS),
     ValueError, r"must end in \.png, \.pdf or \.svg", owner="plot")
 
