@@ -1184,7 +1184,6 @@ PENDING = {
     "proc-render-huge-image": "render allocates a 100000x100000 image before refusing",
     "api-render-tonemap-exposure-nan": "render.tonemap(exposure=nan) returns NaN pixels",
     "api-render-tonemap-nan-image": "render.tonemap of a NaN image returns NaN pixels",
-    "cli-render-light-warp-unknown": "the render subcommand has no --light-warp option yet",
 }
 
 
