@@ -113,7 +113,8 @@ def test_help_does_not_import_jax():
 def test_help_lists_every_builtin_sampler():
     from anisosample import _names, samplers
 
-    assert set(_names.BASELINES + _names.DIRECTIONAL_SAMPLERS) == set(samplers.names())
+    # every built-in is registered (users, and the guide's example, may register more)
+    assert set(_names.BASELINES + _names.DIRECTIONAL_SAMPLERS) <= set(samplers.names())
     assert samplers.BASELINES == _names.BASELINES
     text = cli.build_parser().format_help()
     assert "points" in text and "render" in text
