@@ -293,13 +293,12 @@ def _make_chunk(losses, n, recipe: Recipe, chunk):
 
     @jax.jit
     def run(state):
-        return jax.lax.scan(one, state, None, length=chunk)
+        # the losses of the chunk's end state too: the final loss needs no second compilation
+        state, vals = jax.lax.scan(one, state, None, length=chunk)
+        end = jnp.stack([fn(x) for fn, (x, _, _) in zip(losses, state[0], strict=True)])
+        return state, vals, end
 
-    @jax.jit
-    def values(sets):
-        return jnp.stack([fn(x) for fn, (x, _, _) in zip(losses, sets, strict=True)])
-
-    return run, values
+    return run
 
 
 def _to_float32_unit(x) -> np.ndarray:
@@ -398,7 +397,7 @@ def _iterate(losses, x_init: np.ndarray, recipe: Recipe, n: int, *, meta: dict,
                 k = min(checkpoint_every, steps - done)
                 if k not in runners:
                     runners[k] = _make_chunk(losses, n, recipe, k)
-                state, vals = runners[k][0](state)
+                state, vals, final = runners[k](state)
                 hist = np.concatenate([hist, np.asarray(vals)])
                 done = int(state[1])
                 bar.update(k)
@@ -413,7 +412,7 @@ def _iterate(losses, x_init: np.ndarray, recipe: Recipe, n: int, *, meta: dict,
                     callback(done, float(hist[-1, 0]) if single else hist[-1].copy())
         finally:
             bar.close()
-        final = np.asarray(next(iter(runners.values()))[1](state[0]))
+        final = np.asarray(final)
         x = stacked(0)
     if checkpoint is not None and Path(checkpoint).exists():
         Path(checkpoint).unlink()
