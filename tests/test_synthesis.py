@@ -54,26 +54,13 @@ def test_checkpoint_resume_same_result(getkey, tmp_path):
     opts = dict(steps=20, method="direct", show_progress=False, checkpoint_every=5)
     full = asp.synthesize(key, n, [0.0, 90.0, 60.0], **opts)
     ck = tmp_path / "ck.npz"
-
-    class Killed(Exception):
-        pass
-
-    def kill(step, loss):
-        if step == 10:
-            raise Killed
-
-    with pytest.raises(Killed):
-        asp.synthesize(key, n, [0.0, 90.0, 60.0], checkpoint=ck, callback=kill, **opts)
-    assert ck.exists()
-    seen = []
-    resumed = asp.synthesize(key, n, [0.0, 90.0, 60.0], checkpoint=ck,
-                             callback=lambda s, l: seen.append(s), **opts)
-    assert seen[0] == 15  # it did not start again from 0
+    resumed, first_step = _kill_and_resume(key, n, [0.0, 90.0, 60.0], ck, 10, opts)
+    assert first_step == 15  # it did not start again from 0
     np.testing.assert_array_equal(np.asarray(full), np.asarray(resumed))
     assert not ck.exists()
     # a checkpoint made with other settings is refused, not silently reused
-    with pytest.raises(Killed):
-        asp.synthesize(key, n, [0.0, 90.0, 60.0], checkpoint=ck, callback=kill, **opts)
+    with pytest.raises(_Killed):
+        asp.synthesize(key, n, [0.0, 90.0, 60.0], checkpoint=ck, callback=_kill_at(10), **opts)
     with pytest.raises(ValueError, match="other settings"):
         asp.synthesize(key, n, [0.0, 90.0, 61.0], checkpoint=ck, **opts)
 
@@ -219,19 +206,32 @@ def test_killed_run_resumes_to_the_same_bits(tmp_path):
     key = jax.random.key(11)
     opts = dict(steps=100, method="nufft1", show_progress=False, checkpoint_every=16)
     full = np.asarray(asp.synthesize(key, 1024, (0, 90, 30), **opts).points)
-    ck = tmp_path / "run.ckpt.npz"
-
-    class Killed(Exception):
-        pass
-
-    def kill(step, loss):
-        if step == 48:
-            raise Killed
-
-    with pytest.raises(Killed):
-        asp.synthesize(key, 1024, (0, 90, 30), checkpoint=ck, callback=kill, **opts)
-    steps_seen = []
-    resumed = asp.synthesize(key, 1024, (0, 90, 30), checkpoint=ck,
-                             callback=lambda s, v: steps_seen.append(s), **opts)
-    assert steps_seen[0] == 64  # resumed at step 48, not from 0
+    resumed, first_step = _kill_and_resume(key, 1024, (0, 90, 30), tmp_path / "run.ckpt.npz",
+                                           48, opts)
+    assert first_step == 64  # resumed at step 48, not from 0
     assert np.asarray(resumed.points).tobytes() == full.tobytes()
+
+
+class _Killed(Exception):
+    pass
+
+
+def _kill_at(at):
+    def kill(step, loss):
+        if step == at:
+            raise _Killed
+
+    return kill
+
+
+def _kill_and_resume(key, n, dirs, ck, at, opts):
+    """Run until step ``at`` (a callback raises there: the kill), then resume from the
+    checkpoint ``ck``; returns the resumed result and the first step it reported."""
+
+    with pytest.raises(_Killed):
+        asp.synthesize(key, n, dirs, checkpoint=ck, callback=_kill_at(at), **opts)
+    assert ck.exists()
+    seen = []
+    resumed = asp.synthesize(key, n, dirs, checkpoint=ck, callback=lambda s, v: seen.append(s),
+                             **opts)
+    return resumed, seen[0]
