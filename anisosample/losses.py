@@ -19,6 +19,7 @@ points and a :class:`~anisosample.frequencies.FrequencySet` only.
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -93,6 +94,11 @@ def square_projection_quantile(theta_deg, u):
     printed, Eq. 15 uses ``a = cos, b = sin`` and only holds for 0..45 degrees
     (``point_synthesis.md`` Sec. 4).  Works on arrays; broadcasting ``theta_deg`` against ``u``.
     """
+    if not isinstance(u, jax.core.Tracer):
+        un = np.asarray(u, np.float64)
+        if not np.all(np.isfinite(un)) or np.any(np.abs(un) > 0.5):
+            raise ValueError("u must lie in [-1/2, 1/2] (u = F - 1/2 for a CDF value F in "
+                             f"[0, 1]), got values in [{un.min()}, {un.max()}]")
     th = jnp.deg2rad(jnp.asarray(theta_deg))
     u = jnp.asarray(u)
     c, s = jnp.abs(jnp.cos(th)), jnp.abs(jnp.sin(th))

@@ -644,6 +644,8 @@ def _grid_coords(grid):
     g = np.asarray(grid)
     if g.ndim != 2 or g.shape[0] != g.shape[1] or g.shape[0] % 2 == 0:
         raise ValueError(f"grid must be a centred (2r+1, 2r+1) spectrum, got shape {g.shape}")
+    if not np.all(np.isfinite(g)):
+        raise ValueError("grid must be finite (it holds NaN or Inf values)")
     r = g.shape[0] // 2
     k = np.arange(-r, r + 1)
     vx, vy = np.meshgrid(k, k, indexing="xy")
