@@ -1177,11 +1177,6 @@ def d(tmp_path_factory):
 
 PENDING = {
     # case id -> the guard that is still missing (strict: the mark must go once it is there)
-    "api-render-load-unknown-override": "render.load_xml ignores an unknown override",
-    "cli-render-unknown-override": "render --set NAME=VALUE ignores an unknown NAME",
-    "proc-render-huge-image": "render allocates a 100000x100000 image before refusing",
-    "api-render-tonemap-exposure-nan": "render.tonemap(exposure=nan) returns NaN pixels",
-    "api-render-tonemap-nan-image": "render.tonemap of a NaN image returns NaN pixels",
 }
 
 

@@ -258,13 +258,20 @@ class SceneBuilder:
         uvs = np.asarray(uvs, np.float64)
         entries = []
         prims = []
-        for tri in f:
+        for i, tri in enumerate(f):
             p0, p1, p2 = v[tri[0]], v[tri[1]], v[tri[2]]
             cr = np.cross(p1 - p0, p2 - p0)
             area = 0.5 * float(np.linalg.norm(cr))
-            n = _unit(cr) * (-1 if flip_normals else 1)
-            if area <= 0:
+            longest = max(np.sum((p1 - p0) ** 2), np.sum((p2 - p0) ** 2), np.sum((p2 - p1) ** 2))
+            if not area > 1e-12 * longest:  # collinear (or coincident) vertices: zero area
+                if radiance is not None or texture >= 0:
+                    raise ValueError(
+                        f"triangle light: face {i}"
+                        f" (vertices {tri.tolist()}) has zero area (collinear vertices);"
+                        " an emitter needs triangles of positive area"
+                    )
                 continue  # degenerate triangles are never hit; drop them
+            n = _unit(cr) * (-1 if flip_normals else 1)
             entries.append((p0, p1, p2, n, uvs[tri[0]], uvs[tri[1]], uvs[tri[2]]))
             prims.append(
                 _light_dict(

@@ -8,6 +8,7 @@ the one-realization estimator (its MSE when the estimator is unbiased).
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
@@ -96,6 +97,7 @@ def render(
         blocks.check_tables(spp, progress=progress)
     w, h = scene.width, scene.height
     npix = w * h
+    _check_memory(w, h)
     # A chunk of pixels is vmapped (about ``chunk_samples`` samples: small enough to stay in
     # cache); ``per_call`` chunks run per jit call under lax.map (few dispatches, live progress).
     if chunk is None:
@@ -180,9 +182,35 @@ def render(
     )
 
 
+_BYTES_PER_PIXEL = 3 * (8 + 8 + 8 + 4 + 4)  # float64 sum, sum of squares, estimate; mean, var
+
+
+def _check_memory(w: int, h: int) -> None:
+    """Refuse, before allocating, an image whose buffers exceed this machine's memory."""
+    need = w * h * _BYTES_PER_PIXEL
+    try:
+        have = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # not available on this platform
+        return
+    if need > have:
+        raise ValueError(
+            f"a {w}x{h} render needs about {need / 2**30:.1f} GiB for its image buffers"
+            f" ({_BYTES_PER_PIXEL} bytes per pixel), more than this machine's"
+            f" {have / 2**30:.1f} GiB of memory; render a smaller image (width, height)"
+        )
+
+
 def tonemap(image, *, exposure: float = 0.0) -> np.ndarray:
-    """Linear RGB to 8-bit-ready sRGB in ``[0, 1]``: ``2^exposure`` scale, clamp, sRGB curve."""
-    x = np.clip(np.asarray(image, np.float64) * 2.0**exposure, 0.0, 1.0)
+    """Linear RGB to 8-bit-ready sRGB in ``[0, 1]``: ``2^exposure`` scale, clamp, sRGB curve.
+
+    ``ValueError`` for a non-finite ``exposure`` or an image with NaN (never NaN pixels)."""
+    exposure = float(exposure)
+    if not np.isfinite(exposure):
+        raise ValueError(f"exposure must be finite (stops), got {exposure}")
+    x = np.asarray(image, np.float64)
+    if np.isnan(x).any():
+        raise ValueError(f"image has {int(np.isnan(x).sum())} NaN values; tonemap needs numbers")
+    x = np.clip(x * 2.0**exposure, 0.0, 1.0)
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055).astype(np.float32)
 
 

@@ -552,7 +552,8 @@ def _sensor(ctx: _Ctx, b: SceneBuilder, node: _Node):
 def load_xml(path, **params) -> Scene:
     """Load a Mitsuba 3 XML scene (see the module docstring for the supported subset).
 
-    Keyword arguments override ``<default>`` parameters (``load_xml(p, spp=16)``).
+    Keyword arguments override ``<default>`` parameters (``load_xml(p, spp=16)``); a name the
+    file neither defaults nor references (``$name``) is a ``ValueError`` listing the known ones.
     Raises :class:`SceneFormatError` (a ``ValueError``) naming the file, line and tag, or
     ``FileNotFoundError``.
     """
@@ -567,6 +568,14 @@ def load_xml(path, **params) -> Scene:
             if name is None or "value" not in c.attrs:
                 raise ctx.err(c, "<default> needs name and value")
             ctx.params.setdefault(name, c.attrs["value"])
+    # An override must name a parameter of the file: a <default> or a $name it references.
+    known = set(ctx.params) | set(re.findall(r"\$([A-Za-z_]\w*)", path.read_text(errors="replace")))
+    unknown = sorted(set(params) - known)
+    if unknown:
+        raise ValueError(
+            f"{path.name}: unknown parameter override {', '.join(map(repr, unknown))}; this scene"
+            f" has {', '.join(sorted(known)) or 'no parameters'}"
+        )
     ctx.params.update({k: str(v) for k, v in params.items()})
     b = SceneBuilder()
     sensors = integrators = 0

@@ -8,9 +8,14 @@ AC so that the triangle ``A B C'`` has projected solid angle ``u0 Phi``; ``u1`` 
 ``G(theta) = n_B sin^2(theta)/2 + n_T (theta - sin(theta) cos(theta))/2``. Both 1D equations are
 solved numerically. Hart used six bisection steps; a fixed count of bisection steps leaves the
 warp inexact (its pdf no longer matches its samples), so we use the safeguarded
-Newton-bisection of ``_solve`` (``iterations`` steps, default 8), which converges to float32
-precision and keeps ``pdf`` exact. The triangle must lie above the horizon of ``normal``
-(``ValueError`` otherwise; clipping is not implemented).
+Newton-bisection of ``_solve`` (``iterations`` steps, default 8), started at ``s = u0 s_max``
+and at the smaller root of ``G``'s leading terms ``n_B t^2/2`` and ``n_T t^3/3``. Measured on
+65536 random samples (max difference of the direction from a 24-step solve): the triangle of
+``tests/warps/helpers`` 2.4e-7 (6 steps 3.6e-7; the earlier start ``u1 theta_max`` with 8
+steps: 3.6e-3), the octant with two vertices on the horizon 1.1e-3 (12 steps 1.2e-7: ``Phi``
+grows like ``s^2`` near A there and Newton starts too far out). ``Phi(s)`` is evaluated with one
+edge's angle per step (:meth:`CosineSphericalTriangle._phi_of_s`). The triangle must lie above
+the horizon of ``normal`` (``ValueError`` otherwise; clipping is not implemented).
 """
 
 from __future__ import annotations
@@ -72,14 +77,38 @@ class CosineSphericalTriangle(AbstractWarp):
         tac = safe_normalize(t.c - jnp.dot(t.c, t.a) * t.a)
         return jnp.cos(s) * t.a + jnp.sin(s) * tac
 
+    def _phi_of_s(self):
+        """Lambert's signed sum for ``A B C'(s)`` as ``k_ab + s k_ca + (BC' term)``.
+
+        Lambert's sum over the edges of ``A B C'``: edge AB is fixed; edge C'A spans the angle
+        ``s`` on the great circle of AC, whose normal ``tac x A`` does not move, so it
+        contributes ``s n . (tac x A)``; only edge BC' needs an angle and a normal per
+        evaluation (one third of :func:`projected_solid_angle`'s work).
+        """
+        t, n = self.triangle, self.normal
+        tac = safe_normalize(t.c - jnp.dot(t.c, t.a) * t.a)
+        k_ab = angle_between(t.a, t.b) * jnp.dot(n, safe_normalize(jnp.cross(t.a, t.b)))
+        k_ca = jnp.dot(n, jnp.cross(tac, t.a))
+
+        def signed(s):
+            cp = jnp.cos(s) * t.a + jnp.sin(s) * tac
+            bc = angle_between(t.b, cp) * jnp.dot(n, safe_normalize(jnp.cross(t.b, cp)))
+            return k_ab + s * k_ca + bc
+
+        return signed
+
     def sample(self, u):
         u = _check_point("u", u, 2)
         t, n = self.triangle, self.normal
         s_max = angle_between(t.a, t.c)
+        signed = self._phi_of_s()
+        # Lambert's sum for A B C has the sign of the triangle's orientation (it lies above the
+        # horizon of n), so Phi(s) = orient * sum / 2.
+        orient = jnp.where(jnp.dot(t.a, jnp.cross(t.b, t.c)) < 0, -1.0, 1.0)
         target = u[0] * self.phi_total
 
         def phi_of(s):
-            return projected_solid_angle(t.a, t.b, self._c_prime_at(s), n)
+            return 0.5 * orient * signed(s)
 
         s = newton_bisection(
             phi_of, target, jnp.zeros_like(s_max), s_max, u[0] * s_max, iterations=self.iterations
@@ -88,16 +117,29 @@ class CosineSphericalTriangle(AbstractWarp):
         tb = safe_normalize(cp - jnp.dot(cp, t.b) * t.b)
         nb, nt = jnp.dot(n, t.b), jnp.dot(n, tb)
         th_max = angle_between(t.b, cp)
+        g_target = u[1] * _g(th_max, nb, nt)
+        # Start below th_max at the smaller root of G's leading terms nb t^2/2 and nt t^3/3
+        # (G grows like t^2 near B, like t^3 where B lies on the horizon).
+        tiny = jnp.float32(1e-30)
+        t_quad = jnp.sqrt(2.0 * g_target / jnp.maximum(nb, tiny))
+        t_cub = jnp.cbrt(3.0 * g_target / jnp.maximum(nt, tiny))
         th = newton_bisection(
             lambda x: _g(x, nb, nt),
-            u[1] * _g(th_max, nb, nt),
+            g_target,
             jnp.zeros_like(th_max),
             th_max,
-            u[1] * th_max,
+            jnp.minimum(jnp.minimum(t_quad, t_cub), th_max),
             iterations=self.iterations,
         )
         w = jnp.cos(th) * t.b + jnp.sin(th) * tb
         return jnp.where(t.valid, safe_normalize(w), t.a)
+
+    def sample_and_pdf(self, u):
+        """H Alg. 1 step: the sample and ``max(n . w, 0) / Phi`` (on the triangle by
+        construction, so no support test)."""
+        w = self.sample(u)
+        pdf = jnp.maximum(jnp.dot(self.normal, w), 0.0) / self.phi_total
+        return w, jnp.where(self.triangle.valid, pdf, 0.0)
 
     def pdf(self, w):
         w = safe_normalize(_check_point("w", w, 3))

@@ -83,6 +83,8 @@ def fit_pointwise(
     rest = _rest(later)
     if kind is Bilinear and hasattr(rest, "corner_images"):
         x = rest.corner_images()  # the base warp knows its corners' images: no sampling
+    elif hasattr(rest, "grid_images"):  # the base warp maps the control grid in one go
+        x = rest.grid_images(kind.control_points()[:, 0, 0])
     else:
         x = pts if rest is None else jax.vmap(jax.vmap(rest.sample))(pts)
     v = jax.vmap(jax.vmap(factor))(x)

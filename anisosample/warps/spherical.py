@@ -106,16 +106,33 @@ class SphericalTriangle(AbstractWarp):
         sin_bp = 2.0 * jnp.sqrt(half * (1.0 - half))
         return cos_bp * a + sin_bp * safe_normalize(c - jnp.dot(c, a) * a)
 
-    def sample(self, u):
-        u = _check_point("u", u, 2)
-        b = self.b
-        cp = self._c_prime(u[0])
+    def _on_arc(self, cp, u1):
         # 1 - cos(theta) = u1 (1 - C'.B) with 1 - C'.B = |C' - B|^2 / 2, free of cancellation.
-        one_minus_z = u[1] * 0.5 * jnp.sum((cp - b) ** 2)
+        b = self.b
+        one_minus_z = u1 * 0.5 * jnp.sum((cp - b) ** 2)
         z = 1.0 - one_minus_z
         sin_t = jnp.sqrt(jnp.maximum(one_minus_z * (2.0 - one_minus_z), 0.0))
         w = z * b + sin_t * safe_normalize(cp - jnp.dot(cp, b) * b)
         return jnp.where(self.valid, safe_normalize(w), self.a)
+
+    def sample(self, u):
+        u = _check_point("u", u, 2)
+        return self._on_arc(self._c_prime(u[0]), u[1])
+
+    def grid_images(self, g):
+        """``sample`` on the product grid ``g x g`` (``[i, j]`` at ``u = (g_i, g_j)``) with one
+        ``C'`` per ``g_i`` instead of one per point: what a point-wise fit (H Eq. 9) of a
+        biquadratic evaluates its factor at, for a third of the cost of nine samples."""
+        g = [float(x) for x in g]  # concrete: u0 = 0 / 1 give C' = A / C, u1 = 0 / 1 B / C'
+        ends = {0.0: self.a, 1.0: self.c}
+        cps = [ends[gi] if gi in ends else self._c_prime(jnp.float32(gi)) for gi in g]
+
+        def arc(cp, gj):
+            if gj in (0.0, 1.0):
+                return jnp.where(self.valid, self.b if gj == 0.0 else cp, self.a)
+            return self._on_arc(cp, jnp.float32(gj))
+
+        return jnp.stack([jnp.stack([arc(cp, gj) for gj in g]) for cp in cps])
 
     def sample_and_pdf(self, u):
         """H Alg. 1 step: the sample is on the triangle by construction, its pdf is ``1/Omega``."""
