@@ -41,10 +41,13 @@ the offset lines lie inside the band there anyway. Every other set is built on d
 synthesizes a set no table holds into the user cache (one set, with progress; ``build_missing=
 False`` refuses instead), and ``anisosample tables build`` builds whole tables. A 4-direction set
 ``(a, b)`` for an ``n`` with a complete 3-direction table starts from that table's set for ``a``
-(already dark along 0, 90 and ``a``) and runs 100 steps at learning rate 0.2 instead of 200 at
-0.5: measured at n = 4096 (directions 0/90/16/146 and 0/90/33/43, key 1), the rate loss after
-the warm 100 steps is 0.00454 and 0.00425 against 0.00420 and 0.00364 cold after 200, and the
-mean n P_S within one unit of every line for |v| <= 32 is at most 0.019 warm and 0.012 cold.
+(already dark along 0, 90 and ``a``) and runs 150 steps at learning rate 0.2 instead of 200 at
+0.5. Measured (``experiments/bench_tables.py --compare-warm``; directions 0/90/16/146 and
+0/90/33/43, key 1, 512 shifts per variance): at n = 4096 the rate loss is 0.00430 and 0.00385
+warm against 0.00420 and 0.00364 cold, the mean n P_S within one unit of every line for
+|v| <= 32 at most 0.013 warm and 0.012 cold, and the variance of an edge at ``a`` 1.67e-7 and
+1.24e-7 warm against 1.62e-7 and 1.40e-7 cold; its two-point slope from n = 256 to 4096 is
+-1.74 and -1.83 warm, -1.78 and -1.78 cold.
 
 The aligned sampler (W Sec. 5.4): estimate the integrand's extra directions
 (:func:`anisosample.directions.estimate`), round them to integer degrees, look the set up, fall

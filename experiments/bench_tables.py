@@ -8,6 +8,8 @@ prints each set's wall time (compilation included: every set compiles its own lo
 median and max, and the 4,141-set table projected from the mean. ``--batch B`` times the same sets
 through ``tables.build(..., batch=B)`` instead (groups of ``B`` sets per loop).
 
+``--compare-warm``: the warm start against a cold start (see :func:`_compare_warm`).
+
 ``--kind 3``: time one set at ``--short`` and one at ``--long`` steps, fit
 ``t = fixed + steps * per_step`` and project the 46-set table.
 
@@ -17,20 +19,23 @@ and after (other work inflates the wall times); run it under ``nice -n 10``.
 
     python experiments/bench_tables.py [--n 4096] [--kind 4 --sets 20] [--batch B]
     python experiments/bench_tables.py --kind 3 [--short 10 --long 40]
+    python experiments/bench_tables.py --compare-warm [--pairs 2]
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import statistics
 import tempfile
 import time
 
 import jax
+import numpy as np
 
 import anisosample as asp
-from anisosample import _table_build, tables
+from anisosample import _table_build, frequencies, spectrum, tables
 
 
 def _four_direction(args):
@@ -60,6 +65,50 @@ def _four_direction(args):
     print(f"per set on demand: mean {mean:.1f} s, median {statistics.median(times):.1f} s, "
           f"max {max(times):.1f} s")
     print(f"projected 4141-set table: {len(canon) * mean / 3600:.2f} h (from {len(pick)} sets)")
+
+
+def _band_energy(pts, phi, n, radius=32.0):
+    """Mean ``n P_S`` within one unit of the line at spectral angle ``phi``, ``0 < |v| <= r``."""
+    v = frequencies.wedge(float(phi), radius, 1.0)
+    return float(np.mean(np.asarray(spectrum.power_spectrum(pts, v)))) * n
+
+
+def _compare_warm(args):
+    """Warm (from the 3-direction table) vs cold (jittered) 4-direction sets at n = 256 and
+    4096: the final loss, the band energy along every line and the variance of an edge at the
+    first extra direction, with the two-point slope of that variance from 256 to 4096."""
+    pairs = [(16, 146), (33, 43), (61, 118)][: args.pairs]
+    ns = (256, 4096)
+    var = {}
+    for a, b in pairs:
+        dirs = (0, 90, a, b)
+        f = asp.integrands.edges([float(a)])
+        for n in ns:
+            src = _table_build.warm_source(n)
+            start = _table_build.warm_points(n, (a, b), src.settings["fingerprint"])
+            runs = {"cold": {}, "warm": dict(initial_points=start,
+                                             steps=_table_build.WARM_STEPS,
+                                             learning_rate=_table_build.WARM_LEARNING_RATE)}
+            for label, kw in runs.items():
+                t0 = time.perf_counter()
+                r = asp.synthesize(jax.random.key(1), n, dirs, show_progress=False, **kw)
+                sec = time.perf_counter() - t0
+                pts = r.points
+
+                def sampler(key, m, pts=pts):
+                    return asp.samplers.toroidal_shift(key, pts)
+
+                v = asp.variance.estimator_variance(f, sampler, n, jax.random.key(2), 512,
+                                                    f.integral)
+                var[(a, b, n, label)] = v
+                bands = [round(_band_energy(pts, d, n, min(32.0, n**0.5)), 4) for d in dirs]
+                print(f"{dirs} n={n} {label}: {len(r.history) - 1} steps {sec:.1f} s, loss "
+                      f"{r.final_loss:.5f}, band n P_S (|v| <= {min(32, int(n**0.5))}) {bands}, "
+                      f"edge {a} deg variance {v:.3e} (load {os.getloadavg()[0]:.1f})",
+                      flush=True)
+        for label in ("cold", "warm"):
+            slope = math.log(var[(a, b, 4096, label)] / var[(a, b, 256, label)]) / math.log(16)
+            print(f"{dirs} {label}: edge variance slope 256 -> 4096: {slope:.2f}")
 
 
 def _three_direction(args):
@@ -92,10 +141,16 @@ def main(argv=None):
     p.add_argument("--recipe", default="rate", choices=["rate", "paper"])
     p.add_argument("--short", type=int, default=10, help="steps of the short run (kind 3)")
     p.add_argument("--long", type=int, default=40, help="steps of the long run (kind 3)")
+    p.add_argument("--compare-warm", action="store_true",
+                   help="warm vs cold 4-direction sets at n = 256 and 4096 (quality, edge slope)")
+    p.add_argument("--pairs", type=int, default=2, help="direction pairs for --compare-warm")
     args = p.parse_args(argv)
     print(f"devices: {len(jax.local_devices())} x {jax.devices()[0].platform}, "
           f"cpu_count {os.cpu_count()}, load average {os.getloadavg()}, n = {args.n}")
-    (_four_direction if args.kind == 4 else _three_direction)(args)
+    if args.compare_warm:
+        _compare_warm(args)
+    else:
+        (_four_direction if args.kind == 4 else _three_direction)(args)
     print(f"load average after: {os.getloadavg()}")
 
 
