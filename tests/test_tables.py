@@ -368,8 +368,9 @@ def test_build_kill_and_resume_on_two_devices(tmp_path):
 
 
 def test_batched_build_shards_groups_over_two_devices(tmp_path):
-    """batch 2 on two (forced CPU) devices: one synthesize_batch loop per group, shard_map'ed
-    over a 2-device mesh; the sets equal the one-device batched build to float32 rounding."""
+    """batch 2 on two (forced CPU) devices: one synthesize_batch loop per group, its sets split
+    over the 2 devices (one thread each); the sets equal the one-device batched build bit for
+    bit (each set runs the same per-set program wherever it runs)."""
     common = ["--n", "64", "--directions", "3", "--sets", "10,20,30", "--steps", "8",
               "--batch", "2", "--seed", "1"]
     run_dir, ref_dir = tmp_path / "two", tmp_path / "one"
@@ -385,7 +386,7 @@ def test_batched_build_shards_groups_over_two_devices(tmp_path):
     for e in [(10,), (20,), (30,)]:
         meta = asp.io.load_npz(b.set_path(e))[1]
         assert meta["device"].count("cpu") == 2, meta["device"]  # the group ran on both
-        np.testing.assert_allclose(a.load(e), b.load(e), rtol=0, atol=1e-6)
+        np.testing.assert_array_equal(a.load(e), b.load(e))
     # the group (10, 20) and the padded group (30,) are different sets
     assert not np.array_equal(b.load((10,)), b.load((30,)))
 
@@ -398,14 +399,18 @@ def _free_port() -> int:
         return sock.getsockname()[1]
 
 
-def test_build_over_two_processes_with_jax_distributed(tmp_path):
+@pytest.mark.parametrize("kind", [3, 4])
+def test_build_over_two_processes_with_jax_distributed(tmp_path, kind):
     """Two processes joined by jax.distributed (a localhost coordinator, as two hosts would be)
-    share one --out: process p builds the sets i with i % 2 == p, the table completes, and every
-    set equals the single-process build."""
-    sets = "0,10,20,45"
-    extras = [(0,), (10,), (20,), (45,)]
+    share one --out: process p builds the sets i with i % 2 == p, and every set equals the
+    single-process build (3- and 4-direction tables; a 4-direction table is the 4,141-set
+    build's command with --directions 4)."""
+    sets = "0,10,20,45" if kind == 3 else "0:0,10:20,20:50,30:45"
+    extras = ([(0,), (10,), (20,), (45,)] if kind == 3
+              else [(0, 0), (10, 20), (20, 50), (30, 45)])
     run_dir, ref_dir = tmp_path / "two_hosts", tmp_path / "one_host"
-    common = ["--n", "32", "--directions", "3", "--sets", sets, "--steps", "6", "--seed", "2",
+    common = ["--n", "32", "--directions", str(kind), "--sets", sets, "--steps", "6",
+              "--seed", "2",
               "--out", str(run_dir), "--distributed", "--coordinator",
               f"127.0.0.1:{_free_port()}", "--num-processes", "2"]
     procs = []
@@ -418,7 +423,7 @@ def test_build_over_two_processes_with_jax_distributed(tmp_path):
         assert p.returncode == 0, err
     built = [o.split("built ")[1].split(" set")[0] for o, _ in outs]
     assert built == ["2", "2"], outs  # 4 sets, 2 per process
-    tables.build(32, 3, out=ref_dir, sets=extras, steps=6, seed=2, show_progress=False)
+    tables.build(32, kind, out=ref_dir, sets=extras, steps=6, seed=2, show_progress=False)
     a, b = tables.open_table(ref_dir), tables.open_table(run_dir)
     for e in extras:
         np.testing.assert_array_equal(a.load(e), b.load(e))
