@@ -84,8 +84,14 @@ def _resolved(synthesis: dict) -> dict:
 
     options = {k: v for k, v in synthesis.items() if k not in ("batch", "warm_start")}
     recipe = _synthesis.make_recipe(**options)
-    resolved = dict(recipe.record(), **{k: synthesis[k] for k in ("batch", "warm_start")
-                                        if k in synthesis})
+    # the record as tables have always stored it (the named recipe's defaults, its name and the
+    # options given), so tables built before the Recipe existed still resume; plus every other
+    # Recipe field that differs from the Recipe's own default
+    resolved = {**_synthesis.recipe_defaults(recipe.name), "recipe": recipe.name, **synthesis}
+    base = _synthesis.Recipe(name=recipe.name).record()
+    for k, v in recipe.record().items():
+        if k not in resolved and v != base[k]:
+            resolved[k] = v
     # The frequency design's formulas (wedge length, width, weights' offsets, ...) evaluated at a
     # probe size: a change of the design changes the fingerprint, so a table of the old design
     # is not resumed with sets of the new one.
