@@ -155,13 +155,10 @@ def _patch_factors(p):
 
 
 def patch_three_warp(p):
-    """H Sec. 4.2's three-warp chain at shading point ``p``: the bilinear approximate-area warp,
-    a biquadratic fitted to the geometric factor behind it, one fitted to the receiver's cosine."""
-    patch, geometry, cos_r, _ = _patch_factors(p)
-    w_area = W.Bilinear(patch.corner_area_elements())
-    w_geom = W.fit_pointwise(W.Biquadratic, geometry, [w_area, patch])
-    w_cos = W.fit_pointwise(W.Biquadratic, cos_r, [w_geom, w_area, patch])
-    return W.compose(w_cos, w_geom, w_area, patch)
+    """H Sec. 4.2's three-warp chain at shading point ``p`` (the library's
+    ``warps.patch_three_warp``): the bilinear approximate-area warp, a biquadratic fitted to the
+    geometric factor behind it, one fitted to the receiver's cosine."""
+    return W.patch_three_warp(W.BilinearPatch(jnp.asarray(PATCH, jnp.float32)), p, _N)
 
 
 def patch_methods():

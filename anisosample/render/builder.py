@@ -10,6 +10,7 @@ Python lists and flattened by :meth:`SceneBuilder.build` into the scene's arrays
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import jax.numpy as jnp
 import numpy as np
@@ -65,6 +66,47 @@ class _Material:
     distribution: int = 0
 
 
+class Planar(NamedTuple):
+    """A planar primitive ``p0 + a e1 + b e2`` (``p1 = p0 + e1``, ``p2 = p0 + e2``): a triangle
+    (``a + b <= 1``) or, if ``parallelogram``, a parallelogram (``a, b <= 1``)."""
+
+    p0: np.ndarray
+    p1: np.ndarray
+    p2: np.ndarray
+    normal: np.ndarray
+    uv0: tuple
+    uv1: tuple
+    uv2: tuple
+    material: int
+    light: int  # light primitive, -1 if not emissive
+    parallelogram: bool
+
+
+class SphereRecord(NamedTuple):
+    """An analytic sphere of the builder."""
+
+    center: np.ndarray
+    radius: float
+    material: int
+    light: int
+
+
+class PatchRecord(NamedTuple):
+    """A bilinear patch of the builder (``corners[i, j] = p_ij``)."""
+
+    corners: np.ndarray  # (2, 2, 3)
+    material: int
+    light: int
+
+
+class EmitterRecord(NamedTuple):
+    """An emitter: its light primitives ``start .. start + count - 1``."""
+
+    start: int  # first light primitive
+    count: int
+    delta: int  # 1 for point lights
+
+
 @dataclass
 class SceneBuilder:
     """Collects shapes, materials, emitters and a camera, then :meth:`build` s a :class:`Scene`.
@@ -72,14 +114,12 @@ class SceneBuilder:
     Shapes take a 4x4 ``to_world`` matrix (numpy, float64) as in Mitsuba 3.
     """
 
-    # Planar primitives p0 + a e1 + b e2: (p0, p1, p2, n, uv0, uv1, uv2, mat, light, para) with
-    # p1 = p0 + e1, p2 = p0 + e2; a triangle (a + b <= 1) or, if ``para``, a parallelogram.
-    _tris: list = field(default_factory=list)
-    _spheres: list = field(default_factory=list)  # (center, radius, mat, light)
-    _patches: list = field(default_factory=list)  # (corners (2, 2, 3), mat, light)
+    _tris: list = field(default_factory=list)  # Planar records
+    _spheres: list = field(default_factory=list)  # SphereRecord
+    _patches: list = field(default_factory=list)  # PatchRecord
     _materials: list = field(default_factory=list)
     _lights: list = field(default_factory=list)  # dicts
-    _emitters: list = field(default_factory=list)  # (start, count, delta)
+    _emitters: list = field(default_factory=list)  # EmitterRecord
     _textures: list = field(default_factory=list)
     _camera: dict | None = None
     spp: int = 64
@@ -179,7 +219,7 @@ class SceneBuilder:
         e = len(self._emitters)
         for p, pr, c in zip(prims, prob, cdf, strict=True):
             self._lights.append({**p, "prob": pr, "cdf": c, "emitter": e})
-        self._emitters.append((start, len(prims), int(delta)))
+        self._emitters.append(EmitterRecord(start, len(prims), int(delta)))
         return list(range(start, start + len(prims)))
 
     def point_light(self, position, intensity) -> None:
@@ -233,7 +273,8 @@ class SceneBuilder:
                 delta=False,
             )
         # One parallelogram primitive (Mitsuba splits it into two triangles; one test is cheaper).
-        self._tris.append((c, c + e1, c + e2, n, (0, 0), (1, 0), (0, 1), material, light, True))
+        self._tris.append(
+            Planar(c, c + e1, c + e2, n, (0, 0), (1, 0), (0, 1), material, light, True))
 
     def triangles(
         self,
@@ -291,7 +332,7 @@ class SceneBuilder:
             raise ValueError("mesh emitter has zero area")
         lights = self._add_emitter(prims, delta=False) if emissive else [-1] * len(entries)
         for (p0, p1, p2, n, a, b, c), li in zip(entries, lights, strict=True):
-            self._tris.append((p0, p1, p2, n, a, b, c, material, li, False))
+            self._tris.append(Planar(p0, p1, p2, n, a, b, c, material, li, False))
 
     def cube(self, to_world, material: int, *, radiance=None, flip_normals=False) -> None:
         """Mitsuba ``cube``: ``[-1, 1]^3`` with outward normals.
@@ -317,8 +358,8 @@ class SceneBuilder:
                 cr = np.cross(e1, e2)
                 if np.linalg.norm(cr) > 0:
                     n = _unit(cr) * (-1 if flip_normals else 1)
-                    self._tris.append((p0, p0 + e1, p0 + e2, n, (0, 0), (0, 0), (0, 0), material,
-                                       -1, True))
+                    self._tris.append(Planar(p0, p0 + e1, p0 + e2, n, (0, 0), (0, 0), (0, 0),
+                                             material, -1, True))
             return
         verts = [v for p0, e1, e2 in faces for v in (p0, p0 + e1, p0 + e1 + e2, p0 + e2)]
         tris = [(4 * f + i, 4 * f + j, 4 * f + k) for f in range(6) for i, j, k in ((0, 1, 2),
@@ -348,7 +389,7 @@ class SceneBuilder:
                 ],
                 delta=False,
             )
-        self._spheres.append((np.asarray(center, np.float64), radius, material, light))
+        self._spheres.append(SphereRecord(np.asarray(center, np.float64), radius, material, light))
 
     def bilinear_patch(self, corners, material: int, *, radiance=None, flip_normals=False) -> None:
         """A bilinear patch, ``corners[i, j] = p_ij`` (world space, shape (2, 2, 3)), front side
@@ -362,7 +403,7 @@ class SceneBuilder:
             row = _light_dict(LIGHT_PATCH, c[0, 0], c[1, 0] - c[0, 0], c[0, 1] - c[0, 0],
                               np.zeros(3), area, _rgb(radiance), -1)
             (light,) = self._add_emitter([{**row, "patch": len(self._patches)}], delta=False)
-        self._patches.append((c, material, light))
+        self._patches.append(PatchRecord(c, material, light))
 
     # camera -------------------------------------------------------------------------------------
     def camera(
@@ -408,17 +449,18 @@ class SceneBuilder:
         f32 = lambda a: jnp.asarray(np.asarray(a, np.float64), jnp.float32)
         i32 = lambda a: jnp.asarray(np.asarray(a, np.int64), jnp.int32)
 
+        far = np.full(3, 1e30)
         tris = self._tris or [
-            (np.full(3, 1e30),) * 3 + (np.array([0, 0, 1.0]), (0, 0), (0, 0), (0, 0), 0, -1, False)
+            Planar(far, far, far, np.array([0, 0, 1.0]), (0, 0), (0, 0), (0, 0), 0, -1, False)
         ]
-        p0 = np.array([t[0] for t in tris])
-        e1 = np.array([t[1] for t in tris]) - p0
-        e2 = np.array([t[2] for t in tris]) - p0
+        p0 = np.array([t.p0 for t in tris])
+        e1 = np.array([t.p1 for t in tris]) - p0
+        e2 = np.array([t.p2 for t in tris]) - p0
         if not self._tris:  # a placeholder that nothing hits
             e1 = np.zeros_like(p0)
             e2 = np.zeros_like(p0)
-        sph = self._spheres or [(np.full(3, 1e30), 1.0, 0, -1)]
-        sph_r = np.array([s[1] for s in sph])
+        sph = self._spheres or [SphereRecord(far, 1.0, 0, -1)]
+        sph_r = np.array([s.radius for s in sph])
         if not self._spheres:
             sph_r = np.zeros(1)
 
@@ -456,9 +498,9 @@ class SceneBuilder:
             prim_prob=f32([x["prob"] for x in L]),
             prim_cdf=f32([x["cdf"] for x in L]),
             emitter=i32([x["emitter"] for x in L]),
-            start=i32([e[0] for e in self._emitters]),
-            count=i32([e[1] for e in self._emitters]),
-            delta=i32([e[2] for e in self._emitters]),
+            start=i32([e.start for e in self._emitters]),
+            count=i32([e.count for e in self._emitters]),
+            delta=i32([e.delta for e in self._emitters]),
             patch=i32([x.get("patch", -1) for x in L]),
             n_prims=len(L),
             kinds=tuple(sorted({int(x["kind"]) for x in L})),
@@ -487,33 +529,23 @@ class SceneBuilder:
             height=c["height"],
         )
 
-        para = np.array([t[9] for t in tris], bool)
+        para = np.array([t.parallelogram for t in tris], bool)
         pts = [p0[: len(self._tris)], (p0 + e1)[: len(self._tris)], (p0 + e2)[: len(self._tris)]]
         pts += [(p0 + e1 + e2)[: len(self._tris)][para[: len(self._tris)]]]
-        pts += [np.array([s[0] for s in self._spheres]).reshape(-1, 3)]
-        pts += [np.array([q[0] for q in self._patches]).reshape(-1, 3)]
+        pts += [np.array([s.center for s in self._spheres]).reshape(-1, 3)]
+        pts += [np.array([q.corners for q in self._patches]).reshape(-1, 3)]
         pts += [np.asarray(c["to_world"][:3, 3])[None]]
         allp = np.concatenate([p.reshape(-1, 3) for p in pts])
         scale = float(np.max(np.abs(allp))) if allp.size else 1.0
 
         return Scene(
-            tri_p0=f32(p0),
-            tri_e1=f32(e1),
-            tri_e2=f32(e2),
-            tri_n=f32([t[3] for t in tris]),
-            tri_uv0=f32([t[4] for t in tris]),
-            tri_uv1=f32([t[5] for t in tris]),
-            tri_uv2=f32([t[6] for t in tris]),
-            tri_material=i32([t[7] for t in tris]),
-            tri_light=i32([t[8] for t in tris]),
             tri_soa=f32(_plane_rows(p0, e1, e2, para)),
-            tri_attr=f32(np.concatenate([np.array([t[k] for t in tris], np.float64).reshape(
-                len(tris), -1) for k in (3, 4, 5, 6)], axis=1)),
-            tri_ids=i32([(t[7], t[8]) for t in tris]),
-            sph_center=f32([s[0] for s in sph]),
+            tri_attr=f32([np.concatenate([t.normal, t.uv0, t.uv1, t.uv2]) for t in tris]),
+            tri_ids=i32([(t.material, t.light) for t in tris]),
+            sph_center=f32([s.center for s in sph]),
             sph_radius=f32(sph_r),
-            sph_material=i32([s[2] for s in sph]),
-            sph_light=i32([s[3] for s in sph]),
+            sph_material=i32([s.material for s in sph]),
+            sph_light=i32([s.light for s in sph]),
             materials=materials,
             lights=lights,
             textures=textures,

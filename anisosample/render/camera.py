@@ -12,20 +12,9 @@ from __future__ import annotations
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from ..warps import ConcentricDisk
 from ._vec import matvec, norm
 from .scene import THINLENS, Camera
-
-
-def _concentric_disk(u):
-    # Shirley & Chiu 1997 (used here only for the lens; the warps package owns the general maps).
-    a, b = 2 * u[0] - 1, 2 * u[1] - 1
-    use_a = jnp.abs(a) > jnp.abs(b)
-    r = jnp.where(use_a, a, b)
-    safe_a = jnp.where(a == 0, 1.0, a)
-    safe_b = jnp.where(b == 0, 1.0, b)
-    phi = jnp.where(use_a, (jnp.pi / 4) * (b / safe_a), jnp.pi / 2 - (jnp.pi / 4) * (a / safe_b))
-    phi = jnp.where((a == 0) & (b == 0), 0.0, phi)
-    return r * jnp.cos(phi), r * jnp.sin(phi)
 
 
 def generate_ray(
@@ -47,7 +36,7 @@ def generate_ray(
         if square_aperture:
             ax, ay = 2 * lens[0] - 1, 2 * lens[1] - 1
         else:
-            ax, ay = _concentric_disk(lens)
+            ax, ay = ConcentricDisk().sample(lens)  # Shirley & Chiu 1997
         ap = jnp.stack([ax, ay, jnp.float32(0.0)]) * camera.aperture_radius
         d_local = near * camera.focus_distance - ap
     else:

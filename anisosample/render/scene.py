@@ -114,19 +114,11 @@ class Lights(eqx.Module):
 class Scene(eqx.Module):
     """A scene as a PyTree of arrays (see the module docstring)."""
 
-    # Planar primitives p0 + a e1 + b e2: triangles (a + b <= 1) and parallelograms (a, b <= 1).
-    tri_p0: Float[Array, "t 3"]
-    tri_e1: Float[Array, "t 3"]
-    tri_e2: Float[Array, "t 3"]
-    tri_n: Float[Array, "t 3"]  # unit geometric normal (front side)
-    tri_uv0: Float[Array, "t 2"]
-    tri_uv1: Float[Array, "t 2"]
-    tri_uv2: Float[Array, "t 2"]
-    tri_material: Int[Array, " t"]
-    tri_light: Int[Array, " t"]  # index into lights (light primitive), -1 if not emissive
+    # Planar primitives p0 + a e1 + b e2: triangles (a + b <= 1) and parallelograms (a, b <= 1),
+    # stored once, in the layouts the intersection kernel reads (builder._plane_rows).
     tri_soa: Float[Array, "13 t"]  # plane test rows: n, n.p0, r1, p0.r1, r2, p0.r2, parallelogram
-    tri_attr: Float[Array, "t 9"]  # n, uv0, uv1, uv2 packed: one gather per hit
-    tri_ids: Int[Array, "t 2"]  # material, light packed
+    tri_attr: Float[Array, "t 9"]  # unit front normal n, uv0, uv1, uv2: one gather per hit
+    tri_ids: Int[Array, "t 2"]  # material, light primitive (-1 if not emissive)
     # Spheres.
     sph_center: Float[Array, "s 3"]
     sph_radius: Float[Array, " s"]
