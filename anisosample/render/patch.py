@@ -158,7 +158,8 @@ def uv_towards(c: Float[Array, "2 2 3"], ref: Float[Array, "3"], p: Float[Array,
 class SeenPatch(BilinearPatch):
     """``warps.BilinearPatch`` seen from ``origin``: its inverse (hence its pdf and every
     chain's H Algorithm 2) finds ``(u, v)`` of a point by tracing the ray from ``origin``
-    through it (:func:`uv_towards`, exact) instead of Gauss-Newton from the patch centre.
+    through it (:func:`uv_towards`, exact) instead of Gauss-Newton from the patch centre
+    (which stays the fallback where the ray test finds no hit, e.g. at the boundary).
     The renderer's light chains end in it (:mod:`~anisosample.render.light_warps`)."""
 
     origin: Float[Array, "3"]
@@ -170,7 +171,9 @@ class SeenPatch(BilinearPatch):
 
     def _invert(self, x):
         uv, found = uv_towards(self.corners, self.origin, x)
-        return jnp.where(found, uv, -1.0)  # not found: off the support (pdf 0)
+        # Not found (a point on the patch's boundary, where the ray test's rounding can reject
+        # the hit, or off the patch): Gauss-Newton, whose residual test then decides the pdf.
+        return jnp.where(found, uv, super()._invert(x))
 
 
 # --- building (numpy, float64) ----------------------------------------------------------------
@@ -214,14 +217,17 @@ def check_corners(corners) -> tuple[np.ndarray, float]:
 
 
 def build_patches(entries: list) -> Patches:
-    """:class:`Patches` from builder entries ``(corners (2, 2, 3), material, light)``."""
+    """:class:`Patches` from the builder's records (``corners (2, 2, 3)``, ``material``,
+    ``light`` attributes: ``builder.PatchRecord``)."""
+    from .builder import PatchRecord
+
     if not entries:
         corners = np.full((1, 2, 2, 3), 1e30)
         corners[0, 1, :, 0] += 1e29  # a far-away placeholder that no ray reaches
         corners[0, :, 1, 1] += 1e29
-        entries = [(corners[0], 0, -1)]
+        entries = [PatchRecord(corners[0], 0, -1)]
     return Patches(
-        corners=jnp.asarray(np.array([e[0] for e in entries]), jnp.float32),
-        material=jnp.asarray(np.array([e[1] for e in entries], np.int64), jnp.int32),
-        light=jnp.asarray(np.array([e[2] for e in entries], np.int64), jnp.int32),
+        corners=jnp.asarray(np.array([e.corners for e in entries]), jnp.float32),
+        material=jnp.asarray(np.array([e.material for e in entries], np.int64), jnp.int32),
+        light=jnp.asarray(np.array([e.light for e in entries], np.int64), jnp.int32),
     )

@@ -78,21 +78,29 @@ class CosineSphericalTriangle(AbstractWarp):
         return jnp.cos(s) * t.a + jnp.sin(s) * tac
 
     def _phi_of_s(self):
-        """Lambert's signed sum for ``A B C'(s)`` as ``k_ab + s k_ca + (BC' term)``.
+        """Lambert's signed sum for ``A B C'(s)`` as ``k_ab + s k_ca + (BC' term)``, scalars only.
 
-        Lambert's sum over the edges of ``A B C'``: edge AB is fixed; edge C'A spans the angle
-        ``s`` on the great circle of AC, whose normal ``tac x A`` does not move, so it
-        contributes ``s n . (tac x A)``; only edge BC' needs an angle and a normal per
-        evaluation (one third of :func:`projected_solid_angle`'s work).
+        Edge AB is fixed; edge C'A spans the angle ``s`` on the great circle of AC, whose normal
+        ``tac x A`` does not move, so it contributes ``s n . (tac x A)``. For edge BC' with
+        ``C'(s) = cos(s) A + sin(s) tac`` the dot product ``B . C'``, ``n . (B x C')`` and
+        ``|B x C'|^2`` are trigonometric combinations of constants: one evaluation costs a sine,
+        a cosine, a square root and an arc tangent.
         """
         t, n = self.triangle, self.normal
-        tac = safe_normalize(t.c - jnp.dot(t.c, t.a) * t.a)
-        k_ab = angle_between(t.a, t.b) * jnp.dot(n, safe_normalize(jnp.cross(t.a, t.b)))
-        k_ca = jnp.dot(n, jnp.cross(tac, t.a))
+        a, b = t.a, t.b
+        tac = safe_normalize(t.c - jnp.dot(t.c, a) * a)
+        k_ab = angle_between(a, b) * jnp.dot(n, safe_normalize(jnp.cross(a, b)))
+        k_ca = jnp.dot(n, jnp.cross(tac, a))
+        bxa, bxt = jnp.cross(b, a), jnp.cross(b, tac)
+        ba, bt = jnp.dot(b, a), jnp.dot(b, tac)
+        na, nt = jnp.dot(n, bxa), jnp.dot(n, bxt)
+        aa, at, tt = jnp.dot(bxa, bxa), jnp.dot(bxa, bxt), jnp.dot(bxt, bxt)
 
         def signed(s):
-            cp = jnp.cos(s) * t.a + jnp.sin(s) * tac
-            bc = angle_between(t.b, cp) * jnp.dot(n, safe_normalize(jnp.cross(t.b, cp)))
+            cs, sn = jnp.cos(s), jnp.sin(s)
+            q = jnp.sqrt(jnp.maximum(cs * cs * aa + 2.0 * cs * sn * at + sn * sn * tt, 0.0))
+            angle = jnp.arctan2(q, cs * ba + sn * bt)  # angle between B and C'
+            bc = angle * (cs * na + sn * nt) / jnp.where(q > 0, q, 1.0)
             return k_ab + s * k_ca + bc
 
         return signed
