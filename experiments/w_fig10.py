@@ -10,10 +10,14 @@ machine, per scene, with bench-like timing (warm-up, best of ``repeats``):
 * ``t_spp``: one sample of one pixel in the renderer (``anisosample.render.render`` with the
   fixed primary hit, pmj02bn points, ``spp`` samples, whole image), per pixel and sample.
 
-``shift = t_est / t_spp`` samples per pixel. The aligned curves of ``w_fig9`` (reused, or
-computed first with the same scale) are drawn at ``N + shift``; the unaligned ones at ``N``. The
-JSON also gives, at the aligned curve's smallest N, the unaligned variances interpolated
-(log-log) at ``N + shift`` and the ratio. Timings depend on the machine and its load.
+``shift = t_est / t_spp`` samples per pixel, timed on a ``timing_size``^2 image (both costs
+are per pixel, so the image size only sets how long the timing takes); ``gate_shift_spp`` is
+the per-pixel gate's probe (beyond W, an upper bound: every pixel probed) in the same units.
+The curves are W Fig. 9's on its one-edge penumbra pixels (``w_fig9``, reused or computed
+first at the same scale): the median over those pixels of each method's per-pixel variance;
+the aligned curves are drawn at ``N + shift``, the unaligned ones at ``N``. The JSON also
+gives, at the smallest N, each unaligned variance interpolated (log-log) at ``N + shift`` and
+the aligned (block) variance over it. Timings depend on the machine and its load.
 
     python experiments/w_fig10.py --scale small|paper [--out DIR] [--fig9-out DIR]
 """
@@ -34,15 +38,20 @@ import anisosample as asp
 from anisosample import plot, render
 
 NAME = "w_fig10"
-SCALES = {"small": dict(repeats=3, spp=64), "paper": dict(repeats=5, spp=256)}
+SCALES = {"small": dict(repeats=3, spp=64, timing_size=128),
+          "paper": dict(repeats=5, spp=256, timing_size=256)}
+CLASS = "one-edge"  # W Fig. 9's penumbra pixels: where the claim lives
+ALIGNED = "aligned (block)"  # what the renderer's aligned sampler uses (W Sec. 5.4)
 
 
 def measure(name, cfg9, cfg, key):
-    scene = W.load_scene(name, cfg9["size"], cfg9["size"])
+    scene = W.load_scene(name, cfg["timing_size"], cfg["timing_size"])
     base = W.base_integrand(scene, name)
     bp = cfg9["block_px"]
     W.estimate_blocks(scene, base, bp)  # warm-up (compilation)
     t_est = min(W.estimate_blocks(scene, base, bp)[1] for _ in range(cfg["repeats"]))
+    W.pixel_gate(scene, base)  # the per-pixel gate's probe (beyond W), warm-up
+    t_gate = min(W.pixel_gate(scene, base)[1] for _ in range(cfg["repeats"]))
     opts = dict(spp=cfg["spp"], sampler="pmj02bn", pixel_center=True, progress=False,
                 square_aperture=W.SCENES[name]["square_aperture"])
     render.render(scene, key, **opts)  # warm-up
@@ -55,7 +64,15 @@ def measure(name, cfg9, cfg, key):
     t_spp = min(times) / (px * cfg["spp"])
     return {"t_est_s": t_est, "t_est_per_pixel_s": t_est / px, "t_render_s": min(times),
             "t_per_sample_s": t_spp, "shift_spp": t_est / px / t_spp,
+            "t_gate_s": t_gate, "gate_shift_spp": t_gate / px / t_spp,
             "integrand_samples_per_pixel_for_estimation": 96**2 / bp**2}
+
+
+def median_curves(c) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """``(ns, {method: median over the class's pixels of the per-pixel variance})``."""
+    methods = c["pixels"][0]["methods"]
+    return np.asarray(c["ns"], float), {
+        m: np.median([r["methods"][m]["variance"] for r in c["pixels"]], axis=0) for m in methods}
 
 
 def interp_loglog(ns, var, x):
@@ -76,35 +93,38 @@ def main(argv=None):
     key = jax.random.key(args.seed)
     settings = {**cfg, "scale": args.scale, "seed": args.seed, "fig9": cfg9}
     cached = common.cached_json(args.out / "timings.json", args.fresh)
-    scenes = [s for s, r in fig9["scenes"].items() if "curves" in r]
+    curves9 = {s: median_curves(r["classes"][CLASS]) for s, r in fig9["scenes"].items()
+               if r["classes"].get(CLASS, {}).get("pixels")}
+    scenes = list(curves9)
     if cached is not None and cached.get("settings") == settings:
         timings = cached["timings"]
     else:
         timings = {s: measure(s, cfg9, cfg, jax.random.fold_in(key, i))
                    for i, s in enumerate(scenes)}
         asp.io.save_json(args.out / "timings.json",
-                                {"settings": settings, "timings": timings}, overwrite=True)
+                         {"settings": settings, "timings": timings}, overwrite=True)
     fig, axes = plot.new_figure(1, max(1, len(scenes)), size=3.4)
     rows = {}
     for col, s in enumerate(scenes):
-        r, t = fig9["scenes"][s], timings[s]
-        ns = np.asarray(r["ns"], float)
+        ns, curves = curves9[s]
+        t = timings[s]
         shift = t["shift_spp"]
         ax = axes[0, col]
         cmp = {}
-        for m, c in r["curves"].items():
+        for m, v in curves.items():
             aligned = m.startswith("aligned")
             x = ns + shift if aligned else ns
-            plot.convergence_panel(ax, x, c["variance"], label=m + (" (+est.)" if aligned else ""))
-        for m, c in r["curves"].items():
+            plot.convergence_panel(ax, x, v, label=m + (" (+est.)" if aligned else ""))
+        for m, v in curves.items():
             if not m.startswith("aligned"):
-                at = interp_loglog(ns, c["variance"], ns[0] + shift)
+                at = interp_loglog(ns, v, ns[0] + shift)
                 cmp[m] = {"variance_at_N0_plus_shift": at,
-                          "aligned_over_this": r["curves"]["aligned 3-dir"]["variance"][0] / at}
-        rows[s] = {"ns": r["ns"], "shift_spp": shift, "aligned_ns_shifted": (ns + shift).tolist(),
-                   "curves": {m: c["variance"] for m, c in r["curves"].items()},
+                          "aligned_over_this": curves[ALIGNED][0] / at}
+        rows[s] = {"ns": ns.tolist(), "pixels": len(fig9["scenes"][s]["classes"][CLASS]["pixels"]),
+                   "shift_spp": shift, "aligned_ns_shifted": (ns + shift).tolist(),
+                   "curves": {m: v.tolist() for m, v in curves.items()},
                    "at_smallest_n": cmp, **t}
-        ax.set_title(f"{s}: equal time, aligned +{shift:.1f} spp", fontsize=8)
+        ax.set_title(f"{s}: {CLASS} pixels, equal time, aligned +{shift:.1f} spp", fontsize=8)
         ax.set_xlabel("N (samples per pixel of equal time)")
         ax.legend(fontsize=6, loc="lower left")
     pngs = plot.save_figure(fig, args.out / NAME, formats=("png",))

@@ -1,28 +1,49 @@
-"""W Fig. 9: per-region variance convergence in the rendered scenes over 2^8..2^12 spp.
+"""W Fig. 9, measured where the claim lives: per-pixel convergence on classified pixels.
 
-For each scene (W Sec. 6.2: CORNELL-BOX, BREAKFAST-ROOM = our blinds, ATTIC, DEPTH-OF-FIELD;
-the shipped look-alikes under experiments/scenes/, attic only if its XML exists) the principal
-directions are estimated per block of pixels (W Sec. 5.3, 96^2 samples per block, tiled
-over the block's pixels; see ``experiments/_w_render.py``), one block is picked
-(``_w_render.pick_block``: a first direction that a 3-direction table can match, at least 10
-degrees from both axes if any block has one, then the largest edge strength, i.e. orientation-
-histogram mass off the axes; outlined in ``w_fig7``'s maps), and in a region of pixels at its
-centre the variance of each pixel's estimator (fixed primary hit, W's setting) is measured
-over toroidal shifts of one point set per method (fresh per n) and averaged over the region:
+W's rendered claim (Sec. 6.2, Fig. 9) is about pixels whose 2D integrand has a straight edge:
+there the aligned sets converge at about n^-1.75 while pmj02bn and sheared pmj02bn stay near
+n^-1.5. A region of fully lit pixels shows every sampler's smooth-integrand rate instead, so
+the regions here are chosen from the pixel classes (:mod:`anisosample.render.pixel_classes`):
 
-* ``pmj02bn`` (matches 0 and 90 degrees only),
-* ``sheared pmj02bn`` (Singh & Jarosz 2017: one axis re-aimed at the block's direction),
-* ``aligned 3-dir`` (the table set for 0, 90 and the block's direction, W Sec. 5.4).
+* ``one-edge``: one straight edge whose spectral direction is at least 10 degrees from both axes
+  (a penumbra of one occluder edge);
+* ``corner``: two straight edges (W's 4-direction sets apply);
+* ``lit``: no edge (the control: alignment has nothing to act on);
+* ``lit-aligned-block``: lit pixels whose block has an estimated direction, the lit pixels W's
+  sampler gives an aligned set (where the per-pixel gate matters).
 
-W's 4-direction sets are not measured (no 4141-set table here). Slopes are weighted log-log fits
-with 95 % intervals (``anisosample.variance.fit_slope``). W's claims: aligned about -1.75 vs about
--1.5 for pmj02bn/sheared on CORNELL and DEPTH-OF-FIELD; shearing helps only on BREAKFAST-ROOM.
+Pixels are picked at W's resolution (``size``, 1280^2 at both scales): a coarse classification
+(``coarse``^2) proposes candidates, each candidate's pixel of the full-size image is classified
+again from its own dense grid and kept if its class agrees, up to ``per_class`` pixels per
+class (seeded choice). Only those pixels and their blocks are evaluated, which is what makes
+1280^2 affordable on a CPU: the block direction is W's estimate (Sec. 5.3: 16x16-pixel blocks,
+96^2 samples per block, each pixel filling a 6x6 tile; ``render.aligned.block_grid_values`` and
+``directions.estimate``) of the block that holds the pixel.
 
-Writes ``results/w_fig9/w_fig9.png`` (per scene: the block's sample grid, its power spectrum, its
-orientation histogram with the estimate, and the convergence plot) and ``w_fig9.json`` (every
-plotted number). Finished scenes are reused on rerun (``--fresh`` recomputes).
+Per pixel (fixed primary hit, W's setting), the estimator variance over ``realizations``
+toroidal shifts of one set per method and n (``variance.realization_estimates``), for
 
-    python experiments/w_fig9.py --scale small|paper [--out DIR] [--scenes cornell,blinds]
+* ``pmj02bn``; ``sheared pmj02bn`` (Singh & Jarosz 2017, to the block's direction);
+* ``aligned (block)``: the 3-direction table set for the block's estimated direction;
+* ``aligned (true)``: the 3-direction set for the pixel's own (classified) direction, the upper
+  bound of what estimation can reach;
+* corners also: ``aligned 4-dir (true)``, W's 4-direction set for the pixel's two directions,
+  and ``aligned 4-dir (block)`` for the block's two estimated directions when it has two;
+* ``aligned (gated)``: ``aligned (block)`` where the renderer's per-pixel gate sees a
+  discontinuity in the pixel's probe, pmj02bn elsewhere (beyond W; :func:`add_gate`).
+
+A block whose direction rounds onto an axis (or has none) uses pmj02bn for its aligned methods
+(W Sec. 5.4's fallback). Per-pixel slopes are weighted log-log fits over ``log2_ns``
+(``variance.fit_slope``); the summary gives their median and quartiles, and the per-pixel
+variance at the largest n relative to pmj02bn's (median and quartiles). Sets missing from the
+installed tables are synthesized on demand into ``results/w_render_tables``.
+
+Writes ``results/w_fig9/w_fig9.json`` (per scene and class: the image resolution, every pixel
+as ``[column, row]`` as ``render.pixel_integrand`` takes it, row 0 at the top, its class
+direction(s), its block's estimate, and per method its per-pixel variances and slopes) and
+``w_fig9.png``. Finished scenes are reused on rerun (``--fresh`` recomputes).
+
+    python experiments/w_fig9.py --scale small|paper [--scenes cornell,dof]
 """
 
 from __future__ import annotations
@@ -36,129 +57,285 @@ import jax
 import numpy as np
 
 import anisosample as asp
-from anisosample import directions, plot
+from anisosample import directions, plot, samplers, tables
 from anisosample import variance as V
 from anisosample.progress import progress
+from anisosample.render import aligned
+from anisosample.render import pixel_classes as pc
 
 NAME = "w_fig9"
 SCALES = {
-    # small: a 128^2 image, 16-pixel blocks, the 4x4 pixels at the block centre, 2^8..2^12 spp
-    "small": dict(size=128, block_px=16, region_px=4, log2_ns=[8, 9, 10, 11, 12], realizations=256),
-    # paper: W's 1280^2 image, 16x16-pixel blocks, the whole block, 2^8..2^12 spp (GPU)
-    "paper": dict(size=1280, block_px=16, region_px=16, log2_ns=[8, 9, 10, 11, 12],
-                  realizations=128),
+    "small": dict(coarse=128, coarse_grid=48, size=1280, grid=64, block_px=16, samples=96,
+                  log2_ns=[8, 9, 10, 11, 12], corner_log2_ns=[8, 10, 12], realizations=64,
+                  per_class=30, min_axis_deg=10.0),
+    "paper": dict(coarse=256, coarse_grid=64, size=1280, grid=96, block_px=16, samples=96,
+                  log2_ns=[8, 9, 10, 11, 12], corner_log2_ns=[8, 9, 10, 11, 12],
+                  realizations=256, per_class=60, min_axis_deg=10.0),
 }
+CLASS_NAMES = ("one-edge", "corner", "lit", "lit-aligned-block")
+# "lit-aligned-block": lit pixels whose block's estimate has a usable direction, i.e. the lit
+# pixels W's sampler hands an aligned set (where the per-pixel gate matters).
+GATE_PROBE = 6  # the renderer's probe side (render.estimation.pixel_probes' default)
+SCENES = ("cornell", "dof")
+
+
+def _off_axis(d) -> np.ndarray:
+    d = np.asarray(d) % 90.0
+    return np.minimum(d, 90.0 - d)
+
+
+def pick_pixels(name, cfg, rng):
+    """Pixels of each class at the full resolution (module docstring), with their classes."""
+    sq = W.SCENES[name]["square_aperture"]
+    coarse = W.load_scene(name, cfg["coarse"], cfg["coarse"])
+    cl = pc.pixel_classes(coarse, grid=cfg["coarse_grid"], square_aperture=sq, progress=True)
+    full = W.load_scene(name, cfg["size"], cfg["size"])
+    f = cfg["size"] // cfg["coarse"]
+    picked = {}
+    for cname in CLASS_NAMES[:3]:
+        cand = cl.pixels(cname)
+        if cname == "one-edge":
+            cand = cand[_off_axis(cl.directions_deg[cand[:, 1], cand[:, 0], 0])
+                        >= cfg["min_axis_deg"]]
+        cand = cand[rng.permutation(len(cand))][: 4 * cfg["per_class"]]
+        if len(cand) == 0:
+            picked[cname] = (np.zeros((0, 2), int), np.zeros((0, 2)), np.zeros(0, int))
+            continue
+        fine = cand * f + f // 2
+        fc = pc.pixel_classes(full, fine, grid=cfg["grid"], square_aperture=sq)
+        keep = fc.classes[fine[:, 1], fine[:, 0]] == pc.CLASSES.index(cname)
+        d = fc.directions_deg[fine[:, 1], fine[:, 0]]
+        if cname == "one-edge":
+            keep &= _off_axis(d[:, 0]) >= cfg["min_axis_deg"]
+        sel = np.nonzero(keep)[0][: cfg["per_class"]]
+        picked[cname] = (fine[sel], d[sel], fc.num_directions[fine[sel, 1], fine[sel, 0]])
+    return full, cl.counts(), picked
+
+
+def lit_in_aligned_blocks(name, cfg, key, full, base, cache):
+    """Lit pixels (confirmed at the full size) whose block's estimate has a direction the
+    aligned table can take (``selection.table_directions``), up to ``per_class`` of them."""
+    from anisosample import selection
+
+    sq = W.SCENES[name]["square_aperture"]
+    rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).astype(np.uint32))
+    coarse = W.load_scene(name, cfg["coarse"], cfg["coarse"])
+    cl = pc.pixel_classes(coarse, grid=cfg["coarse_grid"], square_aperture=sq)
+    f = cfg["size"] // cfg["coarse"]
+    cand = cl.pixels("lit")
+    cand = cand[rng.permutation(len(cand))] * f + f // 2
+    chosen = []
+    for s in range(0, len(cand), 4 * cfg["per_class"]):
+        part = cand[s:s + 4 * cfg["per_class"]]
+        part = [p for p in part if selection.table_directions(
+            block_estimate(full, base, p, cfg, cache)[1], k=1)]
+        if part:
+            fc = pc.pixel_classes(full, np.array(part), grid=cfg["grid"], square_aperture=sq)
+            chosen += [p for p in part if fc.classes[p[1], p[0]] == pc.CLASSES.index("lit")]
+        if len(chosen) >= cfg["per_class"]:
+            break
+    px = np.array(chosen[: cfg["per_class"]], int).reshape(-1, 2)
+    return px, np.zeros((len(px), 2)), np.zeros(len(px), int)
+
+
+def block_estimate(full, base, pixel, cfg, cache):
+    """W's estimate (Sec. 5.3) of the block holding ``pixel``: directions, strongest first."""
+    b = (int(pixel[1]) // cfg["block_px"], int(pixel[0]) // cfg["block_px"])
+    if b not in cache:
+        grid = aligned.block_grid_values(full, b, cfg["block_px"], cfg["samples"], integrand=base)
+        cache[b] = directions.estimate(grid, k=2)
+    return b, cache[b]
+
+
+def _lookup(extra, n):
+    """The aligned set for integer extra directions (3 or 4 directions in all), or None."""
+    extra = tuple(sorted({int(round(e)) % 180 for e in extra} - set(tables.AXES_DEG)))
+    if not extra:
+        return None
+    try:  # the installed tables (shipped, user cache), then this experiment's own
+        return tables.lookup(extra, n, kind=2 + len(extra), build_missing=False)
+    except FileNotFoundError:
+        return tables.lookup(extra, n, kind=2 + len(extra), table=W.TABLES, build_missing=True)
+
+
+def method_sets(cname, true_dirs, block_dirs, n, pmj):
+    """The point set of every method for one pixel (module docstring)."""
+    d_block = block_dirs[0] if block_dirs else None
+    sets = {"pmj02bn": pmj,
+            "sheared pmj02bn": pmj if d_block is None else samplers.shear(pmj, d_block)}
+    sets["aligned (block)"] = (_lookup((d_block,), n) if d_block is not None else None)
+    sets["aligned (true)"] = _lookup(true_dirs[:1], n) if len(true_dirs) else None
+    if cname == "corner":
+        sets["aligned 4-dir (true)"] = _lookup(true_dirs[:2], n)
+        sets["aligned 4-dir (block)"] = (_lookup(block_dirs[:2], n) if len(block_dirs) == 2
+                                         else None)
+    return {m: pmj if s is None else s for m, s in sets.items()}
+
+
+def measure_class(full, base, cname, pixels, dirs, num, cfg, key, cache):
+    ns = [2**k for k in (cfg["corner_log2_ns"] if cname == "corner" else cfg["log2_ns"])]
+    rows = []
+    for q, pix in enumerate(progress(pixels, desc=cname, leave=False)):
+        true_dirs = [float(x) for x in dirs[q][: int(num[q])]]
+        block, block_dirs = block_estimate(full, base, pix, cfg, cache)
+        f = W.pixel_f(base, full, (int(pix[0]), int(pix[1])))
+        per = {}
+        for n in ns:
+            pmj = samplers.get("pmj02bn")(jax.random.fold_in(key, n), n)
+            sets = method_sets(cname, true_dirs, list(block_dirs), n, pmj)
+            kq = jax.random.fold_in(jax.random.fold_in(key, 10_000 + q), n)
+            for m, pts in sets.items():
+                v, se, _ = W.pixel_variance(f, pts, n, kq, cfg["realizations"])
+                per.setdefault(m, {"variance": [], "std_error": []})
+                per[m]["variance"].append(v)
+                per[m]["std_error"].append(se)
+        for c in per.values():
+            c["slope"] = V.fit_slope(ns, c["variance"], c["std_error"]).slope
+        rows.append({"pixel": [int(pix[0]), int(pix[1])], "true_directions_deg": true_dirs,
+                     "block": list(block), "block_directions_deg": [float(x) for x in block_dirs],
+                     "methods": per})
+    add_gate(full, base, rows)
+    return {"ns": ns, "pixels": rows, "summary": summarize(rows)}
+
+
+def add_gate(full, base, rows):
+    """The renderer's per-pixel gate (``render.estimation.probe_discontinuous`` on the pixel's
+    6x6 probe) and the gated aligned method: the block's aligned set where the probe shows a
+    discontinuity, pmj02bn elsewhere -- the same sets and keys as those two columns, so its
+    variances are theirs, pixel by pixel."""
+    if not rows:
+        return
+    from anisosample.render import estimation
+
+    px = np.array([r["pixel"] for r in rows])
+    probes = np.concatenate([g for _, g in pc.pixel_grids(
+        full, px, grid=GATE_PROBE, dimension=base.dimension, technique=base.technique,
+        square_aperture=base.square_aperture)])
+    for r, flag in zip(rows, estimation.probe_discontinuous(probes), strict=True):
+        r["gate_discontinuous"] = bool(flag)
+        r["methods"]["aligned (gated)"] = dict(
+            r["methods"]["aligned (block)" if flag else "pmj02bn"])
+
+
+def summarize(rows) -> dict:
+    if not rows:
+        return {}
+    out = {}
+    for m in rows[0]["methods"]:
+        slopes = np.array([r["methods"][m]["slope"] for r in rows])
+        ratio = np.array([r["methods"][m]["variance"][-1] / r["methods"]["pmj02bn"]["variance"][-1]
+                          for r in rows])
+        out[m] = {"slope_median": float(np.median(slopes)),
+                  "slope_quartiles": [float(x) for x in np.percentile(slopes, [25, 75])],
+                  "ratio_median": float(np.median(ratio)),
+                  "ratio_quartiles": [float(x) for x in np.percentile(ratio, [25, 75])]}
+    gate = [r["gate_discontinuous"] for r in rows if "gate_discontinuous" in r]
+    if gate:
+        out["gate_discontinuous_share"] = float(np.mean(gate))
+    err = [directions.axial_distance_deg(r["block_directions_deg"][0], r["true_directions_deg"][0])
+           for r in rows if r["block_directions_deg"] and r["true_directions_deg"]]
+    if err:
+        err = np.asarray(err, float)
+        out["block_direction_error_deg"] = {
+            "median": float(np.median(err)), "within_3_deg": float(np.mean(err <= 3.0)),
+            "pixels_with_estimate": int(len(err)), "pixels": len(rows)}
+    return out
 
 
 def run_scene(name, cfg, key, out, fresh):
-    settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist()),
-                "estimation_layout": "tiles",
-                "block_rule": "off-axis >= 10 deg, then largest edge strength"}
+    settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist())}
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
     if cached is not None and cached.get("settings") == settings:
+        stale = [c for c in cached["classes"].values()
+                 if c["pixels"] and "gate_discontinuous" not in c["pixels"][0]]
+        absent = [c for c in CLASS_NAMES if c not in cached["classes"]]
+        if stale or absent:  # a record from before a column or class was added: add only those
+            full = W.load_scene(name, cfg["size"], cfg["size"])
+            base = W.base_integrand(full, name)
+            for c in stale:
+                add_gate(full, base, c["pixels"])
+                c["summary"] = summarize(c["pixels"])
+            for cname in absent:
+                cached["classes"][cname] = measure_extra_class(name, cname, cfg, key, full, base)
+            asp.io.save_json(path, cached, overwrite=True)
         return cached
-    scene = W.load_scene(name, cfg["size"], cfg["size"])
-    base = W.base_integrand(scene, name)
-    est, est_seconds, strength = W.estimate_blocks(scene, base, cfg["block_px"])
-    block = W.pick_block(est, strength=strength)
-    if block is None:
-        print(f"{name}: no block with a matchable extra direction; skipped")
-        rec = {"settings": settings, "skipped": "no block with a matchable extra direction"}
-        asp.io.save_json(path, rec, overwrite=True)
-        return rec
-    a, b = block
-    d = W.strongest(est, block)
-    dirs = np.asarray(est.directions_deg[a, b]).tolist()
-    valid = np.asarray(est.valid[a, b]).tolist()
-    print(f"{name}: block {block}, directions {[x for x, v in zip(dirs, valid, strict=True) if v]} "
-          f"(table direction {W.aligned_usable(d)})")
-    pixels = W.region_pixels(block, cfg["block_px"], cfg["region_px"])
-    ns = [2**k for k in cfg["log2_ns"]]
-    curves = {m: {"variance": [], "std_error": [], "mean": []} for m in W.METHODS}
-    k_sets, k_pix = jax.random.split(key)
-    for n in progress(ns, desc=f"{name} n", leave=False):
-        sets = W.block_sets(d, n, jax.random.fold_in(k_sets, n))
-        for m in W.METHODS:
-            var, se, mean = [], [], []
-            for q, pix in enumerate(pixels):
-                f = W.pixel_f(base, scene, pix)
-                kq = jax.random.fold_in(jax.random.fold_in(k_pix, n), q)
-                v, s, mu = W.pixel_variance(f, sets[m], n, kq, cfg["realizations"])
-                var.append(v)
-                se.append(s)
-                mean.append(mu)
-            curves[m]["variance"].append(float(np.mean(var)))
-            curves[m]["std_error"].append(float(np.sqrt(np.sum(np.square(se))) / len(se)))
-            curves[m]["mean"].append(float(np.mean(mean)))
-    for c in curves.values():
-        c["fit"] = V.fit_slope(ns, c["variance"], c["std_error"]).as_dict()
-    grid = W.block_grid_values(scene, base, block, cfg["block_px"])
-    hist = np.asarray(directions.orientation_histogram(grid))
-    rec = {
-        "settings": settings, "block": list(block), "pixels": [list(p) for p in pixels],
-        "directions_deg": dirs, "valid": valid,
-        "confidence": np.asarray(est.confidence[a, b]).tolist(),
-        "table_direction_deg": W.aligned_usable(d), "ns": ns, "curves": curves,
-        "estimation_seconds_all_blocks": est_seconds,
-        "block_grid": grid.tolist(), "histogram": hist.tolist(),
-    }
+    started = time.time()
+    rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).astype(np.uint32))
+    full, coarse_counts, picked = pick_pixels(name, cfg, rng)
+    base = W.base_integrand(full, name)
+    cache = {}
+    rec = {"settings": settings, "resolution": [cfg["size"], cfg["size"]],
+           "coarse_class_counts": coarse_counts, "classes": {}}
+    for i, cname in enumerate(CLASS_NAMES[:3]):
+        pixels, dirs, num = picked[cname]
+        print(f"{name}: {cname}: {len(pixels)} pixels")
+        rec["classes"][cname] = measure_class(full, base, cname, pixels, dirs, num, cfg,
+                                              jax.random.fold_in(key, i), cache)
+    for cname in CLASS_NAMES[3:]:
+        rec["classes"][cname] = measure_extra_class(name, cname, cfg, key, full, base, cache)
+    rec["seconds"] = time.time() - started
     asp.io.save_json(path, rec, overwrite=True)
     return rec
 
 
+def measure_extra_class(name, cname, cfg, key, full, base, cache=None):
+    """The classes after the first three (their own keys, so adding one leaves the others)."""
+    cache = {} if cache is None else cache
+    i = CLASS_NAMES.index(cname)
+    pixels, dirs, num = lit_in_aligned_blocks(name, cfg, jax.random.fold_in(key, 100 + i),
+                                              full, base, cache)
+    print(f"{name}: {cname}: {len(pixels)} pixels")
+    return measure_class(full, base, cname, pixels, dirs, num, cfg, jax.random.fold_in(key, i),
+                         cache)
+
+
 def figure(results, out):
-    names = [s for s, r in results.items() if "curves" in r]
-    fig, axes = plot.new_figure(max(1, len(names)), 4, size=2.6)
+    names = list(results)
+    fig, axes = plot.new_figure(max(1, len(names)), len(CLASS_NAMES), size=2.8)
     for row, s in enumerate(names):
-        r = results[s]
-        g = np.asarray(r["block_grid"])
-        ax = axes[row, 0]
-        ax.imshow(g, origin="lower", cmap="gray", extent=(0, 1, 0, 1))
-        ax.set_title(f"{s}: block {tuple(r['block'])} f(x)", fontsize=8)
-        spec = np.abs(np.fft.fftshift(np.fft.fft2(g - g.mean()))) ** 2
-        ax = axes[row, 1]
-        ax.imshow(np.log10(spec + 1e-12 * spec.max()), origin="lower", cmap="magma")
-        ax.set_title("log10 P_f", fontsize=8)
-        ax.set_xticks([])
-        ax.set_yticks([])
-        ax = axes[row, 2]
-        h = np.asarray(r["histogram"])
-        ax.plot(np.arange(h.size), h, lw=0.8)
-        for d, v in zip(r["directions_deg"], r["valid"], strict=True):
-            if v:
-                ax.axvline(d, color="r", lw=0.8)
-        ax.set_title("orientation histogram, estimate (red)", fontsize=8)
-        ax.set_xlabel("deg", fontsize=7)
-        ax = axes[row, 3]
-        for m, c in r["curves"].items():
-            f = c["fit"]
-            plot.convergence_panel(ax, r["ns"], c["variance"], label=m, slope=f["slope"],
-                                   slope_ci=(f["ci_low"], f["ci_high"]))
-        ax.legend(fontsize=6, loc="lower left")
-        ax.set_title(f"{s}: region variance", fontsize=8)
+        for col, cname in enumerate(CLASS_NAMES):
+            ax = axes[row, col]
+            c = results[s]["classes"].get(cname, {})
+            if not c.get("pixels"):
+                ax.set_title(f"{s}: {cname}: no pixels", fontsize=8)
+                continue
+            ns = c["ns"]
+            for m in c["pixels"][0]["methods"]:
+                v = np.median([r["methods"][m]["variance"] for r in c["pixels"]], axis=0)
+                sm = c["summary"][m]
+                plot.convergence_panel(ax, ns, v, label=m, slope=sm["slope_median"])
+            ax.legend(fontsize=5, loc="lower left")
+            ax.set_title(f"{s}: {cname} ({len(c['pixels'])} px), median variance", fontsize=8)
     return plot.save_figure(fig, out / NAME, formats=("png",))
 
 
 def main(argv=None):
-    args = W.scene_parser(NAME, __doc__.splitlines()[0]).parse_args(argv)
+    p = W.scene_parser(NAME, __doc__.splitlines()[0])
+    p.set_defaults(scenes=",".join(SCENES))
+    args = p.parse_args(argv)
     started = time.time()
     cfg = SCALES[args.scale]
     results, missing = W.run_scenes(NAME, args, cfg, run_scene)
     pngs = figure(results, args.out)
     data = {"scenes": results, "missing_scenes": missing}
     json_path = common.write_record(args.out, NAME, data, {**cfg, "scale": args.scale,
-                                    "seed": args.seed, "methods": list(W.METHODS)}, started)
+                                    "seed": args.seed}, started)
     print(f"figure: {pngs[0]}\nnumbers: {json_path}")
     for s, r in results.items():
-        if "curves" not in r:
-            continue
-        print(f"  {s}: block {tuple(r['block'])}, directions "
-              f"{[round(d, 1) for d, v in zip(r['directions_deg'], r['valid'], strict=True) if v]}")
-        for m, c in r["curves"].items():
-            f = c["fit"]
-            print(f"    {m:16s} slope {f['slope']:+.3f} [{f['ci_low']:+.3f}, {f['ci_high']:+.3f}]"
-                  f"  Var@{r['ns'][-1]} {c['variance'][-1]:.3e}")
+        for cname, c in r["classes"].items():
+            print(f"  {s} {cname}: {len(c['pixels'])} pixels at {r['resolution']}")
+            for m, sm in c["summary"].items():
+                if m == "gate_discontinuous_share":
+                    print(f"    gate: {100 * sm:.0f}% of the pixels see a discontinuity")
+                    continue
+                if m == "block_direction_error_deg":
+                    print(f"    block direction error: median {sm['median']:.1f} deg, "
+                          f"{100 * sm['within_3_deg']:.0f}% within 3 deg")
+                    continue
+                q = sm["slope_quartiles"]
+                print(f"    {m:22s} slope {sm['slope_median']:+.2f} [{q[0]:+.2f}, {q[1]:+.2f}]"
+                      f"  Var@{c['ns'][-1]} / pmj02bn {sm['ratio_median']:.2f}")
     return json.loads(json_path.read_text())
 
 
