@@ -1,0 +1,164 @@
+"""Issue 14's defect, measured: rare samples of H Fig. 2's shipped scene and the 1-spp variance
+they carry, through the library renderer (after) or the old experiment pipeline (before).
+
+Shipped scene ``experiments/scenes/triangle_light.xml``, 48x48 pixel centres, ``N`` independent
+1-spp MIS samples per pixel (one light sample, one BSDF sample, power heuristic), for uniform
+solid angle, the bilinear and biquadratic cosine warps and Arvo 2001. Per sample: its luminance;
+(a) the light sample's direction misses the triangle (ray-triangle test from the ray origin,
+occluders ignored); (b) the BSDF sample hits the emitter while the technique's light pdf there is
+0 (so MIS gives it the full weight). "carry" is the share of ``sum (x - pixel mean)^2`` over all
+samples that comes from the flagged ones.
+
+    python experiments/h_fig2_defect.py [N]                  # the library renderer (now)
+    git show 74f13ac:experiments/_h_render.py > OLD/_h_render.py
+    git show 74f13ac:experiments/h_fig2.py > OLD/h_fig2.py
+    python experiments/h_fig2_defect.py [N] --before OLD     # the pipeline before issue 14
+"""
+
+import sys
+from pathlib import Path
+
+N = int(sys.argv[1]) if len(sys.argv) > 1 and sys.argv[1].isdigit() else 256
+BEFORE = sys.argv[sys.argv.index("--before") + 1] if "--before" in sys.argv else None
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def hits_triangle(verts, o, w):
+    """Whether the ray ``o + t w`` (t > 0) meets the triangle ``verts`` (Moeller-Trumbore)."""
+    import jax.numpy as jnp
+
+    e1, e2 = verts[1] - verts[0], verts[2] - verts[0]
+    pv = jnp.cross(w, e2)
+    det = jnp.dot(e1, pv)
+    tv = o - verts[0]
+    a = jnp.dot(tv, pv) / det
+    qv = jnp.cross(tv, e1)
+    b = jnp.dot(w, qv) / det
+    t = jnp.dot(e2, qv) / det
+    return (a >= 0) & (b >= 0) & (a + b <= 1) & (t > 0)
+
+
+def after():
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    import anisosample as asp
+    from anisosample.render import integrator as I
+    from anisosample.render.bsdf import sample_bsdf
+    from anisosample.render.camera import generate_ray
+    from anisosample.render.geometry import intersect, offset_origin
+    from anisosample.render.light_warps import Receiver, chain
+    from anisosample.render.lights import light_pdf
+
+    scene = asp.render.load_xml(ROOT / "experiments/scenes/triangle_light.xml", width=48, height=48)
+    L = scene.lights
+    verts = jnp.stack([L.p0[0], L.p0[0] + L.e1[0], L.p0[0] + L.e2[0]])
+    lum = jnp.asarray(I.LUMINANCE, jnp.float32)
+    TECHS = {"uniform solid angle": "none", "+ bilinear cosine warp": "cosine-bilinear",
+             "+ biquadratic cosine warp": "cosine-biquadratic",
+             "Arvo 2001 (cosine-weighted)": "arvo2001"}
+
+    def in_tri(o, w):
+        return hits_triangle(verts, o, w)
+
+    def flagged(lw):
+        w, h = scene.width, scene.height
+        half = jnp.full(2, 0.5, jnp.float32)
+        def pixel(q, k):
+            film = jnp.stack([((q % w) + 0.5) / w, ((q // w) + 0.5) / h]).astype(jnp.float32)
+            o, d = generate_ray(scene.camera, film, half)
+            hit = intersect(scene, o, d)
+            wi = -d
+            rec = Receiver(origin=offset_origin(scene, hit.p, hit.n, wi), n=hit.n, wi=wi,
+                           material=hit.material)
+            surf = hit.valid & (hit.light < 0)
+            warp = chain(scene, 1, 0, rec, "solid_angle", lw)
+            u = jax.random.uniform(k, (N, 4), jnp.float32, 0.0, 1.0 - 2.0**-24)
+            def one(ul, ub):
+                rgb = I.radiance(scene, film, half, ul, ub, technique="solid_angle",
+                                 light_warp=lw, mis=True)
+                val = jnp.dot(rgb, lum)
+                wl = warp.sample(ul)
+                miss = ~in_tri(rec.origin, wl)
+                wb, pb = sample_bsdf(scene.materials, hit.material, hit.n, wi, ub)
+                h2 = intersect(scene, rec.origin, wb)
+                hits = h2.valid & (h2.light >= 0) & (jnp.dot(h2.n, -wb) > 0) & (pb > 0)
+                zero = hits & ~(light_pdf(scene, 0, h2.p, rec, "solid_angle", lw) > 0)
+                return val, miss & surf, zero & surf
+            return jax.vmap(one)(u[:, :2], u[:, 2:])
+        npx = w * h
+        keys = jax.random.split(jax.random.key(1), npx)
+        f = jax.jit(lambda q, k: jax.lax.map(lambda a: jax.vmap(pixel)(*a), (q, k)))
+        v, m, z = f(jnp.arange(npx).reshape(48, 48), keys.reshape(48, 48))
+        return [np.asarray(a).reshape(-1, N) for a in (v, m, z)]
+
+    print(f"shipped H Fig. 2 scene, 48x48 pixel centres, {N} 1-spp MIS samples per pixel (library)")
+    for name, lw in TECHS.items():
+        v, m, z = flagged(lw)
+        v = v.astype(np.float64)
+        dev2 = (v - v.mean(1, keepdims=True)) ** 2
+        tot = dev2.sum()
+        print(f"{name:30s} 1-spp var (mean over px) {dev2.sum(1).mean()/(N-1):.4e}  "
+              f"light misses {m.mean():.2e} of samples (carry {dev2[m].sum()/tot:.3f}),  "
+              f"BSDF-hit pdf 0 {z.mean():.2e} (carry {dev2[z].sum()/tot:.3f}),  "
+              f"both {dev2[m|z].sum()/tot:.3f}", flush=True)
+
+
+def before(old):
+    sys.path.insert(0, str(old))
+    sys.path.insert(1, str(ROOT / "experiments"))
+    import _h_render as H
+    import h_fig2 as F
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    import anisosample as asp
+    from anisosample.render.bsdf import sample_bsdf
+    from anisosample.render.geometry import offset_origin
+
+    scene = asp.render.load_xml(F.SHIPPED, width=48, height=48)
+    verts = F.triangle_of(scene)
+    light = H.Light(normal=lambda x: jnp.asarray(scene.lights.normal[0]))
+    techs = F.techniques(verts)
+    sps = H.shading_points(scene)
+
+    def in_tri(o, w):
+        return hits_triangle(verts, o, w)
+
+    def flagged(make_warp):
+        mats = scene.materials
+        def pixel(sp, k):
+            warp = make_warp(sp)
+            u = jax.random.uniform(k, (N, 4), jnp.float32, 0.0, 1.0 - 2.0**-24)
+            def one(ul, ub):
+                val = H.one_sample(scene, light, sp, warp, ul, ub, mis=True)
+                wl = warp.sample(ul)
+                miss = ~in_tri(offset_origin(scene, sp.p, sp.n, wl), wl)
+                wb, pb = sample_bsdf(mats, sp.mat, sp.n, sp.wi, ub)
+                leb, hit = H._emission_along(scene, sp, wb)
+                zero = (leb > 0) & ~(warp.pdf(wb) > 0) & (pb > 0)
+                return val, (miss & sp.valid), (zero & sp.valid)
+            return jax.vmap(one)(u[:, :2], u[:, 2:])
+        keys = jax.random.split(jax.random.key(1), sps.p.shape[0])
+        f = jax.jit(lambda s, k: jax.lax.map(lambda a: jax.vmap(pixel)(*a), (s, k)))
+        blk = jax.tree.map(lambda a: a.reshape(48, 48, *a.shape[1:]), (sps, keys))
+        v, m, z = f(*blk)
+        return [np.asarray(a).reshape(-1, N) for a in (v, m, z)]
+
+    print(f"shipped H Fig. 2 scene, 48x48 pixel centres, {N} 1-spp MIS samples per pixel"
+          " (old _h_render)")
+    for name, make in techs.items():
+        v, m, z = flagged(make)
+        v = v.astype(np.float64)
+        dev2 = (v - v.mean(1, keepdims=True)) ** 2
+        tot = dev2.sum()
+        print(f"{name:30s} 1-spp var (mean over px) {dev2.sum(1).mean()/(N-1):.4e}  "
+              f"light misses {m.mean():.2e} of samples (carry {dev2[m].sum()/tot:.3f}),  "
+              f"BSDF-hit pdf 0 {z.mean():.2e} (carry {dev2[z].sum()/tot:.3f}),  "
+              f"both {dev2[m|z].sum()/tot:.3f}")
+
+
+if __name__ == "__main__":
+    before(BEFORE) if BEFORE else after()
