@@ -16,9 +16,17 @@ shading point's ray origin (``render(technique="solid_angle", light_warp=...)``,
   weights by the cosine about the light plane's normal instead, which keeps it exact and
   unbiased but no longer cosine-proportional.
 
-Two scenes: the shipped one (the light 2.2 above the floor: the cosine hardly varies across
-it) and a "near" variant (the triangle enlarged 1.4x, 0.8 above the floor), written next to the
-results.
+Three scenes: the shipped one (the light 2.2 above the floor: the cosine hardly varies across
+it, and a box's shadow carries much of the error, which no light warp can remove), a "near"
+variant (the triangle enlarged 1.4x, 0.8 above the floor), written next to the results, and
+``h_regime``, H's regime (``experiments/scenes/h_triangle_plane.xml``: one large triangle light
+0.5 above a diffuse plane, no occluder), measured as H did at 1 spp, with MIS on and, as
+``methods_without_mis``, off (light sample only).
+
+MSE standard errors: the image MSE of each realization (mean over the pixels of the squared
+error against the reference) is one sample; the standard error is their spread over the
+realizations over sqrt(realizations) (the per-pixel errors are heavy-tailed, the per-image
+means much less so); MSE factors carry a paired (same keys) delta-method standard error.
 
 Per technique: MSE image against a converged reference (mean of many MIS samples with the
 Arvo 2001 technique, its own variance reported), mean MSE, time of the jitted per-pixel fit +
@@ -42,11 +50,16 @@ from common import ROOT, parser, write_record
 import anisosample as asp
 
 NAME = "h_fig2"
-VARIANTS = ("shipped", "near")
+VARIANTS = ("shipped", "near", "h_regime")
 SCALES = {
-    "small": dict(width=48, height=48, spp=4, realizations=16, reference_spp=1024),
-    "paper": dict(width=256, height=256, spp=1, realizations=64, reference_spp=8192),
+    "small": dict(width=48, height=48, spp=4, realizations=16, reference_spp=1024,
+                  h_regime=dict(width=64, height=64, spp=1, realizations=64,
+                                reference_spp=2048)),
+    "paper": dict(width=256, height=256, spp=1, realizations=64, reference_spp=8192,
+                  h_regime=dict(width=256, height=256, spp=1, realizations=256,
+                                reference_spp=8192)),
 }
+H_REGIME = ROOT / "experiments/scenes/h_triangle_plane.xml"
 HART = {
     "+ bilinear cosine warp": dict(mse_improvement=1.75, time=1.01),
     "+ biquadratic cosine warp": dict(mse_improvement=1.91, time=1.06),
@@ -77,6 +90,8 @@ f 1 2 3
 def scene_path(variant, out):
     if variant == "shipped":
         return SHIPPED
+    if variant == "h_regime":
+        return H_REGIME
     folder = out / "scene_near"
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "triangle_light.obj").write_text(NEAR_OBJ)
@@ -85,6 +100,8 @@ def scene_path(variant, out):
 
 
 def run(settings, seed, variant, out):
+    if variant == "h_regime":  # H's setting: 1 spp, MIS on and off (its own sizes)
+        settings = {**settings, **settings["h_regime"]}
     scene = asp.render.load_xml(
         scene_path(variant, out), width=settings["width"], height=settings["height"]
     )
@@ -94,9 +111,15 @@ def run(settings, seed, variant, out):
         scene, techs["Arvo 2001 (cosine-weighted)"], settings["reference_spp"], k_ref
     )
     rows, images = H.measure(scene, techs, ref, settings["spp"], settings["realizations"], k_run)
+    extra = {}
+    if variant == "h_regime":
+        extra["methods_without_mis"] = H.measure(
+            scene, techs, ref, settings["spp"], settings["realizations"], k_run, mis=False)[0]
     return scene, ref, images, dict(
         scene=variant,
-        methods=rows,
+        size=[settings["width"], settings["height"]], spp=settings["spp"],
+        realizations=settings["realizations"],
+        methods=rows, **extra,
         reference=dict(
             technique="Arvo 2001 (cosine-weighted), MIS",
             spp=settings["reference_spp"],
@@ -125,20 +148,28 @@ def main(argv=None):
             H.save_exrs(sub, scene, ref, images)
             H.plot_images(args.out, f"{NAME}_{variant}", scene, ref, images,
                           f"H Fig. 2 (ours), {variant} triangle light:"
-                          f" {settings['spp']} spp MIS, per-pixel MSE")
+                          f" {data['spp']} spp MIS, per-pixel MSE")
             data["mse_images_exr"] = sorted(f"{variant}/{p.name}" for p in sub.glob("*.exr"))
             variants[variant] = data
             md += [f"\n## {variant} scene\n", H.markdown_table(data["methods"])]
+            if "methods_without_mis" in data:
+                md += [f"\n## {variant} scene, light sample only (no MIS)\n",
+                       H.markdown_table(data["methods_without_mis"])]
         (args.out / f"{NAME}.md").write_text("\n".join(md))
         write_record(args.out, NAME, dict(variants=variants, hart=HART), settings, started)
     for variant, data in variants.items():
-        print(f"\n{variant} triangle light, {settings['width']}x{settings['height']},"
-              f" {settings['spp']} spp, {settings['realizations']} realizations; reference"
-              f" {settings['reference_spp']} spp (mean variance of its mean"
+        w, h = data["size"]
+        print(f"\n{variant} triangle light, {w}x{h}, {data['spp']} spp,"
+              f" {data['realizations']} realizations; reference"
+              f" {data['reference']['spp']} spp (mean variance of its mean"
               f" {data['reference']['mean_variance_of_mean']:.2e})")
-        H.print_rows(data["methods"])
-        order = sorted(data["methods"], key=lambda n: data["methods"][n]["mse"])
-        print("  MSE ordering (best first): " + " < ".join(order))
+        for label, key in (("MIS", "methods"), ("no MIS", "methods_without_mis")):
+            if key not in data:
+                continue
+            print(f"  {label}:")
+            H.print_rows(data[key])
+            order = sorted(data[key], key=lambda n: data[key][n]["mse"])
+            print("  MSE ordering (best first): " + " < ".join(order))
 
 
 if __name__ == "__main__":
