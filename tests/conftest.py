@@ -16,3 +16,19 @@ def getkey():
         return sub
 
     return _next
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _private_user_cache(tmp_path_factory):
+    """Tables built on demand during the tests go to this session's own cache, never the
+    user's ``~/.cache`` (the suite must not depend on, or leave behind, what an earlier run
+    built there); subprocesses inherit it."""
+    import os
+
+    old = os.environ.get("XDG_CACHE_HOME")
+    os.environ["XDG_CACHE_HOME"] = str(tmp_path_factory.mktemp("xdg_cache"))
+    yield
+    if old is None:
+        os.environ.pop("XDG_CACHE_HOME", None)
+    else:
+        os.environ["XDG_CACHE_HOME"] = old
