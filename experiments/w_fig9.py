@@ -75,7 +75,6 @@ SCALES = {
 CLASS_NAMES = ("one-edge", "corner", "lit", "lit-aligned-block")
 # "lit-aligned-block": lit pixels whose block's estimate has a usable direction, i.e. the lit
 # pixels W's sampler hands an aligned set (where the per-pixel gate matters).
-GATE_PROBE = 6  # the renderer's probe side (render.estimation.pixel_probes' default)
 SCENES = ("cornell", "dof")
 
 
@@ -200,17 +199,15 @@ def measure_class(full, base, cname, pixels, dirs, num, cfg, key, cache):
 
 def add_gate(full, base, rows):
     """The renderer's per-pixel gate (``render.estimation.probe_discontinuous`` on the pixel's
-    6x6 probe) and the gated aligned method: the block's aligned set where the probe shows a
-    discontinuity, pmj02bn elsewhere -- the same sets and keys as those two columns, so its
-    variances are theirs, pixel by pixel."""
+    ``estimation.pixel_probes``) and the gated aligned method: the block's aligned set where the
+    probe shows a discontinuity, pmj02bn elsewhere -- the same sets and keys as those two
+    columns, so its variances are theirs, pixel by pixel."""
     if not rows:
         return
     from anisosample.render import estimation
 
     px = np.array([r["pixel"] for r in rows])
-    probes = np.concatenate([g for _, g in pc.pixel_grids(
-        full, px, grid=GATE_PROBE, dimension=base.dimension, technique=base.technique,
-        square_aperture=base.square_aperture)])
+    probes = estimation.pixel_probes(full, pixels=px, integrand=base)
     for r, flag in zip(rows, estimation.probe_discontinuous(probes), strict=True):
         r["gate_discontinuous"] = bool(flag)
         r["methods"]["aligned (gated)"] = dict(

@@ -31,9 +31,6 @@ import math
 from pathlib import Path
 from typing import NamedTuple
 
-import equinox as eqx
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from .._validate import check_int, check_positive_float
@@ -242,12 +239,6 @@ class PixelClasses(NamedTuple):
         return {c: int(self.mask(c).sum()) for c in CLASSES}
 
 
-@eqx.filter_jit
-def _grids_at(base, films, x):
-    """``(p, g*g)``: integrand ``base`` with its film moved to each of ``films`` at points x."""
-    return jax.vmap(lambda film: eqx.tree_at(lambda f: f.film, base, film)(x))(films)
-
-
 def _check_pixels(scene: Scene, pixels) -> np.ndarray:
     if pixels is None:
         rows, cols = np.mgrid[0:scene.height, 0:scene.width]
@@ -276,30 +267,20 @@ def pixel_grids(
     chunk: int = 64,
 ):
     """Dense grids ``(m, g, g)`` (float32) of the integrands of ``pixels`` (``(m, 2)`` of
-    ``[column, row]``; default every pixel), each at its pixel centre (the fixed-primary-hit
-    integrand of :func:`anisosample.render.pixel_integrand`, luminance, with its ``dimension``,
-    ``technique`` and ``square_aperture``), in DESIGN's grid convention. Generator of
-    ``(start, grids)`` chunks of ``chunk`` pixels, so that a large image is never held at once.
-    """
-    from .integrator import pixel_integrand
+    ``[column, row]``; default every pixel), each at its pixel centre, in DESIGN's grid
+    convention: :func:`anisosample.render.estimation.pixel_probes` with ``probe = grid``, as a
+    generator of ``(start, grids)`` chunks of ``chunk`` pixels, so that a large image is never
+    held at once."""
+    from .estimation import pixel_probes
 
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
-    grid = check_int("grid", grid, minimum=2, maximum=1024)
+    grid = check_int("grid", grid, minimum=3, maximum=1024)
     chunk = check_int("chunk", chunk, minimum=1)
     px = _check_pixels(scene, pixels)
-    base = pixel_integrand(scene, (0, 0), dimension=dimension, technique=technique,
-                           square_aperture=square_aperture)
-    c = (np.arange(grid) + 0.5) / grid
-    x = jnp.asarray(np.stack(np.meshgrid(c, c, indexing="xy"), -1).reshape(-1, 2), jnp.float32)
-    films = np.stack([(px[:, 0] + 0.5) / scene.width, (px[:, 1] + 0.5) / scene.height], -1)
-    films = films.astype(np.float32)
     for s in range(0, len(px), chunk):
-        f = films[s:s + chunk]
-        pad = chunk - len(f)  # one compilation for every chunk
-        f = np.concatenate([f, np.repeat(f[-1:], pad, 0)]) if pad else f
-        out = np.asarray(_grids_at(base, jnp.asarray(f), x))[:chunk - pad]
-        yield s, out.reshape(-1, grid, grid)
+        yield s, pixel_probes(scene, grid, pixels=px[s:s + chunk], dimension=dimension,
+                              technique=technique, square_aperture=square_aperture)
 
 
 def pixel_classes(
