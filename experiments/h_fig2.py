@@ -21,7 +21,13 @@ it, and a box's shadow carries much of the error, which no light warp can remove
 variant (the triangle enlarged 1.4x, 0.8 above the floor), written next to the results, and
 ``h_regime``, H's regime (``experiments/scenes/h_triangle_plane.xml``: one large triangle light
 0.5 above a diffuse plane, no occluder), measured as H did at 1 spp, with MIS on and, as
-``methods_without_mis``, off (light sample only).
+``methods_without_mis``, off (light sample only); and H's regime with the light raised to 1.0 and
+2.0 above the plane (``h_regime_raised1``, ``h_regime_raised2``; MIS on).
+
+Where H's-regime error lives (``phi_analysis``, figure ``h_fig2_phi.png``): per pixel the light's
+projected solid angle ``Phi`` at the shading point, the closed-form MIS variance of Arvo 2001 (all
+of it the BSDF sample's, see :func:`arvo_mis_analysis`) against the measured MSE, and per bin of
+``Phi / pi`` every technique's MSE factor and the bin's share of the uniform-solid-angle error.
 
 MSE standard errors: the image MSE of each realization (mean over the pixels of the squared
 error against the reference) is one sample; the standard error is their spread over the
@@ -45,19 +51,26 @@ import time
 
 import _h_render as H
 import jax
+import jax.numpy as jnp
+import numpy as np
 from common import ROOT, parser, write_record
 
 import anisosample as asp
 
 NAME = "h_fig2"
-VARIANTS = ("shipped", "near", "h_regime")
+VARIANTS = ("shipped", "near", "h_regime", "h_regime_raised1", "h_regime_raised2")
+# H's regime with its triangle light raised from 0.5 to 1.0 and 2.0 above the plane (same
+# triangle, camera and floor): the share of pixels whose light fills much of the cosine-weighted
+# hemisphere, where MIS's BSDF sample keeps its variance, shrinks.
+RAISED = {"h_regime_raised1": 1.0, "h_regime_raised2": 2.0}
+PHI_BINS = (0.0, 0.03, 0.1, 0.3, 0.6, 1.0001)  # bins of Phi / pi, the light's projected solid angle
 SCALES = {
     "small": dict(width=48, height=48, spp=4, realizations=16, reference_spp=1024,
                   h_regime=dict(width=64, height=64, spp=1, realizations=64,
-                                reference_spp=2048)),
+                                reference_spp=2048), variants=list(VARIANTS)),
     "paper": dict(width=256, height=256, spp=1, realizations=64, reference_spp=8192,
                   h_regime=dict(width=256, height=256, spp=1, realizations=256,
-                                reference_spp=8192)),
+                                reference_spp=8192), variants=list(VARIANTS)),
 }
 H_REGIME = ROOT / "experiments/scenes/h_triangle_plane.xml"
 HART = {
@@ -92,6 +105,14 @@ def scene_path(variant, out):
         return SHIPPED
     if variant == "h_regime":
         return H_REGIME
+    if variant in RAISED:
+        folder = out / f"scene_{variant}"
+        folder.mkdir(parents=True, exist_ok=True)
+        y = -1.0 + RAISED[variant]
+        obj = H_REGIME.with_suffix(".obj").read_text().replace(" -0.5 ", f" {y:g} ")
+        (folder / "h_triangle_plane.obj").write_text(obj)
+        (folder / "h_triangle_plane.xml").write_text(H_REGIME.read_text())
+        return folder / "h_triangle_plane.xml"
     folder = out / "scene_near"
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "triangle_light.obj").write_text(NEAR_OBJ)
@@ -99,8 +120,84 @@ def scene_path(variant, out):
     return folder / "triangle_light.xml"
 
 
+def arvo_mis_analysis(scene, images):
+    """Where the MIS error of H's regime lives, per pixel, against the light's projected solid
+    angle ``Phi`` (Lambert) at the pixel's shading point (unoccluded diffuse plane, one triangle).
+
+    With Arvo 2001 the light sample's pdf is ``cos / Phi`` and the cosine-weighted BSDF sample's
+    ``cos / pi``: their ratio ``r = pi / Phi`` is constant over the light, so the power-heuristic
+    light term is constant (zero variance) and all of the estimator's variance is the BSDF
+    sample's: it hits the light with probability ``1 / r`` and then carries ``rho L / (1 + r^2)``,
+    a Bernoulli variance ``(rho L)^2 (r - 1) / (r^2 (1 + r^2)^2)`` per pixel and sample, which no
+    light warp changes. Returns that closed form's mean next to the measured MSE, and per bin of
+    ``Phi / pi`` each technique's MSE factor and the bin's share of the uniform-solid-angle MSE.
+    """
+    sp = H.shading_points(scene)
+    lights = scene.lights
+    a = lights.p0[0]
+    b, c = a + lights.e1[0], a + lights.e2[0]
+
+    def phi_at(p, n):
+        unit = lambda q: (q - p) / jnp.linalg.norm(q - p)  # noqa: E731
+        return asp.warps.projected_solid_angle(unit(a), unit(b), unit(c), n)
+
+    phi = np.asarray(jax.vmap(phi_at)(sp.p, sp.n), np.float64)
+    valid = np.asarray(sp.valid)
+    lum = np.asarray(asp.render.integrator.LUMINANCE, np.float64)
+    rho = np.asarray(scene.materials.reflectance, np.float64)[np.asarray(sp.mat)]
+    rho_l = (rho * np.asarray(lights.radiance[0], np.float64)) @ lum
+    r = np.pi / np.maximum(phi, 1e-12)
+    var = np.where(valid, rho_l**2 * (r - 1) / (r**2 * (1 + r**2) ** 2), 0.0)
+    base = images["uniform solid angle"]
+    frac = phi / np.pi
+    bins = []
+    for lo, hi in zip(PHI_BINS[:-1], PHI_BINS[1:], strict=True):
+        m = valid & (frac >= lo) & (frac < hi)
+        if not m.any():
+            continue
+        bins.append(dict(
+            phi_over_pi=[lo, min(hi, 1.0)], pixels=int(m.sum()),
+            share_of_uniform_mse=float(base[m].sum() / base[valid].sum()),
+            mse_factor={n: float(img[m].mean() / base[m].mean()) for n, img in images.items()},
+            arvo_closed_form_factor=float(var[m].mean() / base[m].mean()),
+        ))
+    return dict(
+        arvo_closed_form_mse=float(var.mean()),
+        phi_over_pi_median=float(np.median(frac[valid])),
+        phi_over_pi_mean=float(frac[valid].mean()),
+        bins=bins,
+    )
+
+
+def plot_phi_bins(out, variants: dict):
+    """MSE factor per bin of the light's projected solid angle, one panel per H-regime scene."""
+    import matplotlib.ticker
+
+    from anisosample import plot as aplot
+
+    names = [v for v in variants if "phi_analysis" in variants[v]]
+    fig, axes = aplot.new_figure(1, len(names), size=3.0)
+    for ax, v in zip(axes[0], names, strict=True):
+        bins = variants[v]["phi_analysis"]["bins"]
+        x = [np.sqrt(max(b["phi_over_pi"][0], 0.01) * b["phi_over_pi"][1]) for b in bins]
+        for n in TECHNIQUES:
+            ax.plot(x, [b["mse_factor"][n] for b in bins], "o-", ms=3, label=n)
+        ax.plot(x, [b["arvo_closed_form_factor"] for b in bins], "k:",
+                label="Arvo 2001, closed form")
+        ax.bar(x, [b["share_of_uniform_mse"] for b in bins], width=np.asarray(x) * 0.5,
+               color="0.85", zorder=0, label="share of uniform MSE")
+        ax.set_xscale("log")
+        ax.set_xlim(0.01, 1.0)
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        ax.set_xlabel("Phi / pi at the pixel")
+        ax.set_title(v, fontsize=8)
+    axes[0][0].set_ylabel("MSE factor (MIS, 1 spp)")
+    axes[0][0].legend(fontsize=6)
+    return aplot.save_figure(fig, out / f"{NAME}_phi.png")
+
+
 def run(settings, seed, variant, out):
-    if variant == "h_regime":  # H's setting: 1 spp, MIS on and off (its own sizes)
+    if variant.startswith("h_regime"):  # H's setting: 1 spp, MIS on and off (its own sizes)
         settings = {**settings, **settings["h_regime"]}
     scene = asp.render.load_xml(
         scene_path(variant, out), width=settings["width"], height=settings["height"]
@@ -112,6 +209,8 @@ def run(settings, seed, variant, out):
     )
     rows, images = H.measure(scene, techs, ref, settings["spp"], settings["realizations"], k_run)
     extra = {}
+    if variant.startswith("h_regime"):
+        extra["phi_analysis"] = arvo_mis_analysis(scene, images)
     if variant == "h_regime":
         extra["methods_without_mis"] = H.measure(
             scene, techs, ref, settings["spp"], settings["realizations"], k_run, mis=False)[0]
@@ -155,6 +254,7 @@ def main(argv=None):
             if "methods_without_mis" in data:
                 md += [f"\n## {variant} scene, light sample only (no MIS)\n",
                        H.markdown_table(data["methods_without_mis"])]
+        plot_phi_bins(args.out, variants)
         (args.out / f"{NAME}.md").write_text("\n".join(md))
         write_record(args.out, NAME, dict(variants=variants, hart=HART), settings, started)
     for variant, data in variants.items():
@@ -170,6 +270,17 @@ def main(argv=None):
             H.print_rows(data[key])
             order = sorted(data[key], key=lambda n: data[key][n]["mse"])
             print("  MSE ordering (best first): " + " < ".join(order))
+        if "phi_analysis" in data:
+            pa = data["phi_analysis"]
+            print("  Arvo 2001 + MIS: closed-form BSDF-sample variance"
+                  f" {pa['arvo_closed_form_mse']:.4e}"
+                  f" (+ reference {data['reference']['mean_variance_of_mean']:.1e}) vs measured"
+                  f" {data['methods']['Arvo 2001 (cosine-weighted)']['mse']:.4e}")
+            for b in pa["bins"]:
+                lo, hi = b["phi_over_pi"]
+                print(f"    Phi/pi {lo:.2f}-{hi:.2f}: {b['pixels']:5d} px,"
+                      f" {b['share_of_uniform_mse']:.3f} of uniform MSE; factors "
+                      + " ".join(f"{f:.3f}" for f in b["mse_factor"].values()))
 
 
 if __name__ == "__main__":
