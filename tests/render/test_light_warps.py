@@ -4,6 +4,8 @@
   under one triangle light and light sampling only, every sample of a pixel's estimator is the
   same number ``rho / pi * L_e * Phi`` (Phi the projected solid angle): relative variance
   <= 1e-6 and no sample misses the light.
+* With MIS, Arvo 2001's whole variance is the BSDF sample's, in closed form (light and BSDF pdfs
+  have a constant ratio pi/Phi over the light): the renderer's per-pixel variance matches it.
 * One shading frame: a BSDF sample that hits an emitter must have a positive light pdf (H Alg. 2
   through the chain fitted at the ray origin), else MIS gives it the full weight. The same check
   with the chain fitted at the surface point instead of the ray origin finds such samples, so it
@@ -89,6 +91,54 @@ def test_arvo2001_value_is_lamberts_projected_solid_angle():
         phi += np.arctan2(np.linalg.norm(cr), a @ b) * cr[2] / np.linalg.norm(cr)
     expected = 0.5 / np.pi * 4.0 * abs(phi) / 2
     assert value == pytest.approx(expected, rel=2e-4)
+
+
+def _lambert_phi(p):
+    """Projected solid angle of TRIANGLE from point ``p`` above the floor (normal +z), float64."""
+    v = TRIANGLE - p
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    phi = 0.0
+    for i in range(3):
+        a, b = v[i], v[(i + 1) % 3]
+        cr = np.cross(a, b)
+        phi += np.arctan2(np.linalg.norm(cr), a @ b) * cr[2] / np.linalg.norm(cr)
+    return abs(phi) / 2
+
+
+def test_arvo2001_with_mis_has_the_closed_form_variance_of_the_bsdf_sample():
+    """With MIS (power heuristic, one light + one cosine-weighted BSDF sample) the Arvo 2001
+    light pdf cos/Phi and the BSDF pdf cos/pi have the constant ratio r = pi/Phi over the light:
+    the light term is constant and all of the variance is the BSDF sample's Bernoulli term,
+    ``(rho L)^2 (r - 1) / (r^2 (1 + r^2)^2)`` per sample. The renderer's per-pixel variance
+    matches it (pooled over the floor, within the sampling error of a variance estimate)."""
+    albedo, radiance, spp, reps = 0.5, 4.0, 16, 48
+    scene = plane_under_triangle(albedo=albedo, radiance=radiance)
+    res = R.render(scene, jax.random.key(11), spp=spp, realizations=reps, pixel_center=True,
+                   sampler="random", technique="solid_angle", light_warp="arvo2001", mis=True,
+                   progress=False)
+    red = res.mean[..., 0]
+    floor = red > 0
+    rows, cols = np.nonzero(floor)
+    h, w = red.shape
+    predicted, mean, hit_p = [], [], []
+    for row, col in zip(rows, cols, strict=True):
+        film = jnp.asarray([(col + 0.5) / w, (row + 0.5) / h], jnp.float32)
+        o, d = generate_ray(scene.camera, film, jnp.full(2, 0.5, jnp.float32))
+        hit = intersect(scene, o, d)
+        r = np.pi / _lambert_phi(np.asarray(offset_origin(scene, hit.p, hit.n, -d), np.float64))
+        predicted.append((albedo * radiance) ** 2 * (r - 1) / (r**2 * (1 + r**2) ** 2) / spp)
+        mean.append(albedo * radiance / r)
+        hit_p.append(1 / r)
+    predicted, hit_p = np.asarray(predicted), np.asarray(hit_p)
+    measured = res.variance[..., 0][floor].astype(np.float64)
+    np.testing.assert_allclose(red[floor], mean, rtol=0.02)  # unbiased: rho L Phi / pi
+    # The spread of a sample variance over R realizations of a spp-sample mean:
+    # Var(s^2) = sigma^4 (2 / (R - 1) + kappa / R), kappa = the Bernoulli's excess kurtosis / spp.
+    kappa = (1 - 6 * hit_p * (1 - hit_p)) / (hit_p * (1 - hit_p)) / spp
+    sd = np.sqrt(np.sum(predicted**2 * (2 / (reps - 1) + kappa / reps)))
+    z = (measured.sum() - predicted.sum()) / sd
+    assert abs(z) <= 4, (z, measured.sum() / predicted.sum())
+    assert np.median(measured / predicted) == pytest.approx(1.0, abs=0.25)
 
 
 def _bsdf_hits(scene, light_warp, technique, n_bsdf, key, *, at_surface=False):
