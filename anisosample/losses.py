@@ -11,10 +11,12 @@
   ``u_i = (i + 1/2)/n - 1/2``, scaled by ``n`` (so ``n L_SW1D``; i.i.d. points score ~1/6).
 * :func:`square_projection_quantile` — W Eq. 15 made valid for every angle.
 
-``P_S`` comes from the one engine, :func:`anisosample.spectrum.grouped_power_spectrum`
-(direct sum, lattice-aligned type-1 NUFFT or rotated type-3 NUFFT per direction group, each with
-a closed-form VJP; ``method`` and ``eps`` are passed through). The losses are functions of the
-points and a :class:`~anisosample.frequencies.FrequencySet` only.
+``P_S`` comes from the one engine, :mod:`anisosample.spectrum` (direct sum, lattice-aligned
+type-1 NUFFT or rotated type-3 NUFFT per direction group, each with a closed-form VJP; ``method``
+and ``eps`` are passed through), as :func:`~anisosample.spectrum.spectrum_terms`: the spectrum
+losses are weighted sums taken on each type-1 box's grid. The losses are functions of the
+points and a :class:`~anisosample.frequencies.FrequencySet` only; ``*_terms`` give the same
+loss as data (what synthesis iterates on, one compilation per box shape).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from .frequencies import FrequencySet, custom_set
 from .spectrum import METHODS as METHODS
 from .spectrum import grouped_power_spectrum as grouped_power_spectrum
 from .spectrum import power_spectrum_rotated as power_spectrum_rotated
+from .spectrum import spectrum_terms, terms_value
 
 
 def _as_set(freqs) -> FrequencySet:
@@ -55,12 +58,10 @@ def spectrum_loss(points, freqs, target=0.0, weights=None, *, method="auto", eps
     noise (``E[P^2] = 2/n^2``) scores about 2 whatever ``n``.
     """
     check_points("points", points)
-    fset = _as_set(freqs)
-    p = grouped_power_spectrum(points, fset, method=method, eps=eps)
-    w = _weights(fset, weights, p.dtype)
     n = points.shape[0]
-    d = p - jnp.asarray(target, p.dtype)
-    return (n * n) * jnp.sum(w * d * d) / jnp.sum(w)
+    terms = spectrum_loss_terms(freqs, n, target, weights, method=method, eps=eps,
+                                dtype=_dtype(points))
+    return terms_value(points, terms)
 
 
 def linear_spectrum_loss(points, freqs, weights=None, *, method="auto", eps=None):
@@ -70,19 +71,50 @@ def linear_spectrum_loss(points, freqs, weights=None, *, method="auto", eps=None
     ``W`` standing in for the integrand spectrum (:func:`anisosample.frequencies.edge_weights`).
     """
     check_points("points", points)
+    n = points.shape[0]
+    terms = linear_spectrum_loss_terms(freqs, n, weights, method=method, eps=eps,
+                                       dtype=_dtype(points))
+    return terms_value(points, terms)
+
+
+def linear_spectrum_loss_terms(freqs, n, weights=None, *, scale=1.0, method="auto", eps=None,
+                               dtype=jnp.float64):
+    """:func:`linear_spectrum_loss` for ``n`` points as data
+    (:func:`anisosample.spectrum.spectrum_terms`; evaluate with ``terms_value(points, terms)``),
+    times ``scale``: what synthesis iterates on (one compilation for every set whose boxes
+    have the same shapes)."""
     fset = _as_set(freqs)
-    p = grouped_power_spectrum(points, fset, method=method, eps=eps)
-    w = _weights(fset, weights, p.dtype)
-    return points.shape[0] * jnp.sum(w * p) / jnp.sum(w)
+    w = _weights(fset, weights)
+    return spectrum_terms(fset, n, weights=w, scale=scale * n / float(np.sum(w)),
+                          method=method, eps=eps, dtype=dtype)
 
 
-def _weights(fset, weights, dtype):
+def spectrum_loss_terms(freqs, n, target=0.0, weights=None, *, scale=1.0, method="auto",
+                        eps=None, dtype=jnp.float64):
+    """:func:`spectrum_loss` for ``n`` points as data (see :func:`linear_spectrum_loss_terms`)."""
+    fset = _as_set(freqs)
+    w = _weights(fset, weights)
+    tgt = np.asarray(target, np.float64)
+    if tgt.ndim and tgt.shape != (len(fset),):
+        raise ValueError(f"target must be a scalar or have one entry per frequency "
+                         f"({len(fset)}), got shape {tgt.shape}")
+    return spectrum_terms(fset, n, weights=w, target=tgt, squared=True,
+                          scale=scale * n * n / float(np.sum(w)), method=method, eps=eps,
+                          dtype=dtype)
+
+
+def _dtype(points):
+    dt = jnp.asarray(points).dtype
+    return dt if dt in (jnp.float32, jnp.float64) else jnp.float32
+
+
+def _weights(fset, weights):
     w = fset.weights if weights is None else np.asarray(weights, np.float64).reshape(-1)
     if w.shape[0] != len(fset):
         raise ValueError(f"weights must have one entry per frequency ({len(fset)}), got {w.shape}")
     if not np.all(np.isfinite(w)) or np.any(w < 0) or not np.any(w > 0):
         raise ValueError("weights must be finite, >= 0 and not all zero")
-    return jnp.asarray(w, dtype)
+    return w
 
 
 def square_projection_quantile(theta_deg, u):
@@ -116,14 +148,25 @@ def sliced_wasserstein_loss(points, directions_deg):
     permutation is held constant for the gradient (exact almost everywhere; Heitz et al. 2021).
     """
     check_points("points", points)
+    d, tgt = sliced_wasserstein_targets(directions_deg, points.shape[0], points.dtype)
+    return sliced_wasserstein_value(points, d, tgt)
+
+
+def sliced_wasserstein_targets(directions_deg, n, dtype=jnp.float64):
+    """The data of :func:`sliced_wasserstein_loss` for ``n`` points: the unit directions
+    ``(k, 2)`` and the quantile targets ``F_d^{-1}(u_i)`` ``(k, n)`` (W Eq. 15)."""
     directions_deg = check_directions_deg("directions_deg", directions_deg)
-    n = points.shape[0]
     th = np.deg2rad(np.asarray(directions_deg))
-    d = jnp.asarray(np.stack([np.cos(th), np.sin(th)], 1), points.dtype)  # (k, 2)
+    d = jnp.asarray(np.stack([np.cos(th), np.sin(th)], 1), dtype)  # (k, 2)
     u = (np.arange(n) + 0.5) / n - 0.5
     tgt = square_projection_quantile(
         jnp.asarray(np.asarray(directions_deg))[:, None], jnp.asarray(u)[None, :]
-    ).astype(points.dtype)
+    ).astype(dtype)
+    return d, tgt
+
+
+def sliced_wasserstein_value(points, d, tgt):
+    """:func:`sliced_wasserstein_loss` from :func:`sliced_wasserstein_targets` (traceable)."""
     proj = (points - 0.5) @ d.T  # (n, k)
     srt = jnp.sort(proj, axis=0).T  # (k, n)
     return jnp.mean(jnp.sum((srt - tgt) ** 2, axis=1))

@@ -32,6 +32,10 @@ Accuracy policy (one for every caller, :func:`default_eps`): NUFFT tolerance ``1
 and ``1e-10`` in float64 unless a caller passes ``eps`` (synthesis uses ``1e-7``); every CPU
 FINUFFT call runs on :data:`NUFFT_THREADS` threads (deterministic, :func:`finufft_opts`).
 
+The losses take the same transforms as data (:func:`spectrum_terms`: one :class:`GridTerm` per
+type-1 box, the weighted sum taken on the box's grid; :func:`terms_value`), so only box shapes
+are static and one compilation serves every frequency set with boxes of those shapes.
+
 Every method has a custom VJP with the closed-form gradient (``point_synthesis.md`` Sec. 2)
 ``dP(v)/dx_j = (4 pi / n) Im(conj(F(v)) exp(-2 pi i v.x_j)) v``, so the backward pass of any
 function of ``P`` is one adjoint transform ``sum_v a_v exp(-2 pi i v.x_j)`` with
@@ -73,6 +77,11 @@ __all__ = [
     "power_spectrum_grid",
     "grouped_power_spectrum",
     "power_spectrum_rotated",
+    "GridTerm",
+    "ListTerm",
+    "spectrum_terms",
+    "term_value",
+    "terms_value",
     "frequency_grid",
     "expected_power_spectrum",
     "expected_power_spectrum_grid",
@@ -89,6 +98,14 @@ _DIRECT_MAX_WORK = 2**21  # n * m up to which "auto" takes the direct sum
 _DIRECT_CHUNK_WORK = 2**21  # chunk * n elements per step of the direct sum
 _MAX_FREQ = 1 << 24  # float32 holds every integer frequency below this exactly
 _MAX_SEGMENTS = 8
+# A transform's cost beyond its grid, in grid points per point spread: one term (type 1 and its
+# two-strength type-2 VJP) took about 1.8 ms + 0.08 us per grid point at n = 4096 (box shapes
+# 113x177 .. 289x209, eps 1e-7, one thread), so a call costs what ~5.5 n grid points cost.
+_CALL_COST = 6.0
+_LADDER = 4  # box half-widths round up to 16 sizes per octave (:func:`_ladder`) ...
+_LADDER_MAX_GRID = 1 << 20  # ... on grids up to 2^20 points; a larger grid's own FFT size is
+# worth more than a shared compilation (n = 2^16: one 1665x2945 type 1 took 499 ms, the
+# 1627x2903 box it was rounded up from 393 ms)
 
 
 def white_noise_level(n: int) -> float:
@@ -311,7 +328,8 @@ def _unimodular_bases(theta_deg: float, lattice: bool) -> list[np.ndarray]:
 
 def nufft1_plan(fg: np.ndarray, theta_deg: float, n: int, lattice: bool):
     """Split a group into at most 8 runs along its direction, each with its own :class:`Box`
-    under one unimodular basis, minimising the total grid size (plus ``2 n`` per transform).
+    under one unimodular basis, minimising the total grid size plus ``6 n`` per transform (a
+    call's measured cost, :data:`_CALL_COST`).
     Returns ``(order, [(start, stop, box), ...])``: segment ``k`` holds ``fg[order[start:stop]]``.
     The boxes of the rate design's groups total 1.5-2.6 times their frequency count at
     n = 2^16 (0, 90, 30 degrees; one centred box around the 30-degree group in the standard
@@ -330,7 +348,7 @@ def nufft1_plan(fg: np.ndarray, theta_deg: float, n: int, lattice: bool):
             hi = np.maximum.reduceat(u, cuts[:-1], axis=0)
             c = (lo + hi) // 2
             r = np.maximum(hi - c, c - lo)
-            cost = float(np.sum(np.prod(2 * r + 1, axis=1))) + 2.0 * n * k
+            cost = float(np.sum(np.prod(2 * r + 1, axis=1))) + _CALL_COST * n * k
             if best is None or cost < best[0]:
                 best = (cost, mat, cuts, c, r)
     _, mat, cuts, c, r = best
@@ -499,6 +517,178 @@ def grouped_power_spectrum(points, fset: FrequencySet, *, method: str = "auto", 
     eps = default_eps(pts.dtype) if eps is None else check_positive_float("eps", eps)
     return jnp.concatenate([_group_power(pts, fg, theta, method, eps)
                             for theta, fg, _ in fset.groups()])
+
+
+# --- a weighted frequency set as data: the losses' and synthesis's path -----------------------
+#
+# The losses are sums ``sum_v w_v f(P_S(v))`` over a frequency set. On a type-1 box that sum is
+# taken on the box's grid itself, the weights scattered onto it once (0 off the set), so neither
+# the forward pass nor the VJP gathers or scatters per frequency, and everything that differs
+# between two frequency sets of similar size -- the basis M, the centre, the weights -- is data:
+# only the box shapes are static, rounded up to a ladder of 16 sizes per octave
+# (:func:`_ladder`; grids up to 2^20 points), so one compilation per shape serves every set
+# with a box of that shape (of a table, of the on-demand lookups of a process).
+
+
+def _ladder(k: int, floor: int = 16) -> int:
+    """``k`` rounded up to the next of 16 sizes per octave (``k`` itself below ``floor``)."""
+    if k < floor:
+        return int(k)
+    step = 1 << max(int(math.floor(math.log2(k))) - _LADDER, 0)
+    return int(-(-k // step) * step)
+
+
+class GridTerm(eqx.Module):
+    """One type-1 box of a weighted frequency set as data (see :class:`Box`): it contributes
+    ``sum_u weight[u] P_S(M u)`` (or ``weight[u] (P_S(M u) - target[u])^2`` when ``squared``)
+    over the box's grid ``u - centre in [-half, half]^2``; ``weight`` is 0 off the set."""
+
+    basis: jax.Array
+    centre: jax.Array
+    weight: jax.Array
+    target: jax.Array
+    half: tuple = eqx.field(static=True)
+    squared: bool = eqx.field(static=True)
+    eps: float = eqx.field(static=True)
+
+
+class ListTerm(eqx.Module):
+    """A group evaluated at its frequencies (``how``: ``"direct"`` or ``"nufft3"``, rotation
+    ``rot``), padded to a ladder size with ``v = 0`` at weight 0."""
+
+    freqs: jax.Array
+    weight: jax.Array
+    target: jax.Array
+    rot: jax.Array
+    how: str = eqx.field(static=True)
+    squared: bool = eqx.field(static=True)
+    eps: float = eqx.field(static=True)
+
+
+def _grid_setup(x, basis, centre, half, eps):
+    xp = x @ basis.astype(x.dtype)  # x'_j = M^T x_j
+    xp = xp - jnp.floor(xp)
+    ph = xp @ centre.astype(x.dtype)
+    ph = -2.0 * jnp.pi * (ph - jnp.round(ph))
+    shift = jax.lax.complex(jnp.cos(ph), jnp.sin(ph))
+    shape = (2 * half[0] + 1, 2 * half[1] + 1)
+    return (xp - 0.5) * (2.0 * jnp.pi), shift, shape, finufft_opts(eps, upsampfac=1.25)
+
+
+@functools.partial(jax.custom_vjp, nondiff_argnums=(3, 4))
+def _grid_power(x, basis, centre, half, eps):
+    """``P_S(M u)`` on a box's whole grid (type 1; VJP: one type-2 of two strengths)."""
+    return _grid_power_fwd(x, basis, centre, half, eps)[0]
+
+
+def _grid_power_fwd(x, basis, centre, half, eps):
+    from jax_finufft import nufft1
+
+    xs, shift, shape, opts = _grid_setup(x, basis, centre, half, eps)
+    f = nufft1(shape, shift, xs[:, 0], xs[:, 1], iflag=-1, eps=eps, opts=opts) / x.shape[0]
+    return jnp.real(f) ** 2 + jnp.imag(f) ** 2, (x, basis, centre, f)
+
+
+def _grid_power_bwd(half, eps, res, g):
+    from jax_finufft import nufft2
+
+    x, basis, centre, f = res
+    n = x.shape[0]
+    b = basis.astype(f.real.dtype)
+    u1 = centre[0].astype(b.dtype) + jnp.arange(-half[0], half[0] + 1, dtype=b.dtype)
+    u2 = centre[1].astype(b.dtype) + jnp.arange(-half[1], half[1] + 1, dtype=b.dtype)
+    vx = b[0, 0] * u1[:, None] + b[0, 1] * u2[None, :]  # v = M u on the grid
+    vy = b[1, 0] * u1[:, None] + b[1, 1] * u2[None, :]
+    a = g.astype(f.dtype) * jnp.conj(f)
+    xs, shift, _, opts = _grid_setup(x, basis, centre, half, eps)
+    s = nufft2(jnp.stack([a * vx.astype(a.dtype), a * vy.astype(a.dtype)]), xs[:, 0], xs[:, 1],
+               iflag=-1, eps=eps, opts=opts)
+    grad = (4.0 * jnp.pi / n) * jnp.imag(s * shift[None, :]).T.astype(x.dtype)
+    return grad, jnp.zeros_like(basis), jnp.zeros_like(centre)
+
+
+_grid_power.defvjp(_grid_power_fwd, _grid_power_bwd)
+
+
+def spectrum_terms(fset: FrequencySet, n: int, *, weights=None, target=0.0,
+                   squared: bool = False, scale: float = 1.0, method: str = "auto", eps=None,
+                   dtype=jnp.float64) -> tuple:
+    """A weighted frequency set as data: the terms whose :func:`terms_value` is
+    ``scale * sum_v w_v P_S(v)`` (``squared``: ``scale * sum_v w_v (P_S(v) - t_v)^2``) for
+    ``n`` points of ``dtype``; ``w`` defaults to ``fset.weights``, ``target`` is a scalar or one
+    value per frequency. One :class:`GridTerm` per type-1 box (:func:`group_plan`), one
+    :class:`ListTerm` per direct-sum or type-3 group."""
+    method = check_method(method)
+    n = check_int("n", n, minimum=1)
+    eps = default_eps(dtype) if eps is None else check_positive_float("eps", eps)
+    w_all = fset.weights if weights is None else np.asarray(weights, np.float64).reshape(-1)
+    t_all = np.broadcast_to(np.asarray(target, np.float64), w_all.shape)
+    scalar_target = np.ndim(target) == 0
+    out, start = [], 0
+    for theta, size in zip(fset.group_directions_deg, fset.group_sizes, strict=True):
+        if not size:
+            continue
+        fg = fset.freqs[start:start + size]
+        wg = w_all[start:start + size] * scale
+        tg = t_all[start:start + size]
+        start += size
+        how, order, segs = group_plan(method, n, fg, theta, dtype)
+        if how != "nufft1":
+            mp = _ladder(size, 64)
+            pad = ((0, mp - size),)
+            out.append(ListTerm(
+                jnp.asarray(np.pad(fg, pad + ((0, 0),)), dtype), jnp.asarray(np.pad(wg, pad),
+                                                                           dtype),
+                jnp.asarray(tg[0] if scalar_target else np.pad(tg, pad), dtype),
+                rotation(theta, dtype), how, squared, eps))
+            continue
+        if box_area(segs) * _GRID_BYTES_PER_FREQ > memory_bytes() // 2:
+            raise ValueError(f"method='nufft1' needs type-1 grids of {box_area(segs)} points "
+                             f"for {size} frequencies here, more than half the memory; use "
+                             "method='auto' or 'nufft3'")
+        for a, b, box in segs:
+            mat = np.asarray(box.m, np.int64).reshape(2, 2)
+            inv = np.round(np.linalg.inv(mat)).astype(np.int64)
+            half = box.r
+            if (2 * half[0] + 1) * (2 * half[1] + 1) <= _LADDER_MAX_GRID:
+                half = (_ladder(box.r[0]), _ladder(box.r[1]))
+            sel = order[a:b]
+            u = fg[sel].astype(np.int64) @ inv.T - np.asarray(box.c) + np.asarray(half)
+            shape = (2 * half[0] + 1, 2 * half[1] + 1)
+            wgrid = np.zeros(shape)
+            wgrid[u[:, 0], u[:, 1]] = wg[sel]
+            if scalar_target:
+                tgrid = np.asarray(tg[0])
+            else:
+                tgrid = np.zeros(shape)
+                tgrid[u[:, 0], u[:, 1]] = tg[sel]
+            out.append(GridTerm(jnp.asarray(mat, dtype), jnp.asarray(box.c, dtype),
+                                jnp.asarray(wgrid, dtype), jnp.asarray(tgrid, dtype), half,
+                                squared, eps))
+    return tuple(out)
+
+
+def term_value(points, term) -> jax.Array:
+    """One term's part of :func:`terms_value` (traceable; ``points`` finite float arrays)."""
+    x = _finite(points)
+    if isinstance(term, GridTerm):
+        p = _grid_power(x, term.basis, term.centre, term.half, term.eps)
+    else:
+        p = _power(x, term.freqs, term.rot, term.how, term.eps)
+    if term.squared:
+        d = p - term.target
+        return jnp.sum(term.weight * d * d)
+    return jnp.sum(term.weight * p)
+
+
+def terms_value(points, terms) -> jax.Array:
+    """``sum`` of :func:`term_value` over :func:`spectrum_terms`, in their order."""
+    check_points("points", points)
+    pts = _finite(_float_points(points))
+    val = jnp.zeros((), pts.dtype)
+    for t in terms:
+        val = val + term_value(pts, t)
+    return val
 
 
 def _principal_angle(freqs: np.ndarray) -> float:

@@ -28,8 +28,15 @@ and never piles points on the border; the SW target assumes the square (not the 
 point wrapping from 1 to 0 would jump across the whole projected distribution: the paper recipe
 therefore ``"clip"``s to ``[0, 1 - 2^-53]``.  Both can be chosen with ``boundary=``.
 
-Same key, same bits: the loop runs the same compiled chunk of ``checkpoint_every`` steps on the
-same state whether or not it is checkpointed or resumed, and every NUFFT runs on one thread
+Speed: a set's loss is data (:class:`_Objective`: the spectrum terms of
+:func:`anisosample.spectrum.spectrum_terms`, one per type-1 box), so a step is one compiled
+value-and-gradient per box *shape* and one compiled Adam step: a set whose box shapes were seen
+before in the process (every later set of a table, every later on-demand lookup with shared
+shapes) compiles nothing, and the terms of a step run on the cores in parallel (one FINUFFT
+thread each), summed in their fixed order.
+
+Same key, same bits: every step runs the same compiled functions on the same state whether or
+not the run is checkpointed or resumed, and every NUFFT runs on one thread
 (:data:`anisosample.spectrum.NUFFT_THREADS`), so a run is reproducible byte for byte across
 processes and thread counts, a resumed run equals an uninterrupted one, and set ``b`` of a batch
 equals ``synthesize(split(key, B)[b], ...)``. Long runs show a progress bar and save a
@@ -40,9 +47,12 @@ loss history, key, package version).
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
+import functools
 import hashlib
 import math
+import os
 import threading
 from pathlib import Path
 
@@ -250,55 +260,125 @@ def adam_update(grad, state, step, *, lr, b1, b2, eps):
     return -lr * mhat / (jnp.sqrt(vhat) + eps), (m, v)
 
 
-def _make_loss(fset, directions_deg, recipe: Recipe):
-    """``a L_spec + c L_SW`` (W Eq. 10; ``a = 0`` or ``c = 0`` drops a term, as in W Fig. 3)."""
-    spec = _losses.linear_spectrum_loss if recipe.name == "rate" else _losses.spectrum_loss
+class _Objective(eqx.Module):
+    """One set's loss ``a L_spec + c L_SW`` (W Eq. 10; ``a = 0`` or ``c = 0`` drops a term, as in
+    W Fig. 3) as data: the spectrum terms (:func:`anisosample.spectrum.spectrum_terms`, scaled
+    by ``a``) and the SW directions and targets. Nothing of the set is static but the terms'
+    box shapes, so sets of one size share the compiled step."""
+
+    terms: tuple
+    sw: tuple | None
+    c: float = eqx.field(static=True)
+
+
+def _objective(fset, directions_deg, recipe: Recipe, n: int) -> _Objective:
     a, c = recipe.spectrum_weight, recipe.c
-
-    def loss(x):
-        val = jnp.zeros((), x.dtype)
+    terms = ()
+    with jax.enable_x64(True):  # the loop runs in float64
         if a > 0:
-            val = val + a * spec(x, fset, method=recipe.method, eps=recipe.nufft_eps)
-        if c > 0:
-            val = val + c * _losses.sliced_wasserstein_loss(x, directions_deg)
-        return val
+            make = (_losses.linear_spectrum_loss_terms if recipe.name == "rate"
+                    else _losses.spectrum_loss_terms)
+            terms = make(fset, n, scale=a, method=recipe.method, eps=recipe.nufft_eps)
+        sw = _losses.sliced_wasserstein_targets(directions_deg, n) if c > 0 else None
+    return _Objective(terms, sw, float(c))
 
-    return loss
+
+# One compiled function per spectrum term shape (shared by every set, single or batched), one
+# for the SW term and one for the Adam step: a set of an already-seen size compiles nothing.
+_term_value_and_grad = jax.jit(jax.value_and_grad(_spectrum.term_value))
 
 
-def _make_chunk(losses, n, recipe: Recipe, chunk):
-    """A jitted function running ``chunk`` optimizer steps on ``B`` sets at once: the state is
-    one ``(x, m, v)`` triple of ``(n, 2)`` arrays per set and a shared step count, and set ``b``
-    is updated by the gradient of its own loss ``losses[b]`` (its own frequency plan). Each
-    set's part of the program is the one a single set runs, so batched and single synthesis give
-    the same bits."""
+@functools.partial(jax.jit, static_argnums=0)
+def _sw_value_and_grad(c, x, d, tgt):
+    return jax.value_and_grad(lambda y: c * _losses.sliced_wasserstein_value(y, d, tgt))(x)
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _adam_step(hyper, x, m, v, t, vals, grads):
+    """Sum the terms' values and gradients (in their order), take one Adam step at the decayed
+    learning rate, wrap or clip: ``(x, m, v, t + 1, loss before the step)``."""
+    lr0, decay, b1, b2, eps, wrap = hyper
+    val = functools.reduce(jnp.add, vals)
+    g = functools.reduce(jnp.add, grads)
+    lr = lr0 * decay ** t.astype(jnp.float64)
+    dx, (m, v) = adam_update(g, (m, v), (t + 1).astype(x.dtype), lr=lr, b1=b1, b2=b2, eps=eps)
+    x = x + dx
+    x = x - jnp.floor(x) if wrap else jnp.clip(x, 0.0, 1.0 - 2.0**-53)
+    return x, m, v, t + 1, val
+
+
+def _jobs(obj: _Objective, x) -> list:
+    """The independent pieces of one set's loss and gradient: one per spectrum term (and SW)."""
+    jobs = [(_term_value_and_grad, (x, term)) for term in obj.terms]
+    if obj.sw is not None:
+        jobs.append((functools.partial(_sw_value_and_grad, obj.c), (x, *obj.sw)))
+    return jobs
+
+
+_POOL: list = []
+_POOL_LOCK = threading.Lock()
+
+
+def _pool():
+    """The worker threads the terms of a step run on (one per core): each term is its own
+    compiled FINUFFT computation on one thread, so the cores work on different terms and the
+    bits do not depend on which thread ran which (the terms are summed in their order)."""
+    with _POOL_LOCK:
+        if not _POOL:
+            _POOL.append(concurrent.futures.ThreadPoolExecutor(
+                max_workers=max(1, os.cpu_count() or 1), thread_name_prefix="anisosample"))
+        return _POOL[0]
+
+
+def _run_job(fn, args):
+    # the config is per thread: float64, on the device the set lives on
+    (device,) = args[0].devices()
+    with jax.enable_x64(True), jax.default_device(device):
+        return jax.block_until_ready(fn(*args))
+
+
+def _evaluate(objectives, xs) -> list:
+    """``(values, gradients)`` of every set's terms, the sets' terms spread over the cores."""
+    jobs = [_jobs(obj, x) for obj, x in zip(objectives, xs, strict=True)]
+    flat = [j for js in jobs for j in js]
+    if len(flat) == 1:
+        res = [_run_job(*flat[0])]
+    else:
+        res = list(_pool().map(lambda j: _run_job(*j), flat))
+    out, k = [], 0
+    for js in jobs:
+        part = res[k:k + len(js)]
+        k += len(js)
+        out.append((tuple(r[0] for r in part), tuple(r[1] for r in part)))
+    return out
+
+
+def _hyper(recipe: Recipe, n: int) -> tuple:
     lr0 = recipe.learning_rate / math.sqrt(n)
     decay = recipe.final_lr_fraction ** (1.0 / max(recipe.steps - 1, 1))
-    wrap = recipe.boundary == "wrap"
-    hi = 1.0 - 2.0**-53
+    return (lr0, decay, recipe.b1, recipe.b2, recipe.adam_eps, recipe.boundary == "wrap")
 
-    def one(state, _):
-        sets, t = state
-        lr = lr0 * decay ** t.astype(jnp.float64)
+
+def _run_chunk(objectives, state, hyper, chunk: int):
+    """``chunk`` optimizer steps on ``B`` sets: the state is one ``(x, m, v)`` triple of
+    ``(n, 2)`` arrays per set and a shared step count; set ``b`` follows the gradient of its
+    own objective. Every set runs the same compiled functions on its own data, so batched and
+    single synthesis give the same bits. Returns the new state, the losses before each step
+    ``(chunk, B)`` and the losses of the end state ``(B,)``."""
+    sets, t = state
+    hist = []
+    for _ in range(chunk):
         out, vals = [], []
-        for fn, (x, m, v) in zip(losses, sets, strict=True):
-            val, g = jax.value_and_grad(fn)(x)
-            dx, (m, v) = adam_update(g, (m, v), (t + 1).astype(x.dtype), lr=lr, b1=recipe.b1,
-                                     b2=recipe.b2, eps=recipe.adam_eps)
-            x = x + dx
-            x = x - jnp.floor(x) if wrap else jnp.clip(x, 0.0, hi)
+        evals = _evaluate(objectives, [x for x, _, _ in sets])
+        for (tv, tg), (x, m, v) in zip(evals, sets, strict=True):
+            x, m, v, t_next, val = _adam_step(hyper, x, m, v, t, tv, tg)
             out.append((x, m, v))
             vals.append(val)
-        return (tuple(out), t + 1), jnp.stack(vals)
-
-    @jax.jit
-    def run(state):
-        # the losses of the chunk's end state too: the final loss needs no second compilation
-        state, vals = jax.lax.scan(one, state, None, length=chunk)
-        end = jnp.stack([fn(x) for fn, (x, _, _) in zip(losses, state[0], strict=True)])
-        return state, vals, end
-
-    return run
+        sets, t = tuple(out), t_next
+        hist.append(vals)
+    end = [functools.reduce(jnp.add, tv)
+           for tv, _ in _evaluate(objectives, [x for x, _, _ in sets])]
+    return (sets, t), np.asarray(jnp.asarray(hist)), np.asarray(jnp.stack(end))
 
 
 def _to_float32_unit(x) -> np.ndarray:
@@ -365,7 +445,7 @@ def _read_checkpoint(path: Path, meta: dict, shape: tuple, steps: int):
     return arrays["x"], arrays["m"], arrays["v"], step, hist
 
 
-def _iterate(losses, x_init: np.ndarray, recipe: Recipe, n: int, *, meta: dict,
+def _iterate(objectives, x_init: np.ndarray, recipe: Recipe, n: int, *, meta: dict,
              checkpoint=None, checkpoint_every: int = 50, callback=None, bar_desc: str = "",
              show_progress: bool = True, single: bool = True):
     """The one optimizer loop: Adam on the stacked sets ``x_init`` ``(B, n, 2)`` (float64),
@@ -385,7 +465,7 @@ def _iterate(losses, x_init: np.ndarray, recipe: Recipe, n: int, *, meta: dict,
             hist = h.reshape(done, b)
         state = (tuple((jnp.asarray(x[i]), jnp.asarray(m[i]), jnp.asarray(v[i]))
                        for i in range(b)), jnp.asarray(done, jnp.int64))
-        runners = {}
+        hyper = _hyper(recipe, n)
         bar = _progress(total=steps, initial=done, desc=bar_desc,
                         disable=None if show_progress else True)
 
@@ -395,10 +475,8 @@ def _iterate(losses, x_init: np.ndarray, recipe: Recipe, n: int, *, meta: dict,
         try:
             while done < steps:
                 k = min(checkpoint_every, steps - done)
-                if k not in runners:
-                    runners[k] = _make_chunk(losses, n, recipe, k)
-                state, vals, final = runners[k](state)
-                hist = np.concatenate([hist, np.asarray(vals)])
+                state, vals, final = _run_chunk(objectives, state, hyper, k)
+                hist = np.concatenate([hist, vals])
                 done = int(state[1])
                 bar.update(k)
                 bar.set_postfix(loss=f"{float(hist[-1].max()):.3e}")
@@ -469,7 +547,7 @@ def synthesize(key, n: int, directions_deg, *, recipe: str | Recipe = "rate",
         if x0.shape != (n, 2):
             raise ValueError(f"initial_points must have shape ({n}, 2), got {x0.shape}")
         meta["initial_points_sha256"] = hashlib.sha256(x0.astype("<f8").tobytes()).hexdigest()
-    x, hist, final = _iterate([_make_loss(fset, directions_deg, rec)], x0[None], rec, n,
+    x, hist, final = _iterate([_objective(fset, directions_deg, rec, n)], x0[None], rec, n,
                               meta=meta,
                               checkpoint=checkpoint, checkpoint_every=checkpoint_every,
                               callback=callback, bar_desc=f"synthesize n={n}",
@@ -536,7 +614,7 @@ def synthesize_batch(key, n: int, direction_sets, *, recipe: str | Recipe = "rat
                 x_init[idx].astype("<f8").tobytes()).hexdigest()
         try:
             with jax.default_device(device) if device is not None else _nullcontext():
-                out[i] = _iterate([_make_loss(fsets[j], sets[j], rec) for j in idx],
+                out[i] = _iterate([_objective(fsets[j], sets[j], rec, n) for j in idx],
                                   x_init[idx], rec, n, meta=meta, checkpoint=checkpoint,
                                   checkpoint_every=checkpoint_every, single=False,
                                   bar_desc=f"synthesize_batch {len(idx)} x n={n}",
