@@ -479,7 +479,8 @@ def _add_render(sub):
     p.add_argument("--direction-map", default=None, metavar="PNG",
                    help="aligned/sheared: also write the per-block directions as PNG (hue = "
                         "direction / 180, black = none; one panel per direction)")
-    p.add_argument("--spp", type=int, default=None, help="points per pixel (default: the scene's)")
+    p.add_argument("--spp", type=int, default=None,
+                   help="points per pixel (default: the XML sampler's sample_count)")
     p.add_argument("--realizations", type=int, default=1,
                    help="independent renders; >1 also writes a per-pixel variance image")
     p.add_argument("--seed", type=_seed, default=0, help="integer seed of the JAX key")
@@ -522,15 +523,17 @@ def _run_render(args):
             raise ValueError(f"--set expects NAME=VALUE, got {item!r}")
         k, v = item.split("=", 1)
         params[k.strip()] = v.strip()
-    scene = render.load_xml(args.scene, **params)
+    scene, settings = render.load_xml_with_settings(args.scene, **params)
+    spp = settings.spp if args.spp is None else args.spp
+    mis = settings.mis if args.mis is None else args.mis
     render.light_warps.check_light_warp(scene, args.light_warp)  # before any estimation
     reference = io.read_exr(args.reference) if args.reference else None
-    sampler = _block_sampler(args, scene)
+    sampler = _block_sampler(args, scene, spp)
     result = render.render(
-        scene, jax.random.key(args.seed), spp=args.spp, sampler=sampler,
+        scene, jax.random.key(args.seed), spp=spp, sampler=sampler,
         realizations=args.realizations, pixel_center=args.pixel_center,
         dimension=args.dimension, technique=args.technique, light_warp=args.light_warp,
-        mis=args.mis,
+        mis=mis,
     )
     written = render.save_result(
         out, result, overwrite=args.force, exposure=args.exposure,
@@ -540,7 +543,7 @@ def _run_render(args):
     print(f"wrote {', '.join(str(w) for w in written)}")
 
 
-def _block_sampler(args, scene):
+def _block_sampler(args, scene, spp):
     """``--sampler aligned|sheared``: estimate the blocks' directions (printing the cost, W
     Fig. 10 counts it) and write the direction map; other samplers pass through by name."""
     from . import tables
@@ -553,7 +556,6 @@ def _block_sampler(args, scene):
             raise ValueError("--block, --estimation-samples and --direction-map need --sampler "
                              f"{' or '.join(aligned.BLOCK_SAMPLERS)}")
         return args.sampler
-    spp = scene.spp if args.spp is None else args.spp
     if args.sampler == "aligned" and tables.find_table(3, spp) is None:
         raise FileNotFoundError(
             f"--sampler aligned needs a 3-direction table for n = {spp} points (--spp) and none "

@@ -48,8 +48,9 @@ def main(argv=None):
             ours = io.read_exr(ours_path)[..., :3]
             t_ours = None
         else:
-            scene = render.load_xml(path, **params)
-            res = render.render(scene, jax.random.fold_in(jax.random.key(args.seed), i), spp=spp)
+            scene, settings = render.load_xml_with_settings(path, **params)
+            res = render.render(scene, jax.random.fold_in(jax.random.key(args.seed), i), spp=spp,
+                                mis=settings.mis)  # the file's integrator, as Mitsuba renders it
             render.save_result(ours_path, res, overwrite=True, metadata={"scene": name})
             ours = res.mean
             t_ours = time.time() - t

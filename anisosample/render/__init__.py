@@ -30,5 +30,7 @@ from .light_warps import LIGHT_WARPS as LIGHT_WARPS
 from .light_warps import Receiver as Receiver
 from .lights import TECHNIQUES as TECHNIQUES
 from .scene import Scene as Scene
+from .xml import RenderSettings as RenderSettings
 from .xml import SceneFormatError as SceneFormatError
 from .xml import load_xml as load_xml
+from .xml import load_xml_with_settings as load_xml_with_settings

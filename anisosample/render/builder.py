@@ -122,9 +122,6 @@ class SceneBuilder:
     _emitters: list = field(default_factory=list)  # EmitterRecord
     _textures: list = field(default_factory=list)
     _camera: dict | None = None
-    spp: int = 64
-    emitter_samples: int = 1
-    bsdf_samples: int = 0
 
     # materials ----------------------------------------------------------------------------------
     def diffuse(self, reflectance=(0.5, 0.5, 0.5), *, twosided=False) -> int:
@@ -551,9 +548,6 @@ class SceneBuilder:
             textures=textures,
             camera=camera,
             scale=f32(max(scale, 1.0)),
-            spp=int(self.spp),
-            emitter_samples=int(self.emitter_samples),
-            bsdf_samples=int(self.bsdf_samples),
             has_spheres=bool(self._spheres),
             has_textures=bool(self._textures),
             patches=build_patches(self._patches),

@@ -47,14 +47,14 @@ def render(
     scene: Scene,
     key,
     *,
-    spp: int | None = None,
+    spp: int = 64,
     sampler="random",
     realizations: int = 1,
     pixel_center: bool = False,
     dimension: str = "auto",
     technique: str = "area",
     light_warp: str = "none",
-    mis: bool | None = None,
+    mis: bool = False,
     square_aperture: bool = False,
     chunk: int | None = None,
     chunk_samples: int = 4096,
@@ -63,9 +63,13 @@ def render(
 ) -> RenderResult:
     """Render ``scene`` ``realizations`` times with ``spp`` points per pixel per realization.
 
-    ``sampler``: a name from :func:`anisosample.samplers.names` or a callable ``(key, n)``;
-    ``spp`` defaults to the scene's sample count; ``mis`` defaults to the XML integrator's
-    ``bsdf_samples > 0``. Deterministic for a given ``key``.
+    ``sampler``: a name from :func:`anisosample.samplers.names` or a callable ``(key, n)``.
+    ``spp`` (default 64) and ``mis`` (default off: light sampling alone; on: one BSDF sample
+    per light sample, power heuristic) are the caller's: a scene file's own sample count and
+    integrator are :class:`~anisosample.render.xml.RenderSettings`
+    (``scene, settings = load_xml_with_settings(p)``; ``render(scene, key,
+    **settings._asdict())``). ``mis`` applies to light sampling only (``dimension="light"``).
+    Deterministic for a given ``key``.
 
     ``technique`` is the base light-sampling technique (``"area"``, ``"solid_angle"``,
     ``"parametric"``) and ``light_warp`` the warp chain fitted at every shading point in front of
@@ -80,11 +84,11 @@ def render(
     ``RenderResult.pixel_sampler`` records which.
     """
     key = check_key("key", key)
-    spp = check_int("spp", scene.spp if spp is None else spp, minimum=1)
+    spp = check_int("spp", spp, minimum=1)
     realizations = check_int("realizations", realizations, minimum=1)
     dimension = check_options(scene, dimension, technique, light_warp)
-    if mis is None:
-        mis = scene.bsdf_samples > 0
+    if not isinstance(mis, (bool, np.bool_)):
+        raise TypeError(f"mis must be True or False, got {mis!r}")
     mis = bool(mis) and dimension == "light"
     from .aligned import render_chunk_sets, resolve_sampler
 

@@ -4,7 +4,9 @@ Geometry is flattened to what the kernels need: planar primitives (OBJ meshes be
 triangles; rectangles and cube faces one parallelogram each, where Mitsuba 3 uses two triangles),
 analytic spheres, bilinear patches, a table of materials, a
 table of light primitives (parallelograms, triangles, spheres, bilinear patches, points) grouped
-into emitters, and one camera.
+into emitters, and one camera. How to render it (sample count, MIS) is not part of the scene:
+those are keywords of :func:`~anisosample.render.render` (a file's own:
+:class:`~anisosample.render.xml.RenderSettings`).
 Use :class:`~anisosample.render.builder.SceneBuilder` to assemble a scene from Python, or
 :func:`anisosample.render.load_xml` to read Mitsuba 3's XML format.
 
@@ -130,9 +132,6 @@ class Scene(eqx.Module):
     camera: Camera
     scale: Float[Array, ""]  # scene extent, for ray offsets
     patches: Patches  # bilinear patches (render/patch.py)
-    spp: int = eqx.field(static=True, default=64)
-    emitter_samples: int = eqx.field(static=True, default=1)
-    bsdf_samples: int = eqx.field(static=True, default=0)
     has_spheres: bool = eqx.field(static=True, default=True)
     has_textures: bool = eqx.field(static=True, default=True)
     has_patches: bool = eqx.field(static=True, default=False)

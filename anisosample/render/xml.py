@@ -17,9 +17,15 @@ Supported (everything else is an error naming the tag and line):
   ``<ref id=...>``;
 * emitters ``area`` (constant ``radiance`` or an EXR ``bitmap`` texture) and ``point``;
 * sensors ``perspective`` and ``thinlens`` with an ``hdrfilm`` and a ``box`` ``rfilter``;
-  the sampler's ``sample_count`` becomes the default spp;
+  the sampler's ``sample_count`` becomes :attr:`RenderSettings.spp`;
 * integrator ``direct`` (``emitter_samples`` = 1, ``bsdf_samples`` 0 or 1; ``bsdf_samples = 1``
-  turns on MIS with one BSDF sample per light sample; other counts are refused: raise spp).
+  turns on MIS with one BSDF sample per light sample, :attr:`RenderSettings.mis`; other counts
+  are refused: raise spp).
+
+The sample count and the integrator are render settings, not scene data: :func:`load_xml`
+returns the :class:`~anisosample.render.scene.Scene` alone, :func:`load_xml_with_settings` the
+scene and the file's :class:`RenderSettings`, which ``render(scene, key, **settings._asdict())``
+applies (the CLI's ``anisosample render`` does, unless ``--spp`` / ``--mis`` say otherwise).
 """
 
 from __future__ import annotations
@@ -28,12 +34,28 @@ import re
 import xml.parsers.expat
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from .builder import SceneBuilder
 from .obj import read_obj as _read_obj
 from .scene import Scene
+
+
+class RenderSettings(NamedTuple):
+    """What a scene file says about *how* to render it (frozen; the scene itself is the
+    :class:`~anisosample.render.scene.Scene`): the keywords of
+    :func:`~anisosample.render.image.render` that it sets.
+
+    ``spp``: the sensor's ``<sampler>`` ``sample_count`` (Mitsuba 3's default 4 when the
+    sampler, or the count, is not given); ``mis``: the ``direct`` integrator's
+    ``bsdf_samples = 1`` (one BSDF sample per light sample, combined by the power heuristic;
+    Mitsuba's ``bsdf_samples`` defaults to ``shading_samples``, 1).
+    """
+
+    spp: int = 4
+    mis: bool = True
 
 
 class SceneFormatError(ValueError):
@@ -80,6 +102,7 @@ class _Ctx:
         self.dir = path.parent
         self.params = dict(params)
         self.bsdfs: dict[str, _Node] = {}
+        self.settings = RenderSettings()
 
     def err(self, node: _Node, msg: str) -> SceneFormatError:
         t = node.attrs.get("type")
@@ -519,9 +542,10 @@ def _sensor(ctx: _Ctx, b: SceneBuilder, node: _Node):
         elif o.tag == "sampler":
             sp, so = _props(ctx, o, {"sample_count": "integer", "seed": "integer"})
             _no_objects(ctx, so)
-            b.spp = sp.get("sample_count", 4)
-            if b.spp < 1:
-                raise ctx.err(o, f"sample_count must be >= 1, got {b.spp}")
+            spp = sp.get("sample_count", RenderSettings().spp)
+            if spp < 1:
+                raise ctx.err(o, f"sample_count must be >= 1, got {spp}")
+            ctx.settings = ctx.settings._replace(spp=int(spp))
         else:
             raise ctx.err(o, "unexpected nested element in a sensor")
     if "fov" not in props:
@@ -552,11 +576,20 @@ def _sensor(ctx: _Ctx, b: SceneBuilder, node: _Node):
 def load_xml(path, **params) -> Scene:
     """Load a Mitsuba 3 XML scene (see the module docstring for the supported subset).
 
-    Keyword arguments override ``<default>`` parameters (``load_xml(p, spp=16)``); a name the
-    file neither defaults nor references (``$name``) is a ``ValueError`` listing the known ones.
+    Returns the scene alone; :func:`load_xml_with_settings` also returns the file's sample
+    count and MIS setting (:class:`RenderSettings`). Keyword arguments override ``<default>``
+    parameters (``load_xml(p, spp=16)``); a name the file neither defaults nor references
+    (``$name``) is a ``ValueError`` listing the known ones.
     Raises :class:`SceneFormatError` (a ``ValueError``) naming the file, line and tag, or
     ``FileNotFoundError``.
     """
+    return load_xml_with_settings(path, **params)[0]
+
+
+def load_xml_with_settings(path, **params) -> tuple[Scene, RenderSettings]:
+    """:func:`load_xml`, and the file's :class:`RenderSettings` (sample count, MIS):
+    ``scene, settings = load_xml_with_settings(p); render(scene, key, **settings._asdict())``
+    renders as the file says (Mitsuba's ``mi.render(mi.load_file(p))``)."""
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"no such scene file: {path}")
@@ -627,16 +660,17 @@ def load_xml(path, **params) -> Scene:
             )
             _no_objects(ctx, objs)
             s = props.get("shading_samples", 1)
-            b.emitter_samples = props.get("emitter_samples", s)
-            b.bsdf_samples = props.get("bsdf_samples", s)
-            if b.emitter_samples != 1 or b.bsdf_samples not in (0, 1):
+            emitter_samples = props.get("emitter_samples", s)
+            bsdf_samples = props.get("bsdf_samples", s)
+            if emitter_samples != 1 or bsdf_samples not in (0, 1):
                 # Each pixel sample is one point of the sampler under study (one light sample,
                 # W Eq. 8 / H Sec. 4): more emitter or BSDF samples per pixel sample would not
                 # change the converged image, only hide the sampler; raise spp instead.
                 raise ctx.err(c, "emitter_samples must be 1 and bsdf_samples 0 or 1 here (one "
                                  "light sample and at most one BSDF sample per pixel sample; "
                                  "raise the sample count instead), got "
-                                 f"{b.emitter_samples} and {b.bsdf_samples}")
+                                 f"{emitter_samples} and {bsdf_samples}")
+            ctx.settings = ctx.settings._replace(mis=bsdf_samples == 1)
         else:
             raise ctx.err(c, "unsupported element")
     if integrators == 0:
@@ -647,6 +681,6 @@ def load_xml(path, **params) -> Scene:
     if sensors == 0:
         raise SceneFormatError(f"{path}: the scene has no <sensor>")
     try:
-        return b.build()
+        return b.build(), ctx.settings
     except ValueError as exc:
         raise SceneFormatError(f"{path}: {exc}") from None

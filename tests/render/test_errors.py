@@ -145,4 +145,27 @@ def test_sample_counts_other_than_one_are_refused(tmp_path, counts):
     ok = MINIMAL.format(body=LIGHT).replace(
         '<integrator type="direct"/>',
         '<integrator type="direct"><integer name="bsdf_samples" value="0"/></integrator>')
-    assert R.load_xml(_write(tmp_path, ok, "ok.xml")).bsdf_samples == 0
+    assert R.load_xml_with_settings(_write(tmp_path, ok, "ok.xml"))[1].mis is False
+
+
+def test_render_settings_are_the_files_not_the_scenes(tmp_path):
+    """The sample count and MIS live in RenderSettings (Mitsuba's defaults: 4 samples,
+    bsdf_samples = shading_samples = 1), never in the Scene; render() has its own defaults."""
+    plain = _write(tmp_path, MINIMAL.format(body=LIGHT))
+    scene, settings = R.load_xml_with_settings(plain)
+    assert settings == R.RenderSettings(spp=4, mis=True)
+    assert not any(hasattr(scene, a) for a in ("spp", "bsdf_samples", "emitter_samples"))
+    text = MINIMAL.format(body=LIGHT).replace(
+        '<rfilter type="box"/></film>',
+        '<rfilter type="box"/></film><sampler type="independent">'
+        '<integer name="sample_count" value="$spp"/></sampler>').replace(
+        '<integrator type="direct"/>',
+        '<default name="spp" value="7"/><integrator type="direct">'
+        '<integer name="bsdf_samples" value="0"/></integrator>')
+    path = _write(tmp_path, text, "counted.xml")
+    assert R.load_xml_with_settings(path)[1] == R.RenderSettings(spp=7, mis=False)
+    assert R.load_xml_with_settings(path, spp=3)[1].spp == 3
+    res = R.render(R.load_xml(path), jax.random.key(0), pixel_center=True, progress=False)
+    assert res.spp == 64 and res.settings["mis"] is False  # render's defaults, not the file's
+    with pytest.raises(TypeError, match="mis must be True or False"):
+        R.render(scene, jax.random.key(0), spp=1, mis=None, progress=False)

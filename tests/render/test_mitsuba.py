@@ -19,6 +19,12 @@ SHIPPED = ["cornell", "blinds", "attic", "dof", "triangle_light", "glossy", "pla
            "h_triangle_plane"]
 
 
+def _render(path, size, key, **kw):
+    """Render as Mitsuba does: the file's integrator settings (MIS from bsdf_samples)."""
+    scene, settings = R.load_xml_with_settings(path, **size)
+    return R.render(scene, key, mis=settings.mis, **kw)
+
+
 def _relrmse(a, b):
     return float(np.sqrt(np.mean((a - b) ** 2)) / np.sqrt(np.mean(b**2)))
 
@@ -35,7 +41,7 @@ def test_plastic_low_res_matches_mitsuba():
 def _low_res_matches_mitsuba(path):
     size = dict(width=8, height=8)
     spp, reps = 256, 8
-    ours = R.render(R.load_xml(path, **size), jax.random.key(0), spp=spp, realizations=reps,
+    ours = _render(path, size, jax.random.key(0), spp=spp, realizations=reps,
                     progress=False)
     ref = mitsuba_render(path, spp * reps, **size)
     # Both are unbiased estimates of one image. Our variance of the R-realization mean is
@@ -55,7 +61,7 @@ def test_shipped_scene_matches_mitsuba_to_one_percent(name):
     # Both images must be converged well below 1%: 32x32 pixels at 2^15 samples each.
     size = dict(width=32, height=32)
     spp = 32768
-    ours = R.render(R.load_xml(path, **size), jax.random.key(1), spp=spp, sampler="jittered",
+    ours = _render(path, size, jax.random.key(1), spp=spp, sampler="jittered",
                     progress=False)
     ref = mitsuba_render(path, spp, seed=1, **size)
     err = _relrmse(ours.mean, ref)
@@ -72,7 +78,7 @@ def test_patch_light_low_res_matches_mitsuba(tmp_path):
     path = SCENES / "patch_light.xml"
     size = dict(width=8, height=8)
     spp, reps = 256, 8
-    ours = R.render(R.load_xml(path, **size), jax.random.key(0), spp=spp, realizations=reps,
+    ours = _render(path, size, jax.random.key(0), spp=spp, realizations=reps,
                     progress=False)
     ref = mitsuba_render(mitsuba_copy_of_patch_scene(path, tmp_path), spp * reps, **size)
     noise = 2 * ours.variance / reps  # as in the Cornell test above
@@ -86,7 +92,7 @@ def test_patch_light_matches_mitsuba_to_one_percent(tmp_path):
     path = SCENES / "patch_light.xml"
     size = dict(width=32, height=32)
     spp = 32768
-    ours = R.render(R.load_xml(path, **size), jax.random.key(1), spp=spp, sampler="jittered",
+    ours = _render(path, size, jax.random.key(1), spp=spp, sampler="jittered",
                     progress=False)
     ref = mitsuba_render(mitsuba_copy_of_patch_scene(path, tmp_path), spp, seed=1, **size)
     err = _relrmse(ours.mean, ref)
