@@ -39,6 +39,8 @@ import functools
 import jax.numpy as jnp
 import numpy as np
 
+from ..warps.hemisphere import concentric_disk_map
+
 RES = 64  # table resolution (Mitsuba's MI_ROUGH_TRANSMITTANCE_RES)
 GGX, BECKMANN = 0, 1
 DISTRIBUTIONS = {"ggx": GGX, "beckmann": BECKMANN}
@@ -184,19 +186,6 @@ def _smith_g1_np(v, m, alpha, dist):
     return np.where(np.sum(v * m, -1) * v[..., 2] <= 0, 0.0, g)
 
 
-def _concentric_np(u):
-    """Shirley-Chiu concentric square-to-disk map (Mitsuba 3 ``warp.h``)."""
-    x, y = 2 * u[..., 0] - 1, 2 * u[..., 1] - 1
-    q13 = np.abs(x) < np.abs(y)
-    r = np.where(q13, y, x)
-    rp = np.where(q13, x, y)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        phi = 0.25 * np.pi * rp / r
-    phi = np.where(q13, 0.5 * np.pi - phi, phi)
-    phi = np.where((x == 0) & (y == 0), 0.0, phi)
-    return r * np.cos(phi), r * np.sin(phi)
-
-
 def _visible_slope_np(cos_i, u, dist):
     """Slopes of a visible normal of the ``alpha = 1`` distribution for an incident direction
     with cosine ``cos_i`` in the x-z plane (Heitz 2018 for GGX; Jakob 2014 for Beckmann)."""
@@ -206,7 +195,7 @@ def _visible_slope_np(cos_i, u, dist):
 
 def _visible_slope_np_(cos_i, u, dist):
     if dist == GGX:
-        px, py = _concentric_np(u)
+        px, py = concentric_disk_map(u[..., 0], u[..., 1], np)
         s = 0.5 * (1 + cos_i)
         py = (1 - s) * np.sqrt(np.maximum(1 - px * px, 0.0)) + s * py
         z = np.sqrt(np.maximum(1 - px * px - py * py, 0.0))

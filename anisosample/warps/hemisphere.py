@@ -25,14 +25,25 @@ _PI = jnp.pi
 _EPS1 = 1.0 - 2.0**-24
 
 
+def concentric_disk_map(u0, u1, xp=jnp):
+    """Shirley & Chiu 1997's concentric square-to-disk map, ``(u0, u1)`` in ``[0, 1]^2`` to
+    ``(x, y)`` in the unit disk (Mitsuba 3 ``square_to_uniform_disk_concentric``), elementwise.
+
+    The one implementation: :class:`ConcentricDisk` and the hemisphere maps use it with
+    ``xp = jax.numpy``; render/plastic.py's float64 table quadrature with ``xp = numpy``.
+    """
+    a, b = 2.0 * u0 - 1.0, 2.0 * u1 - 1.0
+    use_a = xp.abs(a) > xp.abs(b)
+    r = xp.where(use_a, a, b)
+    safe_a = xp.where(a == 0, 1.0, a)
+    safe_b = xp.where(b == 0, 1.0, b)
+    phi = xp.where(use_a, (_PI / 4) * (b / safe_a), _PI / 2 - (_PI / 4) * (a / safe_b))
+    origin = (a == 0) & (b == 0)
+    return xp.where(origin, 0.0, r * xp.cos(phi)), xp.where(origin, 0.0, r * xp.sin(phi))
+
+
 def _concentric(u):
-    a, b = 2.0 * u[0] - 1.0, 2.0 * u[1] - 1.0
-    use_a = jnp.abs(a) > jnp.abs(b)
-    r = jnp.where(use_a, a, b)
-    safe_a = jnp.where(a == 0, 1.0, a)
-    safe_b = jnp.where(b == 0, 1.0, b)
-    phi = jnp.where(use_a, (_PI / 4) * (b / safe_a), _PI / 2 - (_PI / 4) * (a / safe_b))
-    return jnp.where((a == 0) & (b == 0), 0.0, jnp.stack([r * jnp.cos(phi), r * jnp.sin(phi)]))
+    return jnp.stack(concentric_disk_map(u[0], u[1]))
 
 
 def _concentric_inverse(p):
