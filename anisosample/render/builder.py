@@ -310,7 +310,8 @@ class SceneBuilder:
                     )
                 continue  # degenerate triangles are never hit; drop them
             n = _unit(cr) * (-1 if flip_normals else 1)
-            entries.append((p0, p1, p2, n, uvs[tri[0]], uvs[tri[1]], uvs[tri[2]]))
+            entries.append(Planar(p0, p1, p2, n, uvs[tri[0]], uvs[tri[1]], uvs[tri[2]],
+                                  material=material, light=-1, parallelogram=False))
             prims.append(
                 _light_dict(
                     LIGHT_TRIANGLE,
@@ -328,8 +329,8 @@ class SceneBuilder:
         if emissive and not prims:
             raise ValueError("mesh emitter has zero area")
         lights = self._add_emitter(prims, delta=False) if emissive else [-1] * len(entries)
-        for (p0, p1, p2, n, a, b, c), li in zip(entries, lights, strict=True):
-            self._tris.append(Planar(p0, p1, p2, n, a, b, c, material, li, False))
+        for rec, li in zip(entries, lights, strict=True):
+            self._tris.append(rec._replace(light=li))
 
     def cube(self, to_world, material: int, *, radiance=None, flip_normals=False) -> None:
         """Mitsuba ``cube``: ``[-1, 1]^3`` with outward normals.

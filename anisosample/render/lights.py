@@ -162,11 +162,10 @@ def _sample_kind(scene: Scene, kind: int, prim, u, rec: Receiver, technique, lig
         denom = dot(x, nl)
         t = dot(p0 - rec.origin, nl) / jnp.where(denom == 0, 1e-30, denom)
         p = rec.origin + t * x
-        pdf = pdf * jnp.abs(denom) / jnp.maximum(t * t, 1e-30)
+        pdf = _solid_angle_to_area(pdf, x, nl, t * t)
         pdf = jnp.where(jnp.isfinite(pdf) & (pdf > 0) & (t > 0), pdf, 0.0)
-        use = solid_angle_valid(warp)
-        p = jnp.where(use, p, _area_point(kind, lights, prim, u))
-        pdf = jnp.where(use, pdf, _inv_area(lights, prim))
+        p = jnp.where(solid_angle_valid(warp), p, _area_point(kind, lights, prim, u))
+        pdf = _or_area_fallback(warp, pdf, lights, prim)
     else:
         p = x
     uv = _uv_of_point(lights, prim, p) if scene.has_textures else jnp.zeros(2, jnp.float32)
@@ -175,6 +174,18 @@ def _sample_kind(scene: Scene, kind: int, prim, u, rec: Receiver, technique, lig
 
 def _inv_area(lights, prim):
     return 1.0 / jnp.maximum(lights.area[prim], 1e-30)
+
+
+def _solid_angle_to_area(pdf_sa, w, n_light, d2):
+    """A density per steradian at unit direction ``w`` to one per unit area on the light's
+    plane at squared distance ``d2``: ``pdf |cos theta_l| / d^2`` (pbrt-v4 ``PDF_Li``)."""
+    return pdf_sa * jnp.abs(dot(w, n_light)) / jnp.maximum(d2, 1e-30)
+
+
+def _or_area_fallback(warp, pdf, lights, prim):
+    """Where the spherical warp declines (a tiny or degenerate solid angle) both
+    :func:`sample_light` and :func:`light_pdf` use area sampling, density ``1 / A``."""
+    return jnp.where(solid_angle_valid(warp), pdf, _inv_area(lights, prim))
 
 
 def _by_kind(scene: Scene, prim, per_kind):
@@ -233,8 +244,8 @@ def _pdf_kind(scene: Scene, kind: int, prim, p, rec: Receiver, technique, light_
     v = p - rec.origin
     d2 = jnp.maximum(dot(v, v), 1e-30)
     w = v * jax.lax.rsqrt(d2)
-    pdf = warp.pdf(w) * jnp.abs(dot(w, lights.normal[prim])) / d2  # H Algorithm 2, to area
-    return jnp.where(solid_angle_valid(warp), pdf, _inv_area(lights, prim))
+    pdf = _solid_angle_to_area(warp.pdf(w), w, lights.normal[prim], d2)  # H Algorithm 2
+    return _or_area_fallback(warp, pdf, lights, prim)
 
 
 def light_pdf(
