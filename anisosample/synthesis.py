@@ -359,12 +359,13 @@ def _hyper(recipe: Recipe, n: int) -> tuple:
     return (lr0, decay, recipe.b1, recipe.b2, recipe.adam_eps, recipe.boundary == "wrap")
 
 
-def _run_chunk(objectives, state, hyper, chunk: int):
+def _run_chunk(objectives, state, hyper, chunk: int, last: bool):
     """``chunk`` optimizer steps on ``B`` sets: the state is one ``(x, m, v)`` triple of
     ``(n, 2)`` arrays per set and a shared step count; set ``b`` follows the gradient of its
     own objective. Every set runs the same compiled functions on its own data, so batched and
     single synthesis give the same bits. Returns the new state, the losses before each step
-    ``(chunk, B)`` and the losses of the end state ``(B,)``."""
+    ``(chunk, B)`` and, for the ``last`` chunk, the losses of the end state ``(B,)`` (else
+    ``None``: the next chunk's first step evaluates that state anyway)."""
     sets, t = state
     hist = []
     for _ in range(chunk):
@@ -376,9 +377,11 @@ def _run_chunk(objectives, state, hyper, chunk: int):
             vals.append(val)
         sets, t = tuple(out), t_next
         hist.append(vals)
-    end = [functools.reduce(jnp.add, tv)
-           for tv, _ in _evaluate(objectives, [x for x, _, _ in sets])]
-    return (sets, t), np.asarray(jnp.asarray(hist)), np.asarray(jnp.stack(end))
+    end = None
+    if last:
+        end = np.asarray(jnp.stack([functools.reduce(jnp.add, tv) for tv, _ in
+                                    _evaluate(objectives, [x for x, _, _ in sets])]))
+    return (sets, t), np.asarray(jnp.asarray(hist)), end
 
 
 def _to_float32_unit(x) -> np.ndarray:
@@ -475,7 +478,7 @@ def _iterate(objectives, x_init: np.ndarray, recipe: Recipe, n: int, *, meta: di
         try:
             while done < steps:
                 k = min(checkpoint_every, steps - done)
-                state, vals, final = _run_chunk(objectives, state, hyper, k)
+                state, vals, final = _run_chunk(objectives, state, hyper, k, done + k >= steps)
                 hist = np.concatenate([hist, vals])
                 done = int(state[1])
                 bar.update(k)

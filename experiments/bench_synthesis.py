@@ -8,7 +8,11 @@ the compile time, and the wall and CPU time of ``synthesize`` with the default r
 (compilation included), the load average (other work on the machine inflates wall time) and the
 final loss.  Not a test: nothing is asserted.
 
-    python experiments/bench_synthesis.py [--log2-n 12 16] [--directions 0,90,30]
+The synthesis runs one step per chunk, so its callback times every step: the first (set-up and
+compilation) and the mean of the rest give a projection at the recipe's step count even when
+``--steps`` is small.
+
+    python experiments/bench_synthesis.py [--log2-n 12 16] [--directions 0,90,30] [--steps 10]
 """
 
 from __future__ import annotations
@@ -61,11 +65,21 @@ def main(argv=None):
             spectrum.NUFFT_THREADS = 1
         t = time.perf_counter()
         c0 = time.process_time()
+        stamps = []  # one chunk per step: the time after each step
         result = synthesis.synthesize(jax.random.key(0), n, dirs, steps=args.steps,
-                                      show_progress=True)
+                                      show_progress=True, checkpoint_every=1,
+                                      callback=lambda k, loss, s=stamps: s.append(
+                                          time.perf_counter()))
         wall = time.perf_counter() - t
         cpu = time.process_time() - c0
         load = os.getloadavg()[0]
+        steps = len(result.history) - 1
+        first = stamps[0] - t  # set-up, compilation and the first step
+        per_step = (stamps[-1] - stamps[0]) / max(steps - 1, 1)
+        projected = first + (opts["steps"] - 1) * per_step
+        print(f"n=2^{k} synthesize: first step (set-up, compilation) {first:.1f} s, then "
+              f"{per_step:.3f} s per step (the terms on {os.cpu_count()} threads); projected "
+              f"at the recipe's {opts['steps']} steps: {projected:.0f} s", flush=True)
         print(f"n=2^{k}: {len(fset)} frequencies; gradient {grad_s['auto']:.3f} s (FINUFFT on "
               f"its own threads, not deterministic: {grad_s['auto threads']:.3f} s; type-3 NUFFT: "
               f"{grad_s['nufft3']:.3f} s; first call incl. "

@@ -4,8 +4,9 @@ Default (``--kind 4``): the 4-direction sets *on demand*, as a user meets them. 
 canonical 4-direction sets spread over the 4,141 (every ``4141 // sets``-th), each is looked up
 with default arguments (``tables.lookup``) in an empty user cache, so each is synthesized (warm-
 started from the shipped 3-direction table where there is one, else cold), written and verified;
-prints each set's wall time (compilation included: every set compiles its own loop), their mean,
-median and max, and the 4,141-set table projected from the mean. ``--batch B`` times the same sets
+prints each set's wall time (compilation included) and the number of XLA compilations it caused
+(a set whose box shapes an earlier set had compiles nothing new), their mean, median and max,
+and the 4,141-set table projected from the mean. ``--batch B`` times the same sets
 through ``tables.build(..., batch=B)`` instead (groups of ``B`` sets per loop).
 
 ``--compare-warm``: the warm start against a cold start (see :func:`_compare_warm`).
@@ -37,6 +38,23 @@ import numpy as np
 import anisosample as asp
 from anisosample import _table_build, frequencies, spectrum, tables
 
+_COMPILES = [0]
+
+
+def _count_compiles():
+    """Count XLA compilations (``jax_log_compiles`` messages) from here on."""
+    import logging
+
+    class _Counter(logging.Handler):
+        def emit(self, record):
+            if record.getMessage().startswith("Finished XLA compilation"):
+                _COMPILES[0] += 1
+
+    jax.config.update("jax_log_compiles", True)
+    log = logging.getLogger("jax")
+    log.addHandler(_Counter())
+    log.propagate = False  # counted, not printed
+
 
 def _four_direction(args):
     canon = tables.canonical_sets(4)
@@ -55,12 +73,14 @@ def _four_direction(args):
             times = [(time.perf_counter() - t0) / len(pick)] * len(pick)
             print(f"batch {args.batch}: {time.perf_counter() - t0:.1f} s for {len(pick)} sets")
         else:
+            _count_compiles()
             for e in pick:
                 t0 = time.perf_counter()
+                c0 = _COMPILES[0]
                 tables.lookup([0, 90, *e], args.n, show_progress=False)
                 times.append(time.perf_counter() - t0)
-                print(f"  set {tables.set_name(e)}: {times[-1]:.1f} s "
-                      f"(load average {os.getloadavg()[0]:.1f})", flush=True)
+                print(f"  set {tables.set_name(e)}: {times[-1]:.1f} s, {_COMPILES[0] - c0} "
+                      f"compilations (load average {os.getloadavg()[0]:.1f})", flush=True)
     mean = statistics.fmean(times)
     print(f"per set on demand: mean {mean:.1f} s, median {statistics.median(times):.1f} s, "
           f"max {max(times):.1f} s")
