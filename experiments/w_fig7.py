@@ -1,19 +1,46 @@
-"""W Fig. 7: per-block principal direction maps over rendered images.
+"""W Fig. 7: per-block principal direction maps at W's resolution, and their error against the
+classified true directions.
 
 For each scene the extra principal directions (besides 0 and 90 degrees) are estimated in every
-block of ``16 x 16`` pixels from one shared grid of 96^2 samples of the pixels' light-sample (or
-lens-sample) integrands (W Sec. 5.3; samples tiled over the block's pixels, see
-``experiments/_w_render.py``), with ``anisosample.directions.estimate_blocks``. The picture shows
-the rendered image and, per block, the angle of the first and of the second direction as a colour
-(hue = angle / 180 degrees, a cyclic map for axial angles); grey blocks have no such direction.
-The block that W Fig. 9's region comes from (``w_fig9``'s rule, ``_w_render.pick_block``) is
-outlined (at the same scale the two scripts see the same image size and blocks).
+block of ``16 x 16`` pixels of the ``1280^2`` image (W's resolution and blocks) from one shared
+grid of 96^2 samples of the pixels' light-sample (or lens-sample) integrands (W Sec. 5.3; each
+pixel fills a 6x6 tile, ``experiments/_w_render.py``), with the library's
+``render.estimation.estimate_blocks`` -- the same estimation as W Fig. 9 (``w_fig9``), whose
+per-block call (``w_fig9.block_estimate``) is rerun on every sampled block as a check: the two
+must give the same first direction (``max_recheck_deg`` in the record).
+
+The error of the estimate: in sampled blocks, sampled pixels are classified from a dense
+``grid^2`` sample of their own integrand (``render.pixel_classes``); for every pixel classified
+``one-edge`` the axial distance (mod 180) between its true spectral direction and the block's
+first estimated direction (the one W's aligned sampler uses). Per block the median over its
+one-edge pixels; per scene the median over those blocks and the share within 3 degrees, also
+pixel-weighted (over all one-edge pixels), and both again for pixels at least 10 degrees from
+both axes (``w_fig9``'s one-edge region, whose block error is 1.1 / 3.3 degrees median on
+cornell / dof). Blocks with one-edge pixels but no estimated direction are counted apart.
+
+Which pixels are classified (classifying all 1.6 million pixels of a 1280^2 image on a 64^2 grid
+takes hours on 2 cores):
+
+* ``small``: a coarse classification (128^2 image, 48^2 grid, as ``w_fig9``) proposes the blocks
+  holding coarse one-edge pixels; ``max_blocks`` (48) of them are chosen (seeded); in each, the
+  4x4 lattice of pixels at offsets 2, 6, 10, 14 plus the full-size pixels at the centres of the
+  coarse one-edge pixels are classified on a 64^2 grid. The direction map is the whole image's.
+* ``paper``: every block, its 4x4 lattice classified on a 64^2 grid (no coarse proposal).
+
+The picture shows per scene the render (``preview`` px, pmj02bn), the map of the first
+direction (hue = angle / 180, cyclic; grey: none) and the error map (per block colour = median
+error of its one-edge pixels; grey: no classified one-edge pixel, or the block not sampled; a
+cross: one-edge pixels but no estimate).
 
 Writes ``results/w_fig7/w_fig7.png``, the renders as ``<scene>.exr``/``.png`` and ``w_fig7.json``
 (every block's directions, validity and confidence, the counts of blocks with 0/1/2 directions,
-the estimation time). Reuses finished scenes on rerun (``--fresh`` recomputes).
+every sampled block's one-edge pixels as ``[column, row]`` with their true directions and the
+block's, the summary). Reuses finished scenes on rerun (``--fresh`` recomputes).
 
-    python experiments/w_fig7.py --scale small|paper [--out DIR] [--scenes cornell,blinds]
+Default scenes: cornell and dof (``w_fig9``'s); ``--scenes cornell,blinds,attic,dof`` runs all
+four (blinds' shadow pattern classifies as ``other``, so it has no one-edge blocks to score).
+
+    python experiments/w_fig7.py --scale small|paper [--out DIR] [--scenes cornell,dof]
 """
 
 from __future__ import annotations
@@ -25,89 +52,209 @@ import _w_render as W
 import common
 import jax
 import numpy as np
+import w_fig9
 
 import anisosample as asp
-from anisosample import plot, render
+from anisosample import directions, plot, render
+from anisosample.render import pixel_classes as pc
 
 NAME = "w_fig7"
+SCENES = ("cornell", "dof")  # W Fig. 9's scenes; ``--scenes`` adds blinds, attic
 SCALES = {
-    "small": dict(size=128, block_px=16, samples=96, preview_spp=16),
-    "paper": dict(size=1280, block_px=16, samples=96, preview_spp=64),
+    "small": dict(size=1280, block_px=16, samples=96, coarse=128, coarse_grid=48, grid=64,
+                  lattice=4, max_blocks=48, preview=256, preview_spp=16, min_axis_deg=10.0),
+    "paper": dict(size=1280, block_px=16, samples=96, coarse=None, coarse_grid=None, grid=64,
+                  lattice=4, max_blocks=None, preview=1280, preview_spp=64, min_axis_deg=10.0),
 }
+
+
+def proposed_blocks(name, cfg, nb, rng):
+    """The blocks to classify pixels in, and the coarse-proposed full-size pixels per block."""
+    extra = {}
+    if cfg["coarse"] is None:
+        return [(a, b) for a in range(nb[0]) for b in range(nb[1])], extra
+    coarse = W.load_scene(name, cfg["coarse"], cfg["coarse"])
+    cl = pc.pixel_classes(coarse, grid=cfg["coarse_grid"],
+                          square_aperture=W.SCENES[name]["square_aperture"])
+    f = cfg["size"] // cfg["coarse"]
+    for c, r in cl.pixels("one-edge") * f + f // 2:
+        extra.setdefault((int(r) // cfg["block_px"], int(c) // cfg["block_px"]), []).append(
+            (int(c), int(r)))
+    blocks = sorted(extra)
+    blocks = [blocks[i] for i in sorted(rng.permutation(len(blocks))[: cfg["max_blocks"]])]
+    return blocks, extra
+
+
+def sample_pixels(block, cfg, extra):
+    """The pixels classified in ``block``: its lattice plus the coarse-proposed ones."""
+    bp, step = cfg["block_px"], cfg["lattice"]
+    a, b = block
+    offs = range(step // 2, bp, step)
+    px = {(b * bp + j, a * bp + i) for i in offs for j in offs} | set(extra.get(block, ()))
+    return np.array(sorted(px), int)
+
+
+def block_errors(blocks, est_d, est_v, fc, pixels, cfg):
+    """Per sampled block: its one-edge pixels, their true directions and errors (module doc)."""
+    rows = []
+    one = pc.CLASSES.index("one-edge")
+    for blk, px in zip(blocks, pixels, strict=True):
+        a, b = blk
+        sel = px[fc.classes[px[:, 1], px[:, 0]] == one]
+        true = fc.directions_deg[sel[:, 1], sel[:, 0], 0].astype(float)
+        est = float(est_d[a, b, 0]) if est_v[a, b, 0] else None
+        err = ([float(directions.axial_distance_deg(est, t)) for t in true]
+               if est is not None else [])
+        rows.append({"block": [a, b], "pixels_classified": len(px),
+                     "one_edge_pixels": sel.tolist(), "true_directions_deg": true.round(3).tolist(),
+                     "block_direction_deg": est, "errors_deg": np.round(err, 3).tolist()})
+    return rows
+
+
+def _stats(per_block, per_pixel):
+    def one(x):
+        x = np.asarray(x, float)
+        if len(x) == 0:
+            return {"median": None, "within_3_deg": None, "n": 0}
+        return {"median": float(np.median(x)), "within_3_deg": float(np.mean(x <= 3.0)),
+                "n": int(len(x))}
+    return {"blocks": one(per_block), "pixels": one(per_pixel)}
+
+
+def summarize(rows, min_axis_deg):
+    """Scene summary: counts, per-block and pixel-weighted medians and 3-degree shares."""
+    edge = [r for r in rows if r["one_edge_pixels"]]
+    with_est = [r for r in edge if r["block_direction_deg"] is not None]
+    out = {"blocks_sampled": len(rows), "blocks_with_one_edge_pixels": len(edge),
+           "blocks_with_one_edge_pixels_and_estimate": len(with_est),
+           "blocks_with_one_edge_pixels_no_estimate": len(edge) - len(with_est),
+           "one_edge_pixels": sum(len(r["one_edge_pixels"]) for r in edge)}
+    out["all"] = _stats([np.median(r["errors_deg"]) for r in with_est],
+                        [e for r in with_est for e in r["errors_deg"]])
+    off_block, off_px = [], []
+    for r in with_est:
+        e = [e for e, t in zip(r["errors_deg"], r["true_directions_deg"], strict=True)
+             if w_fig9._off_axis(t) >= min_axis_deg]
+        if e:
+            off_block.append(np.median(e))
+            off_px += e
+    out["off_axis"] = _stats(off_block, off_px)
+    return out
 
 
 def run_scene(name, cfg, key, out, fresh):
     settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist()),
-                "estimation_layout": "tiles", "block_rule": "edge strength"}
+                "estimation_layout": "tiles", "error": "first direction vs one-edge classes"}
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
     if cached is not None and cached.get("settings") == settings and (out / f"{name}.exr").exists():
         return cached
+    started = time.time()
     scene = W.load_scene(name, cfg["size"], cfg["size"])
     base = W.base_integrand(scene, name)
-    est, seconds, strength = W.estimate_blocks(scene, base, cfg["block_px"], cfg["samples"])
-    img = render.render(scene, key, spp=cfg["preview_spp"], sampler="pmj02bn", progress=False,
-                        square_aperture=W.SCENES[name]["square_aperture"])
+    est, seconds, _ = W.estimate_blocks(scene, base, cfg["block_px"], cfg["samples"])
+    est_d, est_v = np.asarray(est.directions_deg), np.asarray(est.valid)
+    rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).astype(np.uint32))
+    blocks, extra = proposed_blocks(name, cfg, est_v.shape[:2], rng)
+    pixels = [sample_pixels(b, cfg, extra) for b in blocks]
+    rows = []
+    if blocks:  # none: no coarse one-edge pixel (e.g. blinds' pattern is "other")
+        fc = pc.pixel_classes(scene, np.concatenate(pixels), grid=cfg["grid"],
+                              square_aperture=W.SCENES[name]["square_aperture"], progress=True)
+        rows = block_errors(blocks, est_d, est_v, fc, pixels, cfg)
+    # The same estimation as W Fig. 9: its per-block call on every sampled block.
+    cache, recheck = {}, []
+    for a, b in blocks:
+        _, d9 = w_fig9.block_estimate(scene, base, (b * cfg["block_px"], a * cfg["block_px"]),
+                                      cfg, cache)
+        if est_v[a, b, 0] and len(d9):
+            recheck.append(float(directions.axial_distance_deg(est_d[a, b, 0], d9[0])))
+        elif bool(est_v[a, b, 0]) != bool(len(d9)):
+            recheck.append(180.0)
+    sq = W.SCENES[name]["square_aperture"]
+    prev = W.load_scene(name, cfg["preview"], cfg["preview"])
+    img = render.render(prev, key, spp=cfg["preview_spp"], sampler="pmj02bn", progress=False,
+                        square_aperture=sq)
     meta = {**asp.io.provenance(), **img.settings}
     asp.io.write_exr(out / f"{name}.exr", img.mean, meta, overwrite=True)
     asp.io.save_png(out / f"{name}.png", render.tonemap(img.mean), overwrite=True)
-    v = np.asarray(est.valid)
-    counts = np.bincount(v.sum(-1).reshape(-1), minlength=3).tolist()
-    block = W.pick_block(est, strength=strength)
     rec = {
         "settings": settings,
-        "blocks": list(v.shape[:2]),
-        "directions_deg": np.round(np.asarray(est.directions_deg), 3).tolist(),
-        "valid": v.tolist(),
+        "resolution": [cfg["size"], cfg["size"]],
+        "blocks": list(est_v.shape[:2]),
+        "directions_deg": np.round(est_d, 3).tolist(),
+        "valid": est_v.tolist(),
         "confidence": np.round(np.asarray(est.confidence), 4).tolist(),
-        "blocks_with_0_1_2_directions": counts,
-        "fig9_block": list(block) if block is not None else None,
+        "blocks_with_0_1_2_directions": np.bincount(est_v.sum(-1).reshape(-1),
+                                                    minlength=3).tolist(),
         "estimation_seconds": seconds,
-        "estimation_ms_per_block": 1e3 * seconds / max(1, v.shape[0] * v.shape[1]),
-        "image_mean_luminance": float(np.mean(img.mean @ np.array(render.integrator.LUMINANCE))),
+        "estimation_ms_per_block": 1e3 * seconds / max(1, est_v.shape[0] * est_v.shape[1]),
+        "max_recheck_deg": max(recheck, default=0.0),
+        "sampled_blocks": rows,
+        "summary": summarize(rows, cfg["min_axis_deg"]),
+        "seconds": time.time() - started,
     }
     asp.io.save_json(path, rec, overwrite=True)
     return rec
 
 
-def figure(results, out, cfg):
-    import matplotlib.patches as patches
+def error_map(r, nb, vmax):
+    """Per block RGB: error colour, grey where no classified one-edge pixel (module doc)."""
+    import matplotlib as mpl
+
+    rgb = np.full((*nb, 3), 0.5)
+    crosses = []
+    cmap = mpl.colormaps["viridis"]
+    for s in r["sampled_blocks"]:
+        a, b = s["block"]
+        if s["errors_deg"]:
+            rgb[a, b] = cmap(min(1.0, np.median(s["errors_deg"]) / vmax))[:3]
+        elif s["one_edge_pixels"]:
+            crosses.append((a, b))
+    return rgb, crosses
+
+
+def figure(results, out, cfg, vmax=15.0):
+    import matplotlib as mpl
 
     names = list(results)
-    fig, axes = plot.new_figure(max(1, len(names)), 3, size=3.0)
-    bp = cfg["block_px"]
+    fig, axes = plot.new_figure(max(1, len(names)), 3, size=3.2)
+    bp, size = cfg["block_px"], cfg["size"]
     for row, s in enumerate(names):
         r = results[s]
         img = render.tonemap(asp.io.read_exr(out / f"{s}.exr")[..., :3])
-        h, w = img.shape[:2]
-        est_d = np.asarray(r["directions_deg"])
-        est_v = np.asarray(r["valid"])
-        rgb = W.direction_rgb(est_d, est_v)
-        for slot in range(3):
+        nb = tuple(r["blocks"])
+        rgb = W.direction_rgb(np.asarray(r["directions_deg"]), np.asarray(r["valid"]))[:, :, 0]
+        err, crosses = error_map(r, nb, vmax)
+        sm = r["summary"]
+        titles = (f"{s} ({size}^2, render {img.shape[0]}^2)",
+                  f"{s}: first direction (grey: none)",
+                  f"error: median {sm['all']['blocks']['median'] or float('nan'):.1f} deg, "
+                  f"{sm['blocks_with_one_edge_pixels_and_estimate']} blocks")
+        for slot, over in enumerate((None, rgb, err)):
             ax = axes[row, slot]
-            ax.imshow(img, extent=(0, w, h, 0))
-            if slot > 0:
-                over = np.kron(rgb[:, :, slot - 1], np.ones((bp, bp, 1)))
-                ax.imshow(over, extent=(0, w, h, 0), alpha=0.55)
-                ax.set_title(f"{s}: direction {slot} (grey: none)", fontsize=8)
-            else:
-                c = r["blocks_with_0_1_2_directions"]
-                ax.set_title(f"{s}: blocks with 0/1/2 dirs {c}", fontsize=8)
-            if r["fig9_block"] is not None:
-                a, b = r["fig9_block"]
-                ax.add_patch(patches.Rectangle((b * bp, a * bp), bp, bp, fill=False, ec="w",
-                                               lw=1.5))
+            ax.imshow(img, extent=(0, size, size, 0))
+            if over is not None:
+                ax.imshow(np.kron(over, np.ones((bp, bp, 1))), extent=(0, size, size, 0),
+                          alpha=0.6 if slot == 1 else 0.85)
+            if slot == 2:
+                for a, b in crosses:
+                    ax.plot((b + 0.5) * bp, (a + 0.5) * bp, "rx", ms=3)
+            ax.set_title(titles[slot], fontsize=7)
             ax.set_xticks([])
             ax.set_yticks([])
-    import matplotlib as mpl
-
-    sm = mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(0, 180), cmap="hsv")
-    fig.colorbar(sm, ax=axes[:, 1:].ravel().tolist(), label="direction (deg)", shrink=0.6)
+    hue = mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(0, 180), cmap="hsv")
+    fig.colorbar(hue, ax=axes[:, 1].ravel().tolist(), label="direction (deg)", shrink=0.6)
+    vir = mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(0, vmax), cmap="viridis")
+    fig.colorbar(vir, ax=axes[:, 2].ravel().tolist(), label="block error (deg, clipped)",
+                 shrink=0.6)
     return plot.save_figure(fig, out / NAME, formats=("png",))
 
 
 def main(argv=None):
-    args = W.scene_parser(NAME, __doc__.splitlines()[0]).parse_args(argv)
+    p = W.scene_parser(NAME, __doc__.splitlines()[0])
+    p.set_defaults(scenes=",".join(SCENES))
+    args = p.parse_args(argv)
     started = time.time()
     cfg = SCALES[args.scale]
     results, missing = W.run_scenes(NAME, args, cfg, run_scene)
@@ -116,9 +263,19 @@ def main(argv=None):
                                     {**cfg, "scale": args.scale, "seed": args.seed}, started)
     print(f"figure: {pngs[0]}\nnumbers: {json_path}")
     for s, r in results.items():
-        print(f"  {s}: {r['blocks'][0]}x{r['blocks'][1]} blocks, with 0/1/2 extra directions "
-              f"{r['blocks_with_0_1_2_directions']}, {r['estimation_ms_per_block']:.1f} ms/block "
-              f"(incl. the 96^2 integrand samples), Fig. 9 block {r['fig9_block']}")
+        sm = r["summary"]
+        a, o = sm["all"], sm["off_axis"]
+
+        def fmt(x):
+            return "n/a" if x["median"] is None else (
+                f"median {x['median']:.1f} deg, {100 * x['within_3_deg']:.0f}% within 3 ({x['n']})")
+        print(f"  {s}: {r['blocks'][0]}x{r['blocks'][1]} blocks, 0/1/2 extra directions "
+              f"{r['blocks_with_0_1_2_directions']}, {r['estimation_ms_per_block']:.2f} ms/block; "
+              f"sampled {sm['blocks_sampled']} blocks, {sm['blocks_with_one_edge_pixels']} with "
+              f"one-edge pixels ({sm['blocks_with_one_edge_pixels_no_estimate']} without an "
+              f"estimate); recheck vs w_fig9 {r['max_recheck_deg']:.3f} deg")
+        print(f"    blocks {fmt(a['blocks'])}; pixels {fmt(a['pixels'])}")
+        print(f"    off-axis blocks {fmt(o['blocks'])}; pixels {fmt(o['pixels'])}")
     return json.loads(json_path.read_text())
 
 
