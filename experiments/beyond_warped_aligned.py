@@ -8,9 +8,10 @@ light sampling: Urena et al. 2013). Per pixel, four ways to draw its ``n`` light
 * **base + aligned**: W's aligned sampler with the principal directions estimated from the
   base integrand ``f(x)`` on a 96^2 grid (``tables.aligned_sampler(integrand=...)``);
 * **warp + pmj02bn**: H's composed warp -- a bilinear or biquadratic PSS warp fitted point-wise
-  (H Eq. 9) to BSDF x cosine at the shading point, in front of the spherical rectangle -- with
-  pmj02bn points; the pixel integrand becomes ``g(u) = f(w(u)) / J_w(w(u))`` (H Eqs. 2-6,
-  ``render.pixel_integrand(warp=...)``);
+  (H Eq. 9) to BSDF x cosine at the ray origin (the offset shading point the light rays leave
+  from), in front of the spherical rectangle -- with pmj02bn points; the pixel integrand becomes
+  ``g(u) = f(w(u)) / J_w(w(u))`` (H Eqs. 2-6; the renderer's own light warp,
+  ``render.pixel_integrand(light_warp="product-bilinear")`` / ``"product-biquadratic"``);
 * **warp + aligned (after)**: the aligned sampler with the directions estimated on ``g`` *in
   primary sample space after the warp* (the warp bends straight edges slightly, and moves them);
 * **warp + aligned (before)**: the same warp but the directions of ``f`` (before the warp), to
@@ -33,17 +34,14 @@ from __future__ import annotations
 
 import time
 
-import _h_render as H
 import jax
 import jax.numpy as jnp
 import numpy as np
 from common import ROOT, cached_json, parser, write_record
 
 import anisosample as asp
-import anisosample.warps as W
 from anisosample import tables
 from anisosample.progress import progress
-from anisosample.render.bsdf import eval_bsdf
 
 NAME = "beyond_warped_aligned"
 SCALES = {
@@ -52,7 +50,6 @@ SCALES = {
     "paper": dict(size=128, candidates=24, pixels=24, n=256, realizations=2048, patterns=32,
                   probe=32),
 }
-_LUM = jnp.asarray(asp.render.integrator.LUMINANCE, jnp.float32)
 
 
 def _grid(f, s):
@@ -78,30 +75,12 @@ def pick_pixels(scene, settings):
     return found[::step][: settings["pixels"]]
 
 
-def product_warp(scene, sps, px, kind):
-    """H Sec. 4.3 product warp at pixel ``px``: ``kind`` fitted to BSDF x cosine (luminance)
-    through the spherical rectangle of the (single) quad light."""
-    i = px[1] * scene.width + px[0]
-    sp = jax.tree.map(lambda a: a[i], sps)
-    lights = scene.lights
-    p0, e1, e2 = (jnp.asarray(np.asarray(a[0], np.float32)) for a in
-                  (lights.p0, lights.e1, lights.e2))
-    base = W.SphericalRectangle(p0, e1, e2, sp.p)
-    mats = scene.materials
-
-    def factor(w):
-        return jnp.dot(eval_bsdf(mats, sp.mat, sp.n, sp.wi, w), _LUM)
-
-    return W.fit_pointwise(kind, factor, [base])
-
-
 def run(settings, seed):
     scene = asp.render.load_xml(
         ROOT / "experiments/scenes/cornell.xml", width=settings["size"], height=settings["size"]
     )
     if scene.lights.n_prims != 1:
         raise ValueError("this experiment needs a scene with exactly one quad light")
-    sps = H.shading_points(scene)
     pixels = pick_pixels(scene, settings)
     n, R = settings["n"], settings["realizations"]
     pmj = asp.samplers.get("pmj02bn")
@@ -118,9 +97,10 @@ def run(settings, seed):
             patterns=settings["patterns"]))
         row["base + pmj02bn"] = var(f, pmj, 0)
         row["base + aligned"] = var(f, al_f, 1)
-        for wname, kind in (("bilinear", W.Bilinear), ("biquadratic", W.Biquadratic)):
-            warp = product_warp(scene, sps, px, kind)
-            g = asp.render.pixel_integrand(scene, px, technique="solid_angle", warp=warp)
+        for wname in ("bilinear", "biquadratic"):
+            # H Sec. 4.3's product warp through the renderer: fitted at the ray origin
+            g = asp.render.pixel_integrand(scene, px, technique="solid_angle",
+                                           light_warp=f"product-{wname}")
             al_g = tables.aligned_sampler(integrand=g, k=2, build_missing=True)
             row["warps"][wname] = {
                 "directions_after_deg": list(al_g.estimated_deg),
@@ -188,7 +168,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
     started = time.time()
     settings = dict(SCALES[args.scale], scale=args.scale, seed=args.seed,
-                    technique="solid_angle", pixel="centre", scene="cornell.xml")
+                    technique="solid_angle", pixel="centre", scene="cornell.xml",
+                    warp="render light_warp product-* (fitted at the ray origin)")
     record = cached_json(args.out / f"{NAME}.json", args.fresh)
     if record is not None and record.get("settings") == settings:
         print(f"reusing {args.out / (NAME + '.json')}")
