@@ -354,7 +354,7 @@ def _estimate_hist(hist, k: int, params: _Params) -> Estimate:
     kappa = jnp.float32(params.kappa)
     src_a, src_b = _fill_sources(params)
     p_fit = 0.5 * (p[src_a] + p[src_b])  # zeroed windows continue their kept neighbours
-    obj = vmf._reverse_kl_all_mu(p_fit, kappa, params.floor, params.nodes)
+    obj = vmf.reverse_kl_all_mu(p_fit, kappa, floor=params.floor, nodes=params.nodes)
     available = keep
     mus, valids, confs, kappas = [], [], [], []
     for _ in range(k):
@@ -365,9 +365,10 @@ def _estimate_hist(hist, k: int, params: _Params) -> Estimate:
         kap = kappa
         if params.method == "gradient":
             # refine (mu, kappa) continuously from the fixed-kappa result (W Fig. 4c)
-            fit = vmf._fit_reverse_kl(
-                p_fit, jnp.radians(2.0 * mu_deg), kappa, params.floor, params.nodes,
-                1e3, 1e-6, 1e-6, 100, None, params.kappa_min_fit,
+            fit = vmf.fit_reverse_kl(
+                p_fit, jnp.radians(2.0 * mu_deg), kappa, floor=params.floor, nodes=params.nodes,
+                kappa_max=1e3, kappa_min=params.kappa_min_fit, rtol=1e-6, atol=1e-6,
+                max_steps=100,
             )
             mu_deg = jnp.mod(jnp.degrees(fit.mu) / 2.0, 180.0)
             kap = fit.kappa
@@ -421,7 +422,7 @@ def estimate_from_histogram(hist, k: int = 2, **options) -> Estimate:
     """
     k = check_int("k", k, minimum=0)
     params = _params(**options)
-    hist = vmf._check_hist(hist)
+    hist = vmf.check_hist(hist)
     if hist.shape[-1] != params.nbins:
         raise ValueError(
             f"hist must have {params.nbins} bins for bin_deg={params.bin_deg}, "

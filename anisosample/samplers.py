@@ -254,7 +254,7 @@ def nested_uniform_scramble(x, seed):
     return _reverse_bits32(_laine_karras_improved(_reverse_bits32(x), seed))
 
 
-def _hash_u32(x):
+def hash_u32(x):
     """A 32-bit avalanche hash (lowbias32 by C. Wellons) to turn key bits into seeds."""
     x = x ^ (x >> 16)
     x = x * jnp.uint32(0x7FEB352D)
@@ -292,11 +292,11 @@ def sobol_2d_bits(index):
 @functools.partial(jax.jit, static_argnums=1)
 def _sobol_owen(key, n):
     """Shuffled, Owen-scrambled Sobol' (Burley 2020, Sec. 4): every 2^m prefix is a (0,m,2)-net."""
-    seed = _hash_u32(jax.random.bits(key, (), dtype=jnp.uint32))
+    seed = hash_u32(jax.random.bits(key, (), dtype=jnp.uint32))
     index = nested_uniform_scramble(jnp.arange(n, dtype=jnp.uint32), seed)
     x, y = sobol_2d_bits(index)
-    x = nested_uniform_scramble(x, _hash_u32(_hash_combine(seed, jnp.uint32(0))))
-    y = nested_uniform_scramble(y, _hash_u32(_hash_combine(seed, jnp.uint32(1))))
+    x = nested_uniform_scramble(x, hash_u32(_hash_combine(seed, jnp.uint32(0))))
+    y = nested_uniform_scramble(y, hash_u32(_hash_combine(seed, jnp.uint32(1))))
     return jnp.stack([_u32_to_unit_float32(x), _u32_to_unit_float32(y)], axis=-1)
 
 
@@ -454,7 +454,7 @@ for _s in (random, jittered, cmj, sobol_owen, pmj02, pmj02bn):
 # --- toroidal shift and shear -------------------------------------------------------------------
 
 
-def _wrap(x):
+def wrap_unit(x):
     """x mod 1 in float32, clamped below 1 (mod of a tiny negative number rounds to 1.0)."""
     return jnp.minimum(x - jnp.floor(x), ONE_MINUS_EPSILON)
 
@@ -462,7 +462,7 @@ def _wrap(x):
 @jax.jit
 def _shift(key, points):
     t = jax.random.uniform(key, (2,), dtype=points.dtype)
-    return _wrap(points + t[None, :])
+    return wrap_unit(points + t[None, :])
 
 
 def toroidal_shift(key, points) -> jax.Array:
@@ -482,8 +482,8 @@ def _shear(points, theta_rad):
     horizontal = jnp.abs(jnp.cos(theta_rad)) >= jnp.abs(jnp.sin(theta_rad))
     s = -jnp.tan(theta_rad)  # x' = x + s y moves the (k, 0) axis to direction theta
     t = -jnp.cos(theta_rad) / jnp.sin(jnp.where(horizontal, 1.0, theta_rad))  # -cot theta
-    xh = _wrap(x + jnp.where(horizontal, s, 0.0) * y)
-    yv = _wrap(y + jnp.where(horizontal, 0.0, t) * x)
+    xh = wrap_unit(x + jnp.where(horizontal, s, 0.0) * y)
+    yv = wrap_unit(y + jnp.where(horizontal, 0.0, t) * x)
     return jnp.stack([jnp.where(horizontal, xh, x), jnp.where(horizontal, y, yv)], axis=-1)
 
 

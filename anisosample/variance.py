@@ -71,7 +71,7 @@ def _shifted_xy(x, y, tx, ty):
     """``(x + t) mod 1`` per coordinate, stacked last: kept as two planes (structure of arrays)
     until the integrand, which lets XLA fuse shift, wrap and integrand into one vectorized loop
     (several times faster on the CPU than shifting interleaved ``(..., 2)`` points)."""
-    wrap = _samplers._wrap  # the toroidal shift's own wrap (one definition of "mod 1, below 1")
+    wrap = _samplers.wrap_unit  # the toroidal shift's own wrap (one definition of "mod 1, below 1")
     return jnp.stack([wrap(x + tx), wrap(y + ty)], axis=-1)
 
 

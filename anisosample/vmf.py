@@ -229,7 +229,9 @@ def _log_density(hist, floor):
     return jnp.log(p) - math.log(_TWO_PI / nbins)
 
 
-def _check_hist(hist):
+def check_hist(hist):
+    """``hist`` as a float array of shape ``(..., K)``, ``K >= 2``; concrete values must be
+    finite, non-negative and of positive total (``ValueError`` otherwise; tracers pass)."""
     hist = jnp.asarray(hist)
     if hist.ndim < 1 or hist.shape[-1] < 2:
         raise ValueError(f"hist must have shape (..., K) with K >= 2 bins, got {hist.shape}")
@@ -261,7 +263,7 @@ def reverse_kl(
     ``sum_{i in mask} Q_i log(p_i/Delta) / sum_{i in mask} Q_i``, so ``q`` is not pushed away
     from the masked windows (their floor would otherwise bias directions near the axes).
     """
-    hist = _check_hist(hist)
+    hist = check_hist(hist)
     floor = check_positive_float("floor", floor)
     nodes = check_int("nodes", nodes, minimum=1)
     _check_kappa(kappa)
@@ -329,7 +331,7 @@ def reverse_kl_all_mu(
     W Sec. 5.2's practical variant (fixed kappa, mu on the bin grid) as one circulant matrix
     product per histogram; entry ``m`` equals ``reverse_kl(hist, x_m, kappa, mask=mask)``.
     """
-    hist = _check_hist(hist)
+    hist = check_hist(hist)
     floor = check_positive_float("floor", floor)
     nodes = check_int("nodes", nodes, minimum=1)
     _check_kappa(kappa)
@@ -370,7 +372,7 @@ def fit_mle(hist) -> MLEFit:
     ``kappa`` from ``A(kappa) = rbar`` (:func:`kappa_from_resultant`). W Sec. 5.2, "Maximum
     Likelihood Estimation"; Mardia & Jupp Sec. 5.3.
     """
-    hist = _check_hist(hist)
+    hist = check_hist(hist)
     return _fit_mle_jit(hist)
 
 
@@ -422,7 +424,7 @@ def fit_reverse_kl(
     Pure and jit/vmap-able: batch over starts or histograms with ``jax.vmap``. ``mask``: as in
     :func:`reverse_kl`.
     """
-    hist = _check_hist(hist)
+    hist = check_hist(hist)
     floor = check_positive_float("floor", floor)
     nodes = check_int("nodes", nodes, minimum=1)
     kappa_max = check_positive_float("kappa_max", kappa_max)

@@ -13,6 +13,7 @@ import scipy.special
 from matplotlib.path import Path
 
 from anisosample import integrands as I
+from anisosample.integrands._geometry import edge_directions_deg
 
 # --- independent helpers: horizontal slabs -----------------------------------------------------
 
@@ -209,7 +210,7 @@ def test_edges_expose_their_spectral_directions(dirs, getkey):
     assert f.directions_deg == tuple(sorted(dirs))
     if len(dirs) > 1:
         # the directions of the edges actually cut inside the square are the requested ones
-        got = I._edge_directions_deg(f.clipped_vertices)
+        got = edge_directions_deg(f.clipped_vertices)
         for d in dirs:
             assert any(abs(d - g) < 1e-6 for g in got), (d, got)
         assert abs(f.integral - _slab_area(f.clipped_vertices)) < 1e-12

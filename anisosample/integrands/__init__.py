@@ -21,7 +21,6 @@ shape, W Fig. 6's "smooth texture" rows).
 """
 
 from ._base import Integrand as Integrand
-from ._geometry import _edge_directions_deg as _edge_directions_deg
 from ._geometry import clip_to_unit_square as clip_to_unit_square
 from ._geometry import polygon_area as polygon_area
 from ._polygons import HalfPlane as HalfPlane

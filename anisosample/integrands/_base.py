@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 
 
-def _check_frequencies_any(v) -> np.ndarray:
+def check_frequencies_any(v) -> np.ndarray:
     v = np.asarray(v)
     if v.ndim < 1 or v.shape[-1] != 2:
         raise ValueError(f"v must have shape (..., 2), got shape {v.shape}")
@@ -18,20 +18,20 @@ def _check_frequencies_any(v) -> np.ndarray:
             raise ValueError("v must hold integer frequency vectors")
     return v.astype(np.float64)
 
-def _check_point2(name: str, p) -> tuple[float, float]:
+def check_point2(name: str, p) -> tuple[float, float]:
     p = np.asarray(p, dtype=np.float64)
     if p.shape != (2,) or not np.all(np.isfinite(p)):
         raise ValueError(f"{name} must be two finite numbers (x, y), got {p.tolist()}")
     return float(p[0]), float(p[1])
 
-def _check_real(name: str, value) -> float:
+def check_real(name: str, value) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float | np.number):
         raise TypeError(f"{name} must be a real number, got {type(value).__name__} {value!r}")
     if not np.isfinite(float(value)):
         raise ValueError(f"{name} must be finite, got {value}")
     return float(value)
 
-def _as_float(x):
+def as_float(x):
     x = jnp.asarray(x)
     if x.ndim < 1 or x.shape[-1] != 2:
         raise ValueError(f"x must have shape (..., 2), got shape {x.shape}")

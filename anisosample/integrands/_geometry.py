@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-_UNIT_SQUARE = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+UNIT_SQUARE = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
 
 # --- polygon geometry in float64 (NumPy) -------------------------------------------------------
 
@@ -18,7 +18,7 @@ def polygon_area(vertices) -> float:
     x, y = v[:, 0], v[:, 1]
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
-def _clip_halfplane(poly: np.ndarray, normal: np.ndarray, offset: float) -> np.ndarray:
+def clip_halfplane(poly: np.ndarray, normal: np.ndarray, offset: float) -> np.ndarray:
     """Sutherland-Hodgman step: keep ``normal . x <= offset`` (a convex clip region)."""
     if poly.shape[0] == 0:
         return poly
@@ -44,7 +44,7 @@ def clip_to_unit_square(vertices) -> np.ndarray:
     poly = np.asarray(vertices, dtype=np.float64)
     for normal, offset in (((-1.0, 0.0), 0.0), ((1.0, 0.0), 1.0), ((0.0, -1.0), 0.0),
                            ((0.0, 1.0), 1.0)):
-        poly = _clip_halfplane(poly, np.asarray(normal), offset)
+        poly = clip_halfplane(poly, np.asarray(normal), offset)
     return poly
 
 def _first_crossing(v: np.ndarray) -> tuple[int, int] | None:
@@ -82,7 +82,7 @@ def _first_crossing(v: np.ndarray) -> tuple[int, int] | None:
     return None
 
 
-def _check_simple_polygon(name: str, vertices) -> np.ndarray:
+def check_simple_polygon(name: str, vertices) -> np.ndarray:
     v = np.asarray(vertices, dtype=np.float64)
     if v.ndim != 2 or v.shape[1] != 2:
         raise ValueError(f"{name} must have shape (m, 2) with m >= 3, got shape {v.shape}")
@@ -103,12 +103,12 @@ def _check_simple_polygon(name: str, vertices) -> np.ndarray:
         raise ValueError(f"{name} has zero area")
     return v if area > 0 else v[::-1].copy()  # counter-clockwise
 
-def _is_convex(v: np.ndarray) -> bool:
+def is_convex(v: np.ndarray) -> bool:
     e = np.roll(v, -1, axis=0) - v
     cross = e[:, 0] * np.roll(e[:, 1], -1) - e[:, 1] * np.roll(e[:, 0], -1)
     return bool(np.all(cross >= 0))
 
-def _edge_directions_deg(v: np.ndarray) -> tuple[float, ...]:
+def edge_directions_deg(v: np.ndarray) -> tuple[float, ...]:
     """Spectral directions (normal angles mod 180) of edges not lying on the square's border."""
     out: list[float] = []
     m = v.shape[0]
@@ -128,7 +128,7 @@ def _edge_directions_deg(v: np.ndarray) -> tuple[float, ...]:
             out.append(theta)
     return tuple(sorted(out))
 
-def _polygon_fourier(chain: np.ndarray, v: np.ndarray) -> np.ndarray:
+def polygon_fourier(chain: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Fourier coefficients of the indicator of a closed counter-clockwise chain.
 
     Divergence theorem (fourier_variance.md Sec. 4.2): for ``v != 0``

@@ -11,16 +11,16 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._validate import check_directions_deg, check_positive_float
-from ._base import Integrand, _as_float, _check_frequencies_any, _check_point2, _check_real
+from ._base import Integrand, as_float, check_frequencies_any, check_point2, check_real
 from ._geometry import (
-    _UNIT_SQUARE,
-    _check_simple_polygon,
-    _clip_halfplane,
-    _edge_directions_deg,
-    _is_convex,
-    _polygon_fourier,
+    UNIT_SQUARE,
+    check_simple_polygon,
+    clip_halfplane,
     clip_to_unit_square,
+    edge_directions_deg,
+    is_convex,
     polygon_area,
+    polygon_fourier,
 )
 
 
@@ -43,8 +43,8 @@ class _PolygonalIndicator(Integrand):
         return self.value * self.integral
 
     def fourier_coefficients(self, v) -> np.ndarray:
-        v = _check_frequencies_any(v)
-        return self.value * _polygon_fourier(self.clipped_vertices, v)
+        v = check_frequencies_any(v)
+        return self.value * polygon_fourier(self.clipped_vertices, v)
 
 class HalfPlane(_PolygonalIndicator):
     """``f(x) = value * 1[x . (cos phi, sin phi) < offset]``, ``phi = normal_deg``.
@@ -59,12 +59,12 @@ class HalfPlane(_PolygonalIndicator):
     _normal: jax.Array
 
     def __init__(self, normal_deg, offset, value=1.0):
-        self.normal_deg = _check_real("normal_deg", normal_deg)
-        self.offset = _check_real("offset", offset)
-        self.value = _check_real("value", value)
+        self.normal_deg = check_real("normal_deg", normal_deg)
+        self.offset = check_real("offset", offset)
+        self.value = check_real("value", value)
         phi = math.radians(self.normal_deg)
         normal = np.array([math.cos(phi), math.sin(phi)])
-        clipped = _clip_halfplane(_UNIT_SQUARE.copy(), normal, self.offset)
+        clipped = clip_halfplane(UNIT_SQUARE.copy(), normal, self.offset)
         if polygon_area(clipped) <= 0.0:
             clipped = np.zeros((0, 2))
         self.chain = tuple(map(tuple, clipped.tolist()))
@@ -73,12 +73,12 @@ class HalfPlane(_PolygonalIndicator):
     @classmethod
     def through(cls, point, normal_deg, value=1.0) -> HalfPlane:
         """The half-plane whose edge passes through ``point``, inside opposite to the normal."""
-        px, py = _check_point2("point", point)
-        phi = math.radians(_check_real("normal_deg", normal_deg))
+        px, py = check_point2("point", point)
+        phi = math.radians(check_real("normal_deg", normal_deg))
         return cls(normal_deg, px * math.cos(phi) + py * math.sin(phi), value)
 
     def __call__(self, x):
-        x = _as_float(x)
+        x = as_float(x)
         n = self._normal.astype(x.dtype)
         t = x[..., 0] * n[0] + x[..., 1] * n[1]
         return jnp.where(t < jnp.asarray(self.offset, x.dtype), jnp.asarray(self.value, x.dtype),
@@ -107,16 +107,16 @@ class Polygon(_PolygonalIndicator):
     _tests: tuple[tuple[float, ...], ...] = eqx.field(static=True)  # per-edge constants
 
     def __init__(self, vertices, value=1.0, directions_deg=None):
-        v = _check_simple_polygon("vertices", vertices)
-        self.value = _check_real("value", value)
+        v = check_simple_polygon("vertices", vertices)
+        self.value = check_real("value", value)
         self.vertices = tuple(map(tuple, v.tolist()))
-        self.convex = _is_convex(v)
+        self.convex = is_convex(v)
         clipped = clip_to_unit_square(v)
         if abs(polygon_area(clipped)) <= 0.0:
             clipped = np.zeros((0, 2))
         self.chain = tuple(map(tuple, clipped.tolist()))
         if directions_deg is None:
-            self._directions = _edge_directions_deg(clipped) if len(clipped) else ()
+            self._directions = edge_directions_deg(clipped) if len(clipped) else ()
             self._directions = tuple(t for t in self._directions if t not in (0.0, 90.0))
         else:
             self._directions = check_directions_deg("directions_deg", directions_deg,
@@ -148,7 +148,7 @@ class Polygon(_PolygonalIndicator):
         return self._directions
 
     def __call__(self, x):
-        x = _as_float(x)
+        x = as_float(x)
         px, py = x[..., 0], x[..., 1]
         dt = x.dtype
         if self.convex:
@@ -183,7 +183,7 @@ def edges(directions_deg, *, center=(0.5, 0.5), radius=0.25, value=1.0) -> Polyg
     dirs = check_directions_deg("directions_deg", directions_deg)
     if len(dirs) > 4:
         raise ValueError(f"directions_deg must hold 1 to 4 directions, got {len(dirs)}")
-    cx, cy = _check_point2("center", center)
+    cx, cy = check_point2("center", center)
     radius = check_positive_float("radius", radius)
     if not (0.0 < cx < 1.0 and 0.0 < cy < 1.0):
         raise ValueError(f"center must lie inside (0, 1)^2, got {(cx, cy)}")
@@ -200,10 +200,10 @@ def edges(directions_deg, *, center=(0.5, 0.5), radius=0.25, value=1.0) -> Polyg
         gaps = np.diff(phis + [phis[0] + 360.0])
         if best_gap is None or gaps.max() < best_gap - 1e-12:
             best, best_gap = phis, gaps.max()
-    poly = _UNIT_SQUARE.copy()
+    poly = UNIT_SQUARE.copy()
     for phi in best:
         n = np.array([math.cos(math.radians(phi)), math.sin(math.radians(phi))])
-        poly = _clip_halfplane(poly, n, float(n @ np.array([cx, cy])) + radius)
+        poly = clip_halfplane(poly, n, float(n @ np.array([cx, cy])) + radius)
     # drop vertices repeated by the clipping (a line through a square corner)
     keep = np.any(np.abs(poly - np.roll(poly, 1, axis=0)) > 1e-15, axis=1)
     extra = tuple(d for d in dirs if d not in (0.0, 90.0))  # the axes are implied (W Sec. 5)

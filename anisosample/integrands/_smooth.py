@@ -12,7 +12,7 @@ import scipy.integrate
 import scipy.special
 
 from .._validate import check_choice, check_positive_float
-from ._base import Integrand, _as_float, _check_frequencies_any, _check_point2, _check_real
+from ._base import Integrand, as_float, check_frequencies_any, check_point2, check_real
 
 
 class Disk(Integrand):
@@ -27,9 +27,9 @@ class Disk(Integrand):
     value: float = eqx.field(static=True)
 
     def __init__(self, center=(0.5, 0.5), radius=0.3, value=1.0):
-        self.center = _check_point2("center", center)
+        self.center = check_point2("center", center)
         self.radius = check_positive_float("radius", radius)
-        self.value = _check_real("value", value)
+        self.value = check_real("value", value)
         cx, cy = self.center
         if min(cx, cy, 1.0 - cx, 1.0 - cy) < self.radius:
             raise ValueError(
@@ -38,7 +38,7 @@ class Disk(Integrand):
             )
 
     def __call__(self, x):
-        x = _as_float(x)
+        x = as_float(x)
         dx = x[..., 0] - jnp.asarray(self.center[0], x.dtype)
         dy = x[..., 1] - jnp.asarray(self.center[1], x.dtype)
         inside = dx * dx + dy * dy < jnp.asarray(self.radius**2, x.dtype)
@@ -52,7 +52,7 @@ class Disk(Integrand):
         return self.value * self.integral
 
     def fourier_coefficients(self, v) -> np.ndarray:
-        v = _check_frequencies_any(v)
+        v = check_frequencies_any(v)
         rho = np.hypot(v[..., 0], v[..., 1])
         safe = np.where(rho == 0, 1.0, rho)
         amp = np.where(rho == 0, math.pi * self.radius**2,
@@ -88,15 +88,15 @@ class SmoothedEdge(Integrand):
     value: float = eqx.field(static=True)
 
     def __init__(self, normal_deg, offset, sigma, value=1.0):
-        self.normal_deg = _check_real("normal_deg", normal_deg)
-        self.offset = _check_real("offset", offset)
+        self.normal_deg = check_real("normal_deg", normal_deg)
+        self.offset = check_real("offset", offset)
         self.sigma = check_positive_float("sigma", sigma)
-        self.value = _check_real("value", value)
+        self.value = check_real("value", value)
 
     @classmethod
     def through(cls, point, normal_deg, sigma, value=1.0) -> SmoothedEdge:
-        px, py = _check_point2("point", point)
-        phi = math.radians(_check_real("normal_deg", normal_deg))
+        px, py = check_point2("point", point)
+        phi = math.radians(check_real("normal_deg", normal_deg))
         return cls(normal_deg, px * math.cos(phi) + py * math.sin(phi), sigma, value)
 
     def _n(self):
@@ -104,7 +104,7 @@ class SmoothedEdge(Integrand):
         return math.cos(phi), math.sin(phi)
 
     def __call__(self, x):
-        x = _as_float(x)
+        x = as_float(x)
         nx, ny = self._n()
         t = x[..., 0] * jnp.asarray(nx, x.dtype) + x[..., 1] * jnp.asarray(ny, x.dtype)
         u = (jnp.asarray(self.offset, x.dtype) - t) / jnp.asarray(self.sigma, x.dtype)
@@ -160,12 +160,12 @@ class GaussianBump(Integrand):
     amplitude: float = eqx.field(static=True)
 
     def __init__(self, center=(0.5, 0.5), sigma=0.08, amplitude=1.0):
-        self.center = _check_point2("center", center)
+        self.center = check_point2("center", center)
         self.sigma = check_positive_float("sigma", sigma)
-        self.amplitude = _check_real("amplitude", amplitude)
+        self.amplitude = check_real("amplitude", amplitude)
 
     def __call__(self, x):
-        x = _as_float(x)
+        x = as_float(x)
         dx = x[..., 0] - jnp.asarray(self.center[0], x.dtype)
         dy = x[..., 1] - jnp.asarray(self.center[1], x.dtype)
         k = jnp.asarray(-0.5 / self.sigma**2, x.dtype)
@@ -191,7 +191,7 @@ class GaussianBump(Integrand):
         ``int_0^1 exp(-(x-c)^2/(2 sigma^2) - 2 pi i k x) dx = sigma sqrt(pi/2) e^{-2 pi i k c}
         e^{-beta^2} [erf(b + i beta) - erf(a + i beta)]``, ``a, b`` the ends in ``t``; the product
         ``e^{-beta^2} erf(.)`` is evaluated through the Faddeeva function (no overflow)."""
-        v = _check_frequencies_any(v)
+        v = check_frequencies_any(v)
         out = np.full(v.shape[:-1], self.amplitude, dtype=np.complex128)
         s = self.sigma
         for d, c in enumerate(self.center):
@@ -235,10 +235,10 @@ class Texture(Integrand):
         self.freqs = tuple((int(x), int(y)) for x, y in k)
         self.amplitudes = tuple(float(x) for x in a)
         self.phases = tuple(float(x) for x in p)
-        self.offset = _check_real("offset", offset)
+        self.offset = check_real("offset", offset)
 
     def __call__(self, x):
-        x = _as_float(x)
+        x = as_float(x)
         out = jnp.full(x.shape[:-1], self.offset, dtype=x.dtype)
         for (kx, ky), a, p in zip(self.freqs, self.amplitudes, self.phases, strict=True):
             # reduce the phase modulo one turn before scaling by 2 pi (float32 accuracy)
@@ -264,7 +264,7 @@ class Texture(Integrand):
         return terms
 
     def fourier_coefficients(self, v) -> np.ndarray:
-        v = _check_frequencies_any(v)
+        v = check_frequencies_any(v)
         out = np.zeros(v.shape[:-1], dtype=np.complex128)
         for (kx, ky), c in self._terms():
             out = out + np.where((v[..., 0] == kx) & (v[..., 1] == ky), c, 0.0)
@@ -316,7 +316,7 @@ class Textured(Integrand):
         return self.shape.directions_deg
 
     def fourier_coefficients(self, v) -> np.ndarray:
-        v = _check_frequencies_any(v)
+        v = check_frequencies_any(v)
         out = np.zeros(v.shape[:-1], dtype=np.complex128)
         for k, c in self.texture._terms():
             out = out + c * self.shape.fourier_coefficients(v - np.asarray(k, dtype=np.float64))

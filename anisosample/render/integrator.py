@@ -55,10 +55,10 @@ def _uniform(key, n: int) -> Float[Array, "n 2"]:
     does not study (film position, the other of lens/light, the BSDF sample), as Mitsuba's
     independent sampler uses PCG32 rather than a cryptographic generator.
     """
-    from ..samplers import _hash_u32
+    from ..samplers import hash_u32
 
     seed = jax.random.bits(key, (), jnp.uint32)
-    bits = _hash_u32(seed ^ _hash_u32(jnp.arange(2 * n, dtype=jnp.uint32)))
+    bits = hash_u32(seed ^ hash_u32(jnp.arange(2 * n, dtype=jnp.uint32)))
     return ((bits >> 8).astype(jnp.float32) * jnp.float32(2.0**-24)).reshape(n, 2)
 
 

@@ -29,7 +29,7 @@ from .._types import Array, Float
 from .._validate import check_points
 
 
-def _check_point(name: str, x, dim: int) -> jax.Array:
+def check_point(name: str, x, dim: int) -> jax.Array:
     """Shape check before tracing: one point of shape ``(dim,)`` (vmap for batches)."""
     shape = getattr(x, "shape", None)
     if shape is None:
@@ -111,14 +111,14 @@ class Compose(AbstractWarp):
         return self.warps[-1].measure
 
     def sample(self, u):
-        x = _check_point("u", u, 2)
+        x = check_point("u", u, 2)
         for w in self.warps:
             x = w.sample(x)
         return x
 
     def sample_and_pdf(self, u):
         # H Algorithm 1.
-        x = _check_point("u", u, 2)
+        x = check_point("u", u, 2)
         pdf = jnp.ones((), x.dtype)
         for w in self.warps:
             x, j = w.sample_and_pdf(x)  # J_w at the warp's own output
@@ -127,7 +127,7 @@ class Compose(AbstractWarp):
 
     def pdf(self, x):
         # H Algorithm 2.
-        x = _check_point("x", x, self.out_dim)
+        x = check_point("x", x, self.out_dim)
         pdf = jnp.ones((), jnp.float32)
         for w in reversed(self.warps):
             pdf = pdf * w.pdf(x)
@@ -135,7 +135,7 @@ class Compose(AbstractWarp):
         return jnp.where(pdf > 0, pdf, 0.0).astype(jnp.float32)
 
     def inverse(self, x):
-        x = _check_point("x", x, self.out_dim)
+        x = check_point("x", x, self.out_dim)
         for w in reversed(self.warps):
             x = w.inverse(x)
         return x

@@ -23,7 +23,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from .._types import Array, Float
-from ._base import AbstractWarp, _check_point
+from ._base import AbstractWarp, check_point
 from ._geometry import angle_between, check_vectors, is_concrete, safe_normalize
 from ._solve import newton_bisection
 from .spherical import SphericalTriangle
@@ -106,7 +106,7 @@ class CosineSphericalTriangle(AbstractWarp):
         return signed
 
     def sample(self, u):
-        u = _check_point("u", u, 2)
+        u = check_point("u", u, 2)
         t, n = self.triangle, self.normal
         s_max = angle_between(t.a, t.c)
         signed = self._phi_of_s()
@@ -150,13 +150,13 @@ class CosineSphericalTriangle(AbstractWarp):
         return w, jnp.where(self.triangle.valid, pdf, 0.0)
 
     def pdf(self, w):
-        w = safe_normalize(_check_point("w", w, 3))
+        w = safe_normalize(check_point("w", w, 3))
         t = self.triangle
         ok = t.valid & t.contains(w)
         return jnp.where(ok, jnp.maximum(jnp.dot(self.normal, w), 0.0) / self.phi_total, 0.0)
 
     def inverse(self, w):
-        w = safe_normalize(_check_point("w", w, 3))
+        w = safe_normalize(check_point("w", w, 3))
         t, n = self.triangle, self.normal
         cp = safe_normalize(jnp.cross(jnp.cross(t.b, w), jnp.cross(t.c, t.a)))
         cp = jnp.where(jnp.dot(cp, t.a + t.c) < 0, -cp, cp)

@@ -32,15 +32,20 @@ from ._base import AbstractWarp, Compose
 from .planar import Bilinear, Biquadratic
 from .tabulated import Tabulated
 
+__all__ = ["fit_pointwise", "fit_least_squares", "fit_tabulated"]  # the API; the checks below
+# are shared with warps.tuning
+
 _KINDS = (Bilinear, Biquadratic)
 
 
-def _check_kind(kind):
+def check_fit_kind(kind):
+    """``kind`` must be a fittable PSS warp class (:class:`Bilinear` or :class:`Biquadratic`)."""
     if kind not in _KINDS:
         raise ValueError(f"kind must be Bilinear or Biquadratic, got {kind!r}")
 
 
-def _rest(later) -> AbstractWarp | None:
+def later_chain(later) -> AbstractWarp | None:
+    """The warps after the fitted one as one warp (H Eq. 9's ``p_rest``), ``None`` if none."""
     if isinstance(later, AbstractWarp):
         return later
     later = tuple(later)
@@ -73,14 +78,14 @@ def fit_pointwise(
     it is not zero (no density to follow), is a ``ValueError``; inside ``jit`` such values are
     cleaned as above (the renderer's own factors are finite).
     """
-    _check_kind(kind)
+    check_fit_kind(kind)
     if not callable(factor):
         raise TypeError(f"factor must be a callable f(x) -> scalar, got {type(factor).__name__}")
     floor = float(floor)
     if not 0.0 <= floor < 1.0:
         raise ValueError(f"floor must lie in [0, 1), got {floor}")
     pts = jnp.asarray(kind.control_points())
-    rest = _rest(later)
+    rest = later_chain(later)
     if kind is Bilinear and hasattr(rest, "corner_images"):
         x = rest.corner_images()  # the base warp knows its corners' images: no sampling
     elif hasattr(rest, "grid_images"):  # the base warp maps the control grid in one go
@@ -122,8 +127,8 @@ def fit_least_squares(
     residuals of the module docstring; ``throw=False`` so that it ``vmap``s over shading points
     (a run that hits ``max_steps`` returns its last iterate).
     """
-    _check_kind(kind)
-    rest = _rest(later)
+    check_fit_kind(kind)
+    rest = later_chain(later)
     if rest is None:
         raise ValueError("later must hold at least the base warp")
     y = _probes(int(probes))
@@ -162,7 +167,7 @@ def fit_least_squares(
 
 def fit_tabulated(f: Callable, later: Sequence[AbstractWarp] | AbstractWarp, *, res: int = 32):
     """H Sec. 4.3's reference: a ``res x res`` table of ``f / p_rest`` at the PSS cell centres."""
-    rest = _rest(later)
+    rest = later_chain(later)
     if rest is None:
         raise ValueError("later must hold at least the base warp")
     g = (np.arange(res, dtype=np.float32) + 0.5) / res

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from ._base import AbstractWarp, _check_point
+from ._base import AbstractWarp, check_point
 from ._geometry import norm, safe_normalize
 
 _PI = jnp.pi
@@ -70,14 +70,14 @@ class ConcentricDisk(AbstractWarp):
     measure = "area disk"
 
     def sample(self, u):
-        return _concentric(_check_point("u", u, 2))
+        return _concentric(check_point("u", u, 2))
 
     def pdf(self, x):
-        x = _check_point("x", x, 2)
+        x = check_point("x", x, 2)
         return jnp.where(jnp.sum(x * x) <= 1.0 + 1e-6, 1.0 / _PI, 0.0)
 
     def inverse(self, x):
-        return _concentric_inverse(_check_point("x", x, 2))
+        return _concentric_inverse(check_point("x", x, 2))
 
 
 class UniformHemisphere(AbstractWarp):
@@ -87,17 +87,17 @@ class UniformHemisphere(AbstractWarp):
     measure = "solid angle"
 
     def sample(self, u):
-        d = _concentric(_check_point("u", u, 2))
+        d = _concentric(check_point("u", u, 2))
         r2 = jnp.sum(d * d)
         s = jnp.sqrt(jnp.maximum(2.0 - r2, 0.0))
         return jnp.stack([d[0] * s, d[1] * s, 1.0 - r2])
 
     def pdf(self, w):
-        w = safe_normalize(_check_point("w", w, 3))
+        w = safe_normalize(check_point("w", w, 3))
         return jnp.where(w[2] >= -1e-6, 1.0 / (2 * _PI), 0.0)
 
     def inverse(self, w):
-        w = safe_normalize(_check_point("w", w, 3))
+        w = safe_normalize(check_point("w", w, 3))
         z = jnp.clip(w[2], 0.0, 1.0)
         d = w[:2] / jnp.sqrt(1.0 + z)  # r^2 = 1 - z, |(x, y)| = r sqrt(2 - r^2)
         return _concentric_inverse(d)
@@ -110,18 +110,18 @@ class AngularHemisphere(AbstractWarp):
     measure = "solid angle"
 
     def sample(self, u):
-        u = _check_point("u", u, 2)
+        u = check_point("u", u, 2)
         z = u[0]
         r = jnp.sqrt(jnp.maximum(1.0 - z * z, 0.0))
         phi = 2 * _PI * u[1]
         return jnp.stack([r * jnp.cos(phi), r * jnp.sin(phi), z])
 
     def pdf(self, w):
-        w = safe_normalize(_check_point("w", w, 3))
+        w = safe_normalize(check_point("w", w, 3))
         return jnp.where(w[2] >= -1e-6, 1.0 / (2 * _PI), 0.0)
 
     def inverse(self, w):
-        w = safe_normalize(_check_point("w", w, 3))
+        w = safe_normalize(check_point("w", w, 3))
         phi = jnp.arctan2(w[1], w[0])
         phi = jnp.where(phi < 0, phi + 2 * _PI, phi)
         return jnp.clip(jnp.stack([w[2], phi / (2 * _PI)]), 0.0, _EPS1)
@@ -134,16 +134,16 @@ class CosineHemisphere(AbstractWarp):
     measure = "solid angle"
 
     def sample(self, u):
-        d = _concentric(_check_point("u", u, 2))
+        d = _concentric(check_point("u", u, 2))
         z = jnp.sqrt(jnp.maximum(1.0 - jnp.sum(d * d), 0.0))
         return jnp.stack([d[0], d[1], z])
 
     def pdf(self, w):
-        w = safe_normalize(_check_point("w", w, 3))
+        w = safe_normalize(check_point("w", w, 3))
         return jnp.where(w[2] >= 0, w[2] / _PI, 0.0)
 
     def inverse(self, w):
-        w = safe_normalize(_check_point("w", w, 3))
+        w = safe_normalize(check_point("w", w, 3))
         return _concentric_inverse(w[:2])
 
 
@@ -162,18 +162,18 @@ class HemiOctahedral(AbstractWarp):
     measure = "solid angle"
 
     def sample(self, u):
-        u = _check_point("u", u, 2)
+        u = check_point("u", u, 2)
         a, b = 2.0 * u[0] - 1.0, 2.0 * u[1] - 1.0
         x, y = (a + b) / 2, (a - b) / 2
         return safe_normalize(jnp.stack([x, y, 1.0 - jnp.abs(x) - jnp.abs(y)]))
 
     def pdf(self, w):
-        w = safe_normalize(_check_point("w", w, 3))
+        w = safe_normalize(check_point("w", w, 3))
         p = w / jnp.sum(jnp.abs(w))
         return jnp.where(w[2] >= -1e-6, norm(p) ** 3 / 2.0, 0.0)
 
     def inverse(self, w):
-        w = safe_normalize(_check_point("w", w, 3))
+        w = safe_normalize(check_point("w", w, 3))
         p = w / jnp.sum(jnp.abs(w))
         a, b = p[0] + p[1], p[0] - p[1]
         return jnp.clip(jnp.stack([(a + 1) / 2, (b + 1) / 2]), 0.0, 1.0)
@@ -186,7 +186,7 @@ class Octahedral(AbstractWarp):
     measure = "solid angle"
 
     def sample(self, u):
-        u = _check_point("u", u, 2)
+        u = check_point("u", u, 2)
         a, b = 2.0 * u[0] - 1.0, 2.0 * u[1] - 1.0
         z = 1.0 - jnp.abs(a) - jnp.abs(b)
         fa = jnp.where(z < 0, (1.0 - jnp.abs(b)) * _sgn(a), a)
@@ -194,12 +194,12 @@ class Octahedral(AbstractWarp):
         return safe_normalize(jnp.stack([fa, fb, z]))
 
     def pdf(self, w):
-        w = safe_normalize(_check_point("w", w, 3))
+        w = safe_normalize(check_point("w", w, 3))
         p = w / jnp.sum(jnp.abs(w))
         return norm(p) ** 3 / 4.0
 
     def inverse(self, w):
-        w = safe_normalize(_check_point("w", w, 3))
+        w = safe_normalize(check_point("w", w, 3))
         p = w / jnp.sum(jnp.abs(w))
         a = jnp.where(p[2] < 0, (1.0 - jnp.abs(p[1])) * _sgn(p[0]), p[0])
         b = jnp.where(p[2] < 0, (1.0 - jnp.abs(p[0])) * _sgn(p[1]), p[1])

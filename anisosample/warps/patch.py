@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 
 from .._types import Array, Float
-from ._base import AbstractWarp, Compose, _check_point
+from ._base import AbstractWarp, Compose, check_point
 from ._geometry import check_vectors, is_concrete, norm
 from .planar import Bilinear
 
@@ -55,7 +55,7 @@ class TriangleArea(AbstractWarp):
         self.area = jnp.where(area > 0, area, 1.0)
 
     def sample(self, u):
-        u = _check_point("u", u, 2)
+        u = check_point("u", u, 2)
         s = jnp.sqrt(u[0])
         v = self.vertices
         return (1 - s) * v[0] + s * (1 - u[1]) * v[1] + s * u[1] * v[2]
@@ -67,14 +67,14 @@ class TriangleArea(AbstractWarp):
         return b1, b2, resid
 
     def pdf(self, x):
-        x = _check_point("x", x, 3)
+        x = check_point("x", x, 3)
         b1, b2, resid = self._bary(x)
         size = jnp.sqrt(self.area)
         inside = (b1 >= -_INSIDE_TOL) & (b2 >= -_INSIDE_TOL) & (b1 + b2 <= 1 + _INSIDE_TOL)
         return jnp.where(inside & (resid <= _ON_SURFACE_TOL * size), 1.0 / self.area, 0.0)
 
     def inverse(self, x):
-        x = _check_point("x", x, 3)
+        x = check_point("x", x, 3)
         b1, b2, _ = self._bary(x)
         s = jnp.clip(b1 + b2, 0.0, 1.0)
         u1 = jnp.where(s > 0, b2 / jnp.where(s > 0, s, 1.0), 0.5)
@@ -102,11 +102,11 @@ class Parallelogram(AbstractWarp):
         self.area = jnp.where(area > 0, area, 1.0)
 
     def sample(self, u):
-        u = _check_point("u", u, 2)
+        u = check_point("u", u, 2)
         return self.corner + u[0] * self.edge_u + u[1] * self.edge_v
 
     def pdf(self, x):
-        x = _check_point("x", x, 3)
+        x = check_point("x", x, 3)
         s, t = _solve2(self.edge_u, self.edge_v, x - self.corner)
         resid = norm(x - self.sample(jnp.stack([s, t])))
         inside = (s >= -_INSIDE_TOL) & (s <= 1 + _INSIDE_TOL) & (t >= -_INSIDE_TOL)
@@ -115,7 +115,7 @@ class Parallelogram(AbstractWarp):
         return jnp.where(ok, 1.0 / self.area, 0.0)
 
     def inverse(self, x):
-        x = _check_point("x", x, 3)
+        x = check_point("x", x, 3)
         s, t = _solve2(self.edge_u, self.edge_v, x - self.corner)
         return jnp.clip(jnp.stack([s, t]), 0.0, 1.0)
 
@@ -175,11 +175,11 @@ class BilinearPatch(AbstractWarp):
         return jnp.stack([jnp.stack([e00, e01]), jnp.stack([e10, e11])])
 
     def sample(self, u):
-        return self.point(_check_point("u", u, 2))
+        return self.point(check_point("u", u, 2))
 
     def sample_and_pdf(self, u):
         """H Alg. 1 step: ``p(u)`` and ``1 / |p_u x p_v|`` at ``u`` itself (no inversion)."""
-        u = _check_point("u", u, 2)
+        u = check_point("u", u, 2)
         ae = self.area_element(u)
         return self.point(u), jnp.where(ae > 0, 1.0 / jnp.where(ae > 0, ae, 1.0), 0.0)
 
@@ -199,7 +199,7 @@ class BilinearPatch(AbstractWarp):
         return jax.lax.fori_loop(0, self.newton_steps, step, jnp.full((2,), 0.5, x.dtype))
 
     def pdf(self, x):
-        x = _check_point("x", x, 3)
+        x = check_point("x", x, 3)
         uv = self._invert(x)
         scale = jnp.max(norm(self.corners.reshape(4, 3) - self.corners[0, 0][None, :]))
         resid = norm(x - self.point(uv))
@@ -209,7 +209,7 @@ class BilinearPatch(AbstractWarp):
         return jnp.where(ok, 1.0 / jnp.where(ae > 0, ae, 1.0), 0.0)
 
     def inverse(self, x):
-        return jnp.clip(self._invert(_check_point("x", x, 3)), 0.0, 1.0)
+        return jnp.clip(self._invert(check_point("x", x, 3)), 0.0, 1.0)
 
 
 def patch_area_warp(corners) -> Compose:

@@ -19,7 +19,7 @@ import numpy as np
 
 from .._types import Array, Float
 from .._validate import ONE_MINUS_EPSILON
-from ._base import AbstractWarp, _check_point
+from ._base import AbstractWarp, check_point
 from ._solve import newton_bisection
 
 _ONE_MINUS_EPS = float(ONE_MINUS_EPSILON)
@@ -110,7 +110,7 @@ class Bilinear(AbstractWarp):
         return _lerp(x, _lerp(y, v[0, 0], v[0, 1]), _lerp(y, v[1, 0], v[1, 1]))
 
     def _sample(self, u):
-        u = _check_point("u", u, 2)
+        u = check_point("u", u, 2)
         v = self.values
         y = sample_linear(u[1], v[0, 0] + v[1, 0], v[0, 1] + v[1, 1])
         a0, a1 = _lerp(y, v[0, 0], v[0, 1]), _lerp(y, v[1, 0], v[1, 1])  # a(0, y), a(1, y)
@@ -132,7 +132,7 @@ class Bilinear(AbstractWarp):
         return jnp.stack([x, y]), p
 
     def pdf(self, x):
-        x = _check_point("x", x, 2)
+        x = check_point("x", x, 2)
         total = jnp.sum(self.values)
         inside = jnp.all((x >= 0) & (x <= 1))
         p = jnp.where(
@@ -141,7 +141,7 @@ class Bilinear(AbstractWarp):
         return jnp.where(inside, p, 0.0)
 
     def inverse(self, x):
-        x = jnp.clip(_check_point("x", x, 2), 0.0, 1.0)
+        x = jnp.clip(check_point("x", x, 2), 0.0, 1.0)
         v = self.values
         uy = invert_linear_sample(x[1], v[0, 0] + v[1, 0], v[0, 1] + v[1, 1])
         a0, a1 = _lerp(x[1], v[0, 0], v[0, 1]), _lerp(x[1], v[1, 0], v[1, 1])
@@ -203,7 +203,7 @@ class Biquadratic(AbstractWarp):
         return np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1)
 
     def sample(self, u):
-        u = _check_point("u", u, 2)
+        u = check_point("u", u, 2)
         v = self.values
         y = _sample_bezier(u[1], jnp.sum(v, axis=0), self.iterations)
         c = v @ _bernstein2(y)  # c_i = sum_j v_ij b_j(y)
@@ -211,7 +211,7 @@ class Biquadratic(AbstractWarp):
         return jnp.stack([x, y])
 
     def pdf(self, x):
-        x = _check_point("x", x, 2)
+        x = check_point("x", x, 2)
         xc = jnp.clip(x, 0.0, 1.0)
         total = jnp.sum(self.values)
         a = _bernstein2(xc[0]) @ self.values @ _bernstein2(xc[1])
@@ -219,7 +219,7 @@ class Biquadratic(AbstractWarp):
         return jnp.where(jnp.all((x >= 0) & (x <= 1)), p, 0.0)
 
     def inverse(self, x):
-        x = jnp.clip(_check_point("x", x, 2), 0.0, 1.0)
+        x = jnp.clip(check_point("x", x, 2), 0.0, 1.0)
         v = self.values
         uy = _bezier_cdf(x[1], jnp.sum(v, axis=0))
         ux = _bezier_cdf(x[0], v @ _bernstein2(x[1]))

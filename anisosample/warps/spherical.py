@@ -17,7 +17,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from .._types import Array, Float
-from ._base import AbstractWarp, _check_point
+from ._base import AbstractWarp, check_point
 from ._geometry import (
     angle_between,
     check_vectors,
@@ -116,7 +116,7 @@ class SphericalTriangle(AbstractWarp):
         return jnp.where(self.valid, safe_normalize(w), self.a)
 
     def sample(self, u):
-        u = _check_point("u", u, 2)
+        u = check_point("u", u, 2)
         return self._on_arc(self._c_prime(u[0]), u[1])
 
     def grid_images(self, g):
@@ -143,12 +143,12 @@ class SphericalTriangle(AbstractWarp):
         return jnp.all(self.normals @ w >= -_INSIDE_TOL)
 
     def pdf(self, w):
-        w = safe_normalize(_check_point("w", w, 3))
+        w = safe_normalize(check_point("w", w, 3))
         ok = self.valid & self.contains(w)
         return jnp.where(ok, 1.0 / self.solid_angle, 0.0)
 
     def inverse(self, w):
-        w = safe_normalize(_check_point("w", w, 3))
+        w = safe_normalize(check_point("w", w, 3))
         a, b, c = self.a, self.b, self.c
         cp = safe_normalize(jnp.cross(jnp.cross(b, w), jnp.cross(c, a)))
         cp = jnp.where(jnp.dot(cp, a + c) < 0, -cp, cp)
@@ -261,11 +261,11 @@ class SphericalRectangle(AbstractWarp):
 
     def sample_point(self, u):
         """The point on the rectangle (world space) that ``sample(u)`` points at."""
-        u = _check_point("u", u, 2)
+        u = check_point("u", u, 2)
         return self.origin + self._sample_local(u) @ self.frame
 
     def sample(self, u):
-        u = _check_point("u", u, 2)
+        u = check_point("u", u, 2)
         w = safe_normalize(self._sample_local(u)) @ self.frame
         return jnp.where(self.valid, w, self.frame[2])
 
@@ -281,7 +281,7 @@ class SphericalRectangle(AbstractWarp):
         return t * wl[0], t * wl[1], hit
 
     def pdf(self, w):
-        w = safe_normalize(_check_point("w", w, 3))
+        w = safe_normalize(check_point("w", w, 3))
         x0, x1, y0, y1, _ = self.bounds
         xu, yv, hit = self._local_hit(w)
         tol = _INSIDE_TOL * jnp.maximum(x1 - x0, y1 - y0)
@@ -289,7 +289,7 @@ class SphericalRectangle(AbstractWarp):
         return jnp.where(self.valid & inside, 1.0 / self.solid_angle, 0.0)
 
     def inverse(self, w):
-        w = safe_normalize(_check_point("w", w, 3))
+        w = safe_normalize(check_point("w", w, 3))
         x0, x1, y0, y1, z0 = self.bounds
         xu, yv, _ = self._local_hit(w)
         xu, yv = jnp.clip(xu, x0, x1), jnp.clip(yv, y0, y1)

@@ -14,7 +14,7 @@ import numpy as np
 
 from .._types import Array, Float
 from .._validate import ONE_MINUS_EPSILON
-from ._base import AbstractWarp, _check_point
+from ._base import AbstractWarp, check_point
 
 _EPS1 = float(ONE_MINUS_EPSILON)
 
@@ -67,13 +67,13 @@ class Tabulated(AbstractWarp):
         self.mean = jnp.mean(v)
 
     def sample(self, u):
-        u = _check_point("u", u, 2)
+        u = check_point("u", u, 2)
         i, y = _sample_1d(u[1], self.row_cdf)
         _, x = _sample_1d(u[0], self.col_cdf[i])
         return jnp.stack([x, y])
 
     def pdf(self, x):
-        x = _check_point("x", x, 2)
+        x = check_point("x", x, 2)
         h, w = self.values.shape
         i = jnp.clip(jnp.floor(x[1] * h).astype(jnp.int32), 0, h - 1)
         j = jnp.clip(jnp.floor(x[0] * w).astype(jnp.int32), 0, w - 1)
@@ -81,7 +81,7 @@ class Tabulated(AbstractWarp):
         return jnp.where(inside, self.values[i, j] / self.mean, 0.0)
 
     def inverse(self, x):
-        x = jnp.clip(_check_point("x", x, 2), 0.0, 1.0)
+        x = jnp.clip(check_point("x", x, 2), 0.0, 1.0)
         i, uy = _invert_1d(x[1], self.row_cdf)
         _, ux = _invert_1d(x[0], self.col_cdf[i])
         return jnp.clip(jnp.stack([ux, uy]), 0.0, 1.0)

@@ -40,7 +40,7 @@ import optimistix as optx
 
 from .._validate import check_choice, check_int, check_positive_float
 from ._base import AbstractWarp
-from .fit import _check_kind, _rest
+from .fit import check_fit_kind, later_chain
 from .planar import Bilinear
 
 RULES = ("gauss", "midpoint")
@@ -56,7 +56,7 @@ def _check_later(later) -> AbstractWarp | None:
     for i, w in enumerate(later):
         if not isinstance(w, AbstractWarp):
             raise TypeError(f"later[{i}] must be a Warp, got {type(w).__name__}")
-    return _rest(later)
+    return later_chain(later)
 
 
 def quadrature(grid: int, rule: str = "gauss"):
@@ -157,7 +157,7 @@ def fit_min_variance(
     ``max_steps`` returns its last iterate, and the start is kept if it was better. An integrand
     that is 0 at every node gives the uniform warp.
     """
-    _check_kind(kind)
+    check_fit_kind(kind)
     rest = _check_later(later)
     y, w = quadrature(grid, rule)
     solver = check_choice("solver", solver, SOLVERS)
