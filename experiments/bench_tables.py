@@ -65,7 +65,8 @@ def _four_direction(args):
           f"{src.path if src is not None else 'nothing (cold)'}")
     with tempfile.TemporaryDirectory() as tmp:
         os.environ["XDG_CACHE_HOME"] = tmp  # an empty user cache: every lookup builds
-        times = []
+        times, cpu = [], []
+        c_all = time.process_time()
         if args.batch > 1:
             t0 = time.perf_counter()
             tables.build(args.n, 4, out=tables.cache_dir() / tables.table_name(4, args.n),
@@ -75,16 +76,25 @@ def _four_direction(args):
         else:
             _count_compiles()
             for e in pick:
-                t0 = time.perf_counter()
+                t0, p0 = time.perf_counter(), time.process_time()
                 c0 = _COMPILES[0]
                 tables.lookup([0, 90, *e], args.n, show_progress=False)
                 times.append(time.perf_counter() - t0)
-                print(f"  set {tables.set_name(e)}: {times[-1]:.1f} s, {_COMPILES[0] - c0} "
-                      f"compilations (load average {os.getloadavg()[0]:.1f})", flush=True)
+                cpu.append(time.process_time() - p0)
+                print(f"  set {tables.set_name(e)}: {times[-1]:.1f} s ({cpu[-1]:.1f} CPU s), "
+                      f"{_COMPILES[0] - c0} compilations (load average "
+                      f"{os.getloadavg()[0]:.1f})", flush=True)
+        c_all = time.process_time() - c_all
     mean = statistics.fmean(times)
     print(f"per set on demand: mean {mean:.1f} s, median {statistics.median(times):.1f} s, "
           f"max {max(times):.1f} s")
     print(f"projected 4141-set table: {len(canon) * mean / 3600:.2f} h (from {len(pick)} sets)")
+    # the wall time counts the other work on a shared machine; the CPU time does not: on the
+    # machine's cores alone (the terms of a step run in parallel), a set takes CPU / cores
+    cores = os.cpu_count() or 1
+    per = c_all / len(pick)
+    print(f"CPU per set {per:.1f} s; on {cores} otherwise idle cores: {per / cores:.1f} s per set, "
+          f"4141-set table {len(canon) * per / cores / 3600:.2f} h")
 
 
 def _band_energy(pts, phi, n, radius=32.0):
