@@ -476,6 +476,12 @@ def _add_render(sub):
     p.add_argument("--estimation-samples", type=int, default=None,
                    help="aligned/sheared: grid samples per block side, a multiple of --block "
                         "(default 96: 36 per pixel at --block 16)")
+    p.add_argument("--k", type=int, default=None, choices=(1, 2),
+                   help="aligned/sheared: directions estimated per block (default 2: a block "
+                        "with two gets a 4-direction set, W Sec. 5.4; 1: 3-direction sets only)")
+    p.add_argument("--no-gate", action="store_true",
+                   help="aligned: give every pixel of a block with a direction its block's set "
+                        "(W's rule); by default pixels whose own probe is smooth use pmj02bn")
     p.add_argument("--direction-map", default=None, metavar="PNG",
                    help="aligned/sheared: also write the per-block directions as PNG (hue = "
                         "direction / 180, black = none; one panel per direction)")
@@ -549,17 +555,27 @@ def _block_sampler(args, scene, spp):
     from . import tables
     from .render import aligned
 
-    opts = {k: v for k, v in (("block_px", args.block), ("samples", args.estimation_samples))
-            if v is not None}
+    opts = {k: v for k, v in (("block_px", args.block), ("samples", args.estimation_samples),
+                              ("k", args.k)) if v is not None}
+    if args.no_gate:
+        opts["gate"] = False
     if args.sampler not in aligned.BLOCK_SAMPLERS:
         if opts or args.direction_map is not None:
-            raise ValueError("--block, --estimation-samples and --direction-map need --sampler "
-                             f"{' or '.join(aligned.BLOCK_SAMPLERS)}")
+            raise ValueError("--block, --estimation-samples, --k, --no-gate and --direction-map "
+                             f"need --sampler {' or '.join(aligned.BLOCK_SAMPLERS)}")
         return args.sampler
-    if args.sampler == "aligned" and tables.find_table(3, spp) is None:
-        raise FileNotFoundError(
-            f"--sampler aligned needs a 3-direction table for n = {spp} points (--spp) and none "
-            f"is installed; build it with `anisosample tables build --n {spp} --directions 3`")
+    if args.sampler == "aligned":
+        if spp < 2:  # before the estimation, which costs seconds
+            raise ValueError(f"--sampler aligned needs --spp >= 2 (a table set), got {spp}")
+        # Sets build on demand (tables.lookup): the ones the blocks need and no table holds are
+        # synthesized into the user cache after the estimation, with progress. Say so up front.
+        kinds = (3,) if opts.get("k", 2) == 1 else (3, 4)
+        absent = [kd for kd in kinds if tables.find_table(kd, spp) is None]
+        if absent:
+            print(f"note: no {' or '.join(f'{kd}-direction' for kd in absent)} table for n = "
+                  f"{spp} is installed; the sets the blocks need are synthesized into "
+                  f"{tables.cache_dir()} first (`anisosample tables build --n {spp} "
+                  f"--directions {absent[0]}` builds a whole table)")
     map_path = None if args.direction_map is None else Path(args.direction_map)
     if map_path is not None:
         if map_path.suffix != ".png":
@@ -575,7 +591,9 @@ def _block_sampler(args, scene, spp):
           f"{est.samples}^2 integrand samples each = {est.integrand_samples} samples "
           f"({est.samples_per_pixel:g} per pixel, {100 * est.samples_per_pixel / spp:.0f}% of "
           f"--spp {spp}) in {est.seconds:.2f} s; {int(sampler.valid.sum())} of {by * bx} blocks "
-          f"have an extra direction")
+          f"have an extra direction (k = {sampler.k}); per-pixel gate "
+          + (f"on: {int((sampler.pixel_sampler == 1).sum())} pixels use {sampler.base}"
+             if sampler.gate else "off"))
     if map_path is not None:
         aligned.save_direction_map(map_path, sampler, overwrite=args.force)
         print(f"wrote the direction map to {map_path}")

@@ -1068,7 +1068,11 @@ cli("render-collinear-light", "render {d}/collinear.xml --spp 1 -o {o}/i.exr",
 cli("render-bad-reference", "render {d}/triangle_light.xml --set width=8 --set height=8 "
     "--spp 1 --reference {d}/junk.exr -o {o}/i.exr", r"junk\.exr is a damaged")
 cli("render-block-without-aligned", "render {d}/triangle_light.xml --block 16 -o {o}/i.exr",
-    r"--block, --estimation-samples and --direction-map need --sampler")
+    r"--block, --estimation-samples, --k, --no-gate and --direction-map need --sampler")
+cli("render-no-gate-without-aligned", "render {d}/triangle_light.xml --no-gate -o {o}/i.exr",
+    r"--no-gate and --direction-map need --sampler aligned or sheared")
+cli("render-aligned-k-3", "render {d}/triangle_light.xml --sampler aligned --k 3 -o {o}/i.exr",
+    r"argument --k: invalid choice: 3 \(choose from 1, 2\)")
 cli("render-huge-image", "render {d}/triangle_light.xml --set width=100000 --set height=100000 "
     "--spp 1 -o {o}/huge.exr", r"(GB|GiB|TB|TiB|bytes|memory)", subprocess=True)
 cli("render-realizations-zero", "render {d}/triangle_light.xml --realizations 0 -o {o}/i.exr",

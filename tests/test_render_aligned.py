@@ -423,6 +423,7 @@ def test_cli_render_aligned(scene, four_tables, tmp_path, capsys, monkeypatch):
     text = capsys.readouterr().out
     assert "4x4 blocks of 8x8 px" in text and "147456 samples" in text
     assert "144 per pixel, 56% of --spp 256" in text
+    assert "(k = 2); per-pixel gate on: " in text  # the CLI's defaults: W's k, our gate
     img = io.read_exr(out)
     assert img.shape == (SIZE, SIZE, 3)
     ref = R.render(scene, jax.random.key(0), spp=SPP, realizations=2, pixel_center=True,
@@ -439,7 +440,7 @@ def test_cli_render_aligned(scene, four_tables, tmp_path, capsys, monkeypatch):
 
 @pytest.mark.parametrize("extra, match", [
     (["--sampler", "random", "--block", "8"], "need --sampler aligned or sheared"),
-    (["--sampler", "aligned", "--spp", "64"], "tables build --n 64 --directions 3"),
+    (["--sampler", "aligned", "--spp", "1"], "needs --spp >= 2"),
     (["--sampler", "aligned", "--spp", str(SPP), "--block", "0"], "block_px must be >= 1"),
     (["--sampler", "aligned", "--spp", str(SPP), "--block", "8", "--estimation-samples", "20"],
      "multiple of block_px=8"),
