@@ -17,10 +17,11 @@ checkpoints inside the set), and sets are spread over the local devices
 (``jax.local_devices()``), one worker thread per device running under
 ``jax.default_device(device)`` (XLA releases the GIL while it computes). With ``batch=B`` groups of
 ``B`` sets of equal direction count run one after the other, each as one
-:func:`~anisosample.synthesis.synthesize_batch` loop (one compiled step updates every set of the
-group, each with its own frequency plan; checkpointed in ``.ckpt/`` on one device), its sets
-split over the local devices (one slice and thread per device; the same bits as one device). On
-the CPU, test either with ``XLA_FLAGS=--xla_force_host_platform_device_count=2``.
+:func:`~anisosample.synthesis.synthesize_batch` loop (every step evaluates the terms of all the
+group's sets on the cores at once, each set with its own frequency plan; checkpointed in
+``.ckpt/`` on one device), its sets split over the local devices (one slice and thread per
+device; the same bits as one device). On the CPU, test either with
+``XLA_FLAGS=--xla_force_host_platform_device_count=2``.
 
 Several hosts: run the same command on every host with a shared ``--out``, e.g.
 ``anisosample tables build --n 4096 --directions 4 --out /shared/d4 --distributed --coordinator
@@ -297,10 +298,10 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
         batch: sets per optimizer loop. 1: :func:`anisosample.synthesize` per set (checkpoints
             every ``checkpoint_every`` steps). ``B > 1``: :func:`anisosample.synthesis.
             synthesize_batch` on fixed groups of ``B`` consecutive sets with the same number of
-            directions (one compilation per group; a group is the unit of resumption and is
-            redone whole if any of its sets is missing; set ``b`` of the group starting at
-            canonical index ``i`` uses ``split(fold_in(key(seed), i), B)[b]``). ``batch`` is
-            part of the table's settings (it changes the sets' keys).
+            directions (its sets' terms share the cores each step; a group is the unit of
+            resumption and is redone whole if any of its sets is missing; set ``b`` of the group
+            starting at canonical index ``i`` uses ``split(fold_in(key(seed), i), B)[b]``).
+            ``batch`` is part of the table's settings (it changes the sets' keys).
         devices: the devices (default ``jax.local_devices()``): ``batch=1`` spreads sets over
             them, one thread each; ``batch > 1`` splits each group over all of them (the
             same bits as a one-device build).

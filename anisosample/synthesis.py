@@ -264,7 +264,7 @@ class _Objective(eqx.Module):
     """One set's loss ``a L_spec + c L_SW`` (W Eq. 10; ``a = 0`` or ``c = 0`` drops a term, as in
     W Fig. 3) as data: the spectrum terms (:func:`anisosample.spectrum.spectrum_terms`, scaled
     by ``a``) and the SW directions and targets. Nothing of the set is static but the terms'
-    box shapes, so sets of one size share the compiled step."""
+    box shapes, so sets whose boxes have the same shapes share the compiled functions."""
 
     terms: tuple
     sw: tuple | None
@@ -452,7 +452,8 @@ def _iterate(objectives, x_init: np.ndarray, recipe: Recipe, n: int, *, meta: di
              checkpoint=None, checkpoint_every: int = 50, callback=None, bar_desc: str = "",
              show_progress: bool = True, single: bool = True):
     """The one optimizer loop: Adam on the stacked sets ``x_init`` ``(B, n, 2)`` (float64),
-    ``checkpoint_every`` steps per compiled chunk, checkpointed and resumed, with progress.
+    ``checkpoint_every`` steps per chunk (:func:`_run_chunk`), checkpointed and resumed, with
+    progress.
     Returns ``(x (B, n, 2), history (B, steps + 1), final (B,))``."""
     steps = recipe.steps
     b = x_init.shape[0]
@@ -568,7 +569,8 @@ def synthesize_batch(key, n: int, direction_sets, *, recipe: str | Recipe = "rat
     list of ``B`` direction lists of equal length; ``result.points`` is ``(B, n, 2)``. Set ``b``
     starts from ``jax.random.split(key, B)[b]`` and equals ``synthesize(that key, n,
     direction_sets[b], ...)`` bit for bit: each set keeps its own frequency plan (the
-    lattice-aligned type-1 grids batch too), and one compiled step updates them all.
+    lattice-aligned type-1 grids batch too), and each step evaluates every set's terms on the
+    cores at once (:func:`_run_chunk`).
 
     ``devices``: split the sets into one contiguous slice per device; each device runs the loop
     on its slice in its own thread (XLA releases the GIL), and the results are the same bits as
