@@ -88,9 +88,9 @@ def register(name: str, factory: Callable[..., Sampler]) -> None:
     _REGISTRY[name] = factory
 
 
-_BUILTIN_HOMES = ("tables", "selection")
-"""Modules that register a built-in sampler on import (``aligned`` looks its sets up in the
-tables): imported on first use of the registry, so that ``get("aligned")`` always works."""
+_BUILTIN_HOMES = ("selection",)
+"""Modules that register a built-in sampler on import (``aligned``, which looks its sets up in
+the tables): imported on first use of the registry, so that ``get("aligned")`` always works."""
 
 
 def _register_builtins() -> None:

@@ -7,9 +7,8 @@ horizontal and vertical axes, e.g., on smooth integrands, we use an existing ani
 pattern", and "we decorrelate points across pixels using toroidal shifts" (W Sec. 5.4).
 
 This module is that selection, once, for every caller: the aligned sampler of one integrand
-(:func:`aligned_sampler`, also ``samplers.get("aligned", ...)`` and
-:func:`anisosample.tables.aligned_sampler`) and the renderer's per-block sampler
-(:mod:`anisosample.render.aligned`).
+(:func:`aligned_sampler`, also ``samplers.get("aligned", ...)``) and the renderer's per-block
+sampler (:mod:`anisosample.render.aligned`).
 
 * **Rounding** (:func:`table_directions`): each estimated direction, strongest first, is rounded
   to the nearest integer degree (halves up) modulo 180; a direction that rounds onto an axis
@@ -146,3 +145,6 @@ def aligned_sampler(*, integrand=None, values=None, directions_deg=None, k: int 
 
     return AlignedSampler(f"aligned{list(extra)}", fn, False, False, extra, raw,
                           _tables.canonicalize(extra))
+
+
+_samplers.register("aligned", aligned_sampler)

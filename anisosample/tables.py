@@ -66,7 +66,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import _table_build
-from . import samplers as _samplers
 from ._table_store import ANGLE_MAPS as ANGLE_MAPS
 from ._table_store import AXES_DEG as AXES_DEG
 from ._table_store import FORMAT as FORMAT
@@ -107,7 +106,6 @@ __all__ = [
     "Table",
     "open_table",
     "lookup",
-    "aligned_sampler",
     "build",
 ]
 
@@ -188,18 +186,3 @@ def build(n: int, kind: int = 3, **options):
     Details: ``anisosample/_table_build.py``.
     """
     return _table_build.build(n, kind, **options)
-
-
-# --- the aligned sampler (W Sec. 5.4) -------------------------------------------------------------
-
-
-def aligned_sampler(**options) -> _samplers.Sampler:
-    """The aligned sampler of W Sec. 5.4 (``samplers.get("aligned", ...)``): the public entry
-    to :func:`anisosample.selection.aligned_sampler`, which documents ``options`` and holds
-    the one direction-rounding rule (:func:`anisosample.selection.table_directions`)."""
-    from . import selection  # selection looks sets up here: imported when first asked for
-
-    return selection.aligned_sampler(**options)
-
-
-_samplers.register("aligned", aligned_sampler)

@@ -6,7 +6,7 @@ light sampling: Urena et al. 2013). Per pixel, four ways to draw its ``n`` light
 
 * **base + pmj02bn**: spherical-rectangle sampling alone with an unaligned low-discrepancy set;
 * **base + aligned**: W's aligned sampler with the principal directions estimated from the
-  base integrand ``f(x)`` on a 96^2 grid (``tables.aligned_sampler(integrand=...)``);
+  base integrand ``f(x)`` on a 96^2 grid (``selection.aligned_sampler(integrand=...)``);
 * **warp + pmj02bn**: H's composed warp -- a bilinear or biquadratic PSS warp fitted point-wise
   (H Eq. 9) to BSDF x cosine at the ray origin (the offset shading point the light rays leave
   from), in front of the spherical rectangle -- with pmj02bn points; the pixel integrand becomes
@@ -40,7 +40,7 @@ import numpy as np
 from common import ROOT, cached_json, parser, write_record
 
 import anisosample as asp
-from anisosample import tables
+from anisosample import selection
 from anisosample.progress import progress
 
 NAME = "beyond_warped_aligned"
@@ -88,7 +88,7 @@ def run(settings, seed):
     results = []
     for pi, px in enumerate(progress(pixels, desc="pixels")):
         f = asp.render.pixel_integrand(scene, px, technique="solid_angle")
-        al_f = tables.aligned_sampler(integrand=f, k=2, build_missing=True)
+        al_f = selection.aligned_sampler(integrand=f, k=2, build_missing=True)
         row = dict(pixel=list(px), directions_before_deg=list(al_f.estimated_deg),
                    aligned_before=list(al_f.directions_deg), warps={})
         kp = jax.random.fold_in(key, pi)
@@ -101,7 +101,7 @@ def run(settings, seed):
             # H Sec. 4.3's product warp through the renderer: fitted at the ray origin
             g = asp.render.pixel_integrand(scene, px, technique="solid_angle",
                                            light_warp=f"product-{wname}")
-            al_g = tables.aligned_sampler(integrand=g, k=2, build_missing=True)
+            al_g = selection.aligned_sampler(integrand=g, k=2, build_missing=True)
             row["warps"][wname] = {
                 "directions_after_deg": list(al_g.estimated_deg),
                 "aligned_after": list(al_g.directions_deg),

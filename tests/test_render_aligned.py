@@ -392,7 +392,7 @@ def test_missing_sets_are_built_on_demand(scene, est, tmp_path, monkeypatch):
 
 
 def test_selection_rounding_rule():
-    """The one rule (tables.aligned_sampler and the renderer use it): nearest integer degree,
+    """The one rule (selection.aligned_sampler and the renderer use it): nearest integer degree,
     halves up, mod 180; axes and repeats dropped; strongest first, at most k."""
     ts = selection.table_directions
     assert ts([149.6, 30.2, 0.4], 2) == (150, 30)

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 import anisosample as asp
-from anisosample import _table_build, tables
+from anisosample import _table_build, selection, tables
 from anisosample.frequencies import wedge
 from anisosample.spectrum import power_spectrum
 
@@ -490,8 +490,8 @@ def test_aligned_fallback_must_be_an_option_free_baseline():
     failed only when the sampler was built, with a message about another parameter."""
     for name in ("sheared", "aligned"):
         with pytest.raises(ValueError, match="fallback must be one of"):
-            tables.aligned_sampler(directions_deg=[0.0], fallback=name)
-    s = tables.aligned_sampler(directions_deg=[0.0], fallback="sobol-owen")
+            selection.aligned_sampler(directions_deg=[0.0], fallback=name)
+    s = selection.aligned_sampler(directions_deg=[0.0], fallback="sobol-owen")
     assert s.directions_deg == () and s(jax.random.key(0), 16).shape == (16, 2)
 
 

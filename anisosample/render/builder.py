@@ -15,7 +15,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from .patch import build_patches, check_corners
+from .patch import PatchRecord, build_patches, check_corners
 from .scene import (
     CONDUCTOR,
     DIFFUSE,
@@ -87,14 +87,6 @@ class SphereRecord(NamedTuple):
 
     center: np.ndarray
     radius: float
-    material: int
-    light: int
-
-
-class PatchRecord(NamedTuple):
-    """A bilinear patch of the builder (``corners[i, j] = p_ij``)."""
-
-    corners: np.ndarray  # (2, 2, 3)
     material: int
     light: int
 

@@ -32,6 +32,8 @@ approximately uniform by area, exactly for planar convex quads (Arvo & Novins 20
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -216,11 +218,16 @@ def check_corners(corners) -> tuple[np.ndarray, float]:
     return c, area
 
 
-def build_patches(entries: list) -> Patches:
-    """:class:`Patches` from the builder's records (``corners (2, 2, 3)``, ``material``,
-    ``light`` attributes: ``builder.PatchRecord``)."""
-    from .builder import PatchRecord
+class PatchRecord(NamedTuple):
+    """A bilinear patch of the builder (``corners[i, j] = p_ij``)."""
 
+    corners: np.ndarray  # (2, 2, 3)
+    material: int
+    light: int
+
+
+def build_patches(entries: list) -> Patches:
+    """:class:`Patches` from the builder's records (:class:`PatchRecord`)."""
     if not entries:
         corners = np.full((1, 2, 2, 3), 1e30)
         corners[0, 1, :, 0] += 1e29  # a far-away placeholder that no ray reaches
