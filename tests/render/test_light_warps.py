@@ -70,29 +70,6 @@ def test_arvo2001_is_zero_variance_on_an_unoccluded_plane():
         assert v.var() / v.mean() ** 2 <= 1e-6, (row, col, v.var() / v.mean() ** 2)
 
 
-def test_arvo2001_value_is_lamberts_projected_solid_angle():
-    """The constant is rho/pi * L_e * Phi with Phi from Lambert's formula (float64 NumPy) at
-    the point the rays leave from (the offset origin: Phi there differs from Phi at the surface
-    point by ~1e-3)."""
-    scene = plane_under_triangle()
-    row, col = 8, 8
-    f = R.pixel_integrand(scene, (col, row), technique="solid_angle", light_warp="arvo2001")
-    x = jnp.full((4, 2), 0.37, jnp.float32)
-    value = float(np.asarray(f.rgb(x))[0, 0])
-    o, d = generate_ray(scene.camera, f.film, jnp.full(2, 0.5, jnp.float32))
-    hit = intersect(scene, o, d)
-    p = np.asarray(offset_origin(scene, hit.p, hit.n, -d), np.float64)
-    v = TRIANGLE - p
-    v /= np.linalg.norm(v, axis=1, keepdims=True)
-    phi = 0.0
-    for i in range(3):
-        a, b = v[i], v[(i + 1) % 3]
-        cr = np.cross(a, b)
-        phi += np.arctan2(np.linalg.norm(cr), a @ b) * cr[2] / np.linalg.norm(cr)
-    expected = 0.5 / np.pi * 4.0 * abs(phi) / 2
-    assert value == pytest.approx(expected, rel=2e-4)
-
-
 def _lambert_phi(p):
     """Projected solid angle of TRIANGLE from point ``p`` above the floor (normal +z), float64."""
     v = TRIANGLE - p
@@ -103,6 +80,26 @@ def _lambert_phi(p):
         cr = np.cross(a, b)
         phi += np.arctan2(np.linalg.norm(cr), a @ b) * cr[2] / np.linalg.norm(cr)
     return abs(phi) / 2
+
+
+def _ray_origin(scene, film):
+    """The offset point the rays of the pixel-centre hit at ``film`` leave from (float64)."""
+    o, d = generate_ray(scene.camera, jnp.asarray(film, jnp.float32), jnp.full(2, 0.5, jnp.float32))
+    hit = intersect(scene, o, d)
+    return np.asarray(offset_origin(scene, hit.p, hit.n, -d), np.float64)
+
+
+def test_arvo2001_value_is_lamberts_projected_solid_angle():
+    """The constant is rho/pi * L_e * Phi with Phi from Lambert's formula (float64 NumPy) at
+    the point the rays leave from (the offset origin: Phi there differs from Phi at the surface
+    point by ~1e-3)."""
+    scene = plane_under_triangle()
+    row, col = 8, 8
+    f = R.pixel_integrand(scene, (col, row), technique="solid_angle", light_warp="arvo2001")
+    x = jnp.full((4, 2), 0.37, jnp.float32)
+    value = float(np.asarray(f.rgb(x))[0, 0])
+    expected = 0.5 / np.pi * 4.0 * _lambert_phi(_ray_origin(scene, f.film))
+    assert value == pytest.approx(expected, rel=2e-4)
 
 
 def test_arvo2001_with_mis_has_the_closed_form_variance_of_the_bsdf_sample():
@@ -122,10 +119,7 @@ def test_arvo2001_with_mis_has_the_closed_form_variance_of_the_bsdf_sample():
     h, w = red.shape
     predicted, mean, hit_p = [], [], []
     for row, col in zip(rows, cols, strict=True):
-        film = jnp.asarray([(col + 0.5) / w, (row + 0.5) / h], jnp.float32)
-        o, d = generate_ray(scene.camera, film, jnp.full(2, 0.5, jnp.float32))
-        hit = intersect(scene, o, d)
-        r = np.pi / _lambert_phi(np.asarray(offset_origin(scene, hit.p, hit.n, -d), np.float64))
+        r = np.pi / _lambert_phi(_ray_origin(scene, [(col + 0.5) / w, (row + 0.5) / h]))
         predicted.append((albedo * radiance) ** 2 * (r - 1) / (r**2 * (1 + r**2) ** 2) / spp)
         mean.append(albedo * radiance / r)
         hit_p.append(1 / r)
