@@ -38,6 +38,20 @@ def hits_triangle(verts, o, w):
     return (a >= 0) & (b >= 0) & (a + b <= 1) & (t > 0)
 
 
+def report(name, v, m, z):
+    """One technique's line: the mean per-pixel 1-spp variance and the share of it carried by
+    light samples that miss (``m``) and BSDF hits with light pdf 0 (``z``)."""
+    import numpy as np
+
+    v = v.astype(np.float64)
+    dev2 = (v - v.mean(1, keepdims=True)) ** 2
+    tot = dev2.sum()
+    print(f"{name:30s} 1-spp var (mean over px) {dev2.sum(1).mean()/(N-1):.4e}  "
+          f"light misses {m.mean():.2e} of samples (carry {dev2[m].sum()/tot:.3f}),  "
+          f"BSDF-hit pdf 0 {z.mean():.2e} (carry {dev2[z].sum()/tot:.3f}),  "
+          f"both {dev2[m|z].sum()/tot:.3f}", flush=True)
+
+
 def after():
     import jax
     import jax.numpy as jnp
@@ -95,14 +109,7 @@ def after():
 
     print(f"shipped H Fig. 2 scene, 48x48 pixel centres, {N} 1-spp MIS samples per pixel (library)")
     for name, lw in TECHS.items():
-        v, m, z = flagged(lw)
-        v = v.astype(np.float64)
-        dev2 = (v - v.mean(1, keepdims=True)) ** 2
-        tot = dev2.sum()
-        print(f"{name:30s} 1-spp var (mean over px) {dev2.sum(1).mean()/(N-1):.4e}  "
-              f"light misses {m.mean():.2e} of samples (carry {dev2[m].sum()/tot:.3f}),  "
-              f"BSDF-hit pdf 0 {z.mean():.2e} (carry {dev2[z].sum()/tot:.3f}),  "
-              f"both {dev2[m|z].sum()/tot:.3f}", flush=True)
+        report(name, *flagged(lw))
 
 
 def before(old):
@@ -150,14 +157,7 @@ def before(old):
     print(f"shipped H Fig. 2 scene, 48x48 pixel centres, {N} 1-spp MIS samples per pixel"
           " (old _h_render)")
     for name, make in techs.items():
-        v, m, z = flagged(make)
-        v = v.astype(np.float64)
-        dev2 = (v - v.mean(1, keepdims=True)) ** 2
-        tot = dev2.sum()
-        print(f"{name:30s} 1-spp var (mean over px) {dev2.sum(1).mean()/(N-1):.4e}  "
-              f"light misses {m.mean():.2e} of samples (carry {dev2[m].sum()/tot:.3f}),  "
-              f"BSDF-hit pdf 0 {z.mean():.2e} (carry {dev2[z].sum()/tot:.3f}),  "
-              f"both {dev2[m|z].sum()/tot:.3f}")
+        report(name, *flagged(make))
 
 
 if __name__ == "__main__":
