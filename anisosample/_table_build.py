@@ -282,9 +282,19 @@ def _remove_empty_checkpoints(table: _t.Table) -> None:
         pass
 
 
+def _existing_warm_start(out: Path, kind: int) -> bool:
+    """The warm start of the table at ``out`` if there is one, else ``kind == 4``."""
+    if (out / "table.json").exists():
+        try:
+            return "warm_start" in _t.open_table(out, kind=kind).settings["synthesis"]
+        except (ValueError, KeyError):
+            pass  # create_table reports what is wrong with it
+    return kind == 4
+
+
 def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: int = 1,
           devices=None, checkpoint_every: int = 25, show_progress: bool = True,
-          warm_start: bool = False, **synthesis_options) -> dict:
+          warm_start: bool | None = None, **synthesis_options) -> dict:
     """Synthesize the canonical sets of the ``kind``-direction table for ``n`` points.
 
     Args:
@@ -310,6 +320,8 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
             of the complete 3-direction table for ``n`` (:func:`warm_source`, :func:`warm_points`)
             with :data:`WARM_STEPS` steps at :data:`WARM_LEARNING_RATE` unless ``steps`` /
             ``learning_rate`` are given; no such table: cold. Part of the table's settings.
+            ``None`` (default): what an existing table at ``out`` chose, else warm for
+            ``kind=4`` (as the on-demand lookups build), so a table built here serves them.
         synthesis_options: passed to :func:`anisosample.synthesize` (``recipe``, ``steps``, ...).
 
     Returns a summary dict (``path``, ``built``, ``skipped``, ``seconds`` per built set,
@@ -327,9 +339,11 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
     synth = {k: v for k, v in synthesis_options.items() if v is not None}
     if batch > 1:
         synth["batch"] = batch
-    if not isinstance(warm_start, bool):
-        raise TypeError(f"warm_start must be True or False, got {warm_start!r}")
     out = Path(out) if out is not None else _t.cache_dir() / _t.table_name(kind, n)
+    if warm_start is None:
+        warm_start = _existing_warm_start(out, kind)
+    if not isinstance(warm_start, bool):
+        raise TypeError(f"warm_start must be True, False or None, got {warm_start!r}")
     src = warm_source(n, exclude=out) if warm_start and kind == 4 else None
     if src is not None:
         synth["warm_start"] = {"table": _t.table_name(3, n),
@@ -442,11 +456,8 @@ def build_set(n: int, kind: int, extra, *, out, show_progress: bool = True,
         tab = _t.open_table(out, n=n, kind=kind)
         opts = dict(tab.settings["synthesis"])
         batch = opts.pop("batch", 1)
-        warm = opts.pop("warm_start", None)
-        if warm is not None:  # the warm defaults are in opts already
-            build_options = {"warm_start": True}
+        opts.pop("warm_start", None)  # the table's own choice (build's default)
         return build(n, kind, out=out, sets=[tuple(extra)], seed=tab.settings["seed"],
                      batch=batch, show_progress=show_progress, **build_options, **opts)
-    build_options.setdefault("warm_start", kind == 4)
     return build(n, kind, out=out, sets=[tuple(extra)], show_progress=show_progress,
                  **build_options)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import re
 import sys
 from pathlib import Path
@@ -323,6 +324,15 @@ def _add_tables(sub):
                    help="synthesis checkpoint interval in steps")
     b.add_argument("--batch", type=int, default=1,
                    help="sets per optimizer loop (synthesize_batch; 1: synthesize per set)")
+    b.add_argument("--warm-start", action=argparse.BooleanOptionalAction, default=None,
+                   help="4-direction table: start each set from the 3-direction table's set "
+                        "(default: the existing table's choice, else on for 4 directions, as "
+                        "the on-demand lookups build)")
+    b.add_argument("--processes", type=int, default=1,
+                   help="local worker processes, each pinned to its share of the cores and "
+                        "joined by jax.distributed on a localhost coordinator (one command for "
+                        "a whole table on one machine; 2 on a 2-core machine)")
+    b.add_argument("--no-progress", action="store_true", help="no progress bar")
     b.add_argument("--distributed", action="store_true",
                    help="call jax.distributed.initialize() first (several hosts, shared --out)")
     b.add_argument("--coordinator", default=None,
@@ -363,6 +373,8 @@ def _run_tables(args):
                  + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
                  if missing else ""))
         return
+    if args.processes != 1:
+        return _run_local_processes(args)
     given = [a is not None for a in (args.coordinator, args.num_processes, args.process_id)]
     if any(given) and not args.distributed:
         raise ValueError("--coordinator, --num-processes and --process-id need --distributed")
@@ -379,13 +391,90 @@ def _run_tables(args):
             jax.distributed.initialize(args.coordinator, args.num_processes, args.process_id)
         else:
             jax.distributed.initialize()
+    affinity = os.environ.pop(_AFFINITY_ENV, None)
+    if affinity:  # a worker of --processes: its share of the cores, before XLA starts
+        os.sched_setaffinity(0, {int(c) for c in affinity.split(",")})
     opts = {k: v for k, v in (("recipe", args.recipe), ("steps", args.steps)) if v is not None}
     summary = tables.build(args.n, args.directions, out=args.out, seed=args.seed,
                            sets=_parse_sets(args.sets), checkpoint_every=args.checkpoint_every,
-                           batch=args.batch, **opts)
+                           batch=args.batch, warm_start=args.warm_start,
+                           show_progress=not args.no_progress, **opts)
     print(f"table {summary['path']}: built {len(summary['built'])} set(s) on "
           f"{len(summary['devices'])} device(s), kept {len(summary['skipped'])} finished one(s);"
           f" complete={summary['complete']}")
+
+
+_AFFINITY_ENV = "ANISOSAMPLE_WORKER_CPUS"
+
+
+def _worker_argv(args, pid: int, port: int) -> list[str]:
+    """The ``tables build`` command line of local worker ``pid`` of ``--processes``."""
+    argv = ["tables", "build", "--n", str(args.n), "--directions", str(args.directions),
+            "--seed", str(args.seed), "--checkpoint-every", str(args.checkpoint_every),
+            "--batch", str(args.batch), "--distributed", "--coordinator", f"127.0.0.1:{port}",
+            "--num-processes", str(args.processes), "--process-id", str(pid)]
+    for flag, value in (("--out", args.out), ("--sets", args.sets), ("--recipe", args.recipe),
+                        ("--steps", args.steps)):
+        if value is not None:
+            argv += [flag, str(value)]
+    if args.warm_start is not None:
+        argv.append("--warm-start" if args.warm_start else "--no-warm-start")
+    if args.no_progress or pid:  # one progress bar: worker 0's share
+        argv.append("--no-progress")
+    return argv
+
+
+def _run_local_processes(args):
+    """``tables build --processes P``: P workers of this command on this machine, joined by
+    jax.distributed on a localhost coordinator (worker ``p`` builds the units ``i % P == p``,
+    the same sets, bit for bit, as one process), each pinned to its share of the cores so the
+    workers do not compete for them. Resumable as a single build is."""
+    import socket
+    import subprocess
+
+    if args.processes < 1:
+        raise ValueError(f"--processes must be >= 1, got {args.processes}")
+    if args.distributed or any(a is not None for a in (args.coordinator, args.num_processes,
+                                                        args.process_id)):
+        raise ValueError("--processes starts its own local jax.distributed workers; it does not "
+                         "go with --distributed, --coordinator, --num-processes or --process-id")
+    try:
+        cores = sorted(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = list(range(os.cpu_count() or 1))
+    if args.processes > len(cores):
+        raise ValueError(f"--processes must be at most the {len(cores)} usable cores, got "
+                         f"{args.processes}")
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    procs = []
+    try:
+        for pid in range(args.processes):
+            env = dict(os.environ)
+            env[_AFFINITY_ENV] = ",".join(str(c) for c in cores[pid::args.processes])
+            procs.append(subprocess.Popen(
+                [sys.executable, "-m", "anisosample", *_worker_argv(args, pid, port)], env=env))
+        codes = [p.wait() for p in procs]
+    except BaseException:
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            p.wait()
+        raise
+    bad = [(i, c) for i, c in enumerate(codes) if c]
+    if bad:
+        raise RuntimeError(f"tables build: worker(s) {', '.join(str(i) for i, _ in bad)} of "
+                           f"{args.processes} failed (exit {bad[0][1]}); rerun the same command "
+                           "to resume")
+    from . import tables
+
+    out = Path(args.out) if args.out else tables.cache_dir() / tables.table_name(
+        args.directions, args.n)
+    tab = tables.open_table(out)
+    have = sum(tab.has(e) for e in tables.canonical_sets(tab.kind))
+    print(f"table {out}: {args.processes} local processes done; {have}/"
+          f"{len(tables.canonical_sets(tab.kind))} sets, complete={tab.complete}")
 
 
 # --- variance ----------------------------------------------------------------------------------

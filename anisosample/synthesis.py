@@ -78,7 +78,7 @@ from .progress import progress as _progress
 
 __all__ = ["RECIPES", "BOUNDARIES", "Recipe", "make_recipe", "recipe_defaults",
            "SynthesisResult", "synthesize", "synthesize_batch", "adam_update", "save_result",
-           "load_result", "load_or_synthesize", "max_directions"]
+           "load_result", "load_or_synthesize", "max_directions", "usable_cores"]
 
 RECIPES = ("rate", "paper")
 BOUNDARIES = ("wrap", "clip")
@@ -319,14 +319,24 @@ _POOL: list = []
 _POOL_LOCK = threading.Lock()
 
 
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the OS tells, else
+    ``os.cpu_count()``): the size of the synthesis thread pool, so a process pinned to one core
+    (``anisosample tables build --processes P``) runs one term at a time."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
 def _pool():
-    """The worker threads the terms of a step run on (one per core): each term is its own
-    compiled FINUFFT computation on one thread, so the cores work on different terms and the
+    """The worker threads the terms of a step run on (one per usable core): each term is its
+    own compiled FINUFFT computation on one thread, so the cores work on different terms and the
     bits do not depend on which thread ran which (the terms are summed in their order)."""
     with _POOL_LOCK:
         if not _POOL:
             _POOL.append(concurrent.futures.ThreadPoolExecutor(
-                max_workers=max(1, os.cpu_count() or 1), thread_name_prefix="anisosample"))
+                max_workers=usable_cores(), thread_name_prefix="anisosample"))
         return _POOL[0]
 
 

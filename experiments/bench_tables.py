@@ -7,7 +7,9 @@ started from the shipped 3-direction table where there is one, else cold), writt
 prints each set's wall time (compilation included) and the number of XLA compilations it caused
 (a set whose box shapes an earlier set had compiles nothing new), their mean, median and max,
 and the 4,141-set table projected from the mean. ``--batch B`` times the same sets
-through ``tables.build(..., batch=B)`` instead (groups of ``B`` sets per loop).
+through ``tables.build(..., batch=B)`` instead (groups of ``B`` sets per loop);
+``--processes P`` times the table's one command, ``anisosample tables build --n N --directions
+4 --processes P``, on the same sets (P local workers, each pinned to its share of the cores).
 
 ``--compare-warm``: the warm start against a cold start (see :func:`_compare_warm`).
 
@@ -18,7 +20,7 @@ Targets (issue 16, 2 CPU cores): one 4-direction n = 4096 set on demand <= 10 s;
 table <= 2 h projected from >= 20 sets. The machine is shared: the load average is printed before
 and after (other work inflates the wall times); run it under ``nice -n 10``.
 
-    python experiments/bench_tables.py [--n 4096] [--kind 4 --sets 20] [--batch B]
+    python experiments/bench_tables.py [--n 4096] [--kind 4 --sets 20] [--batch B | --processes P]
     python experiments/bench_tables.py --kind 3 [--short 10 --long 40]
     python experiments/bench_tables.py --compare-warm [--pairs 2]
 """
@@ -29,6 +31,8 @@ import argparse
 import math
 import os
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 
@@ -67,7 +71,21 @@ def _four_direction(args):
         os.environ["XDG_CACHE_HOME"] = tmp  # an empty user cache: every lookup builds
         times, cpu = [], []
         c_all = time.process_time()
-        if args.batch > 1:
+        if args.processes > 1:  # the table's one command, on P local pinned workers
+            spec = ",".join(":".join(str(a) for a in e) for e in pick)
+            cmd = [sys.executable, "-m", "anisosample", "tables", "build", "--n", str(args.n),
+                   "--directions", "4", "--sets", spec, "--processes", str(args.processes),
+                   "--out", os.path.join(tmp, "d4"), "--no-progress"]
+            t0 = time.perf_counter()
+            done = subprocess.run(cmd, capture_output=True, text=True)
+            if done.returncode:
+                raise SystemExit(done.stderr)
+            c_all = None  # the workers' CPU time is theirs, not this process's
+            wall = time.perf_counter() - t0
+            times = [wall / len(pick)] * len(pick)
+            print(f"{' '.join(cmd[1:6])} ... --processes {args.processes}: {wall:.1f} s for "
+                  f"{len(pick)} sets (each worker's first set compiles)")
+        elif args.batch > 1:
             t0 = time.perf_counter()
             tables.build(args.n, 4, out=tables.cache_dir() / tables.table_name(4, args.n),
                          sets=pick, batch=args.batch, warm_start=True, show_progress=True)
@@ -84,11 +102,14 @@ def _four_direction(args):
                 print(f"  set {tables.set_name(e)}: {times[-1]:.1f} s ({cpu[-1]:.1f} CPU s), "
                       f"{_COMPILES[0] - c0} compilations (load average "
                       f"{os.getloadavg()[0]:.1f})", flush=True)
-        c_all = time.process_time() - c_all
+        if c_all is not None:
+            c_all = time.process_time() - c_all
     mean = statistics.fmean(times)
     print(f"per set on demand: mean {mean:.1f} s, median {statistics.median(times):.1f} s, "
           f"max {max(times):.1f} s")
     print(f"projected 4141-set table: {len(canon) * mean / 3600:.2f} h (from {len(pick)} sets)")
+    if c_all is None:
+        return
     # the wall time counts the other work on a shared machine; the CPU time does not: on the
     # machine's cores alone (the terms of a step run in parallel), a set takes CPU / cores
     cores = os.cpu_count() or 1
@@ -116,9 +137,10 @@ def _compare_warm(args):
         for n in ns:
             src = _table_build.warm_source(n)
             start = _table_build.warm_points(n, (a, b), src.settings["fingerprint"])
-            runs = {"cold": {}, "warm": dict(initial_points=start,
-                                             steps=_table_build.WARM_STEPS,
-                                             learning_rate=_table_build.WARM_LEARNING_RATE)}
+            runs = {"cold": {}}
+            for steps in args.warm_steps:
+                runs[f"warm {steps}"] = dict(initial_points=start, steps=steps,
+                                             learning_rate=_table_build.WARM_LEARNING_RATE)
             for label, kw in runs.items():
                 t0 = time.perf_counter()
                 r = asp.synthesize(jax.random.key(1), n, dirs, show_progress=False, **kw)
@@ -136,7 +158,7 @@ def _compare_warm(args):
                       f"{r.final_loss:.5f}, band n P_S (|v| <= {min(32, int(n**0.5))}) {bands}, "
                       f"edge {a} deg variance {v:.3e} (load {os.getloadavg()[0]:.1f})",
                       flush=True)
-        for label in ("cold", "warm"):
+        for label in ("cold", *(f"warm {s}" for s in args.warm_steps)):
             slope = math.log(var[(a, b, 4096, label)] / var[(a, b, 256, label)]) / math.log(16)
             print(f"{dirs} {label}: edge variance slope 256 -> 4096: {slope:.2f}")
 
@@ -168,12 +190,16 @@ def main(argv=None):
     p.add_argument("--kind", type=int, default=4, choices=[3, 4])
     p.add_argument("--sets", type=int, default=20, help="4-direction sets to time")
     p.add_argument("--batch", type=int, default=1, help="sets per loop (kind 4, tables.build)")
+    p.add_argument("--processes", type=int, default=1,
+                   help="time `anisosample tables build --processes P` (kind 4) instead")
     p.add_argument("--recipe", default="rate", choices=["rate", "paper"])
     p.add_argument("--short", type=int, default=10, help="steps of the short run (kind 3)")
     p.add_argument("--long", type=int, default=40, help="steps of the long run (kind 3)")
     p.add_argument("--compare-warm", action="store_true",
                    help="warm vs cold 4-direction sets at n = 256 and 4096 (quality, edge slope)")
     p.add_argument("--pairs", type=int, default=2, help="direction pairs for --compare-warm")
+    p.add_argument("--warm-steps", type=int, nargs="+", default=[_table_build.WARM_STEPS],
+                   help="step counts of the warm starts --compare-warm measures")
     args = p.parse_args(argv)
     print(f"devices: {len(jax.local_devices())} x {jax.devices()[0].platform}, "
           f"cpu_count {os.cpu_count()}, load average {os.getloadavg()}, n = {args.n}")

@@ -1017,6 +1017,10 @@ cli("tables-build-bad-sets", "tables build --n 64 --sets 1:2:x --out {o}/tb",
     r"--sets must look like")
 cli("tables-build-process-without-distributed", "tables build --n 64 --process-id 1 --out {o}/t",
     r"need --distributed")
+cli("tables-build-processes-beyond-cores", "tables build --n 64 --processes 999 --out {o}/t",
+    r"--processes must be at most the \d+ usable cores, got 999")
+cli("tables-build-processes-and-distributed",
+    "tables build --n 64 --processes 2 --distributed --out {o}/t", r"does not go with")
 cli("variance-integrand-unknown", "variance --integrand torus:1 -o {o}/v.json", r"torus")
 cli("variance-integrand-bad-number", "variance --integrand edges:a -o {o}/v.json",
     r"expected numbers after ':'")

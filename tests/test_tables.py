@@ -403,26 +403,36 @@ def _free_port() -> int:
 def test_build_over_two_processes_with_jax_distributed(tmp_path, kind):
     """Two processes joined by jax.distributed (a localhost coordinator, as two hosts would be)
     share one --out: process p builds the sets i with i % 2 == p, and every set equals the
-    single-process build (3- and 4-direction tables; a 4-direction table is the 4,141-set
-    build's command with --directions 4)."""
+    single-process build. 3 directions: two hosts' commands (--distributed ... --process-id p);
+    4 directions: the 4,141-set table's one command on one machine, ``--processes 2`` (two
+    local workers pinned to a core each, where the machine has two)."""
     sets = "0,10,20,45" if kind == 3 else "0:0,10:20,20:50,30:45"
     extras = ([(0,), (10,), (20,), (45,)] if kind == 3
               else [(0, 0), (10, 20), (20, 50), (30, 45)])
     run_dir, ref_dir = tmp_path / "two_hosts", tmp_path / "one_host"
     common = ["--n", "32", "--directions", str(kind), "--sets", sets, "--steps", "6",
-              "--seed", "2",
-              "--out", str(run_dir), "--distributed", "--coordinator",
-              f"127.0.0.1:{_free_port()}", "--num-processes", "2"]
-    procs = []
-    for pid in range(2):
-        cmd, env = _cli([*common, "--process-id", str(pid)])
-        procs.append(subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE,
-                                      stderr=subprocess.PIPE, text=True))
-    outs = [p.communicate(timeout=300) for p in procs]
-    for p, (_, err) in zip(procs, outs, strict=True):
-        assert p.returncode == 0, err
-    built = [o.split("built ")[1].split(" set")[0] for o, _ in outs]
-    assert built == ["2", "2"], outs  # 4 sets, 2 per process
+              "--seed", "2", "--out", str(run_dir)]
+    if kind == 3:
+        common += ["--distributed", "--coordinator", f"127.0.0.1:{_free_port()}",
+                   "--num-processes", "2"]
+        procs = []
+        for pid in range(2):
+            cmd, env = _cli([*common, "--process-id", str(pid)])
+            procs.append(subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE,
+                                          stderr=subprocess.PIPE, text=True))
+        outs = [p.communicate(timeout=300) for p in procs]
+        for p, (_, err) in zip(procs, outs, strict=True):
+            assert p.returncode == 0, err
+        built = [o.split("built ")[1].split(" set")[0] for o, _ in outs]
+    else:
+        if asp.synthesis.usable_cores() < 2:
+            pytest.skip("--processes 2 needs two usable cores")
+        cmd, env = _cli([*common, "--processes", "2"])
+        done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stderr
+        assert "2 local processes done; 4/4141 sets" in done.stdout, done.stdout
+        built = [o.split(" set")[0] for o in done.stdout.split("built ")[1:]]
+    assert built == ["2", "2"], built  # 4 sets, 2 per process
     tables.build(32, kind, out=ref_dir, sets=extras, steps=6, seed=2, show_progress=False)
     a, b = tables.open_table(ref_dir), tables.open_table(run_dir)
     for e in extras:
