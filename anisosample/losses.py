@@ -94,7 +94,9 @@ def spectrum_loss_terms(freqs, n, target=0.0, weights=None, *, scale=1.0, method
     """:func:`spectrum_loss` for ``n`` points as data (see :func:`linear_spectrum_loss_terms`)."""
     fset = _as_set(freqs)
     w = _weights(fset, weights)
-    tgt = np.asarray(target, np.float64)
+    # a target computed under jit or grad stays traced (it becomes the terms' data)
+    tgt = (target if isinstance(target, jax.core.Tracer)
+           else np.asarray(target, np.float64))
     if tgt.ndim and tgt.shape != (len(fset),):
         raise ValueError(f"target must be a scalar or have one entry per frequency "
                          f"({len(fset)}), got shape {tgt.shape}")

@@ -623,7 +623,9 @@ def spectrum_terms(fset: FrequencySet, n: int, *, weights=None, target=0.0,
     n = check_int("n", n, minimum=1)
     eps = default_eps(dtype) if eps is None else check_positive_float("eps", eps)
     w_all = fset.weights if weights is None else np.asarray(weights, np.float64).reshape(-1)
-    t_all = np.broadcast_to(np.asarray(target, np.float64), w_all.shape)
+    # a traced target (computed under jit/grad) is placed with jax.numpy, a concrete one with numpy
+    xp = jnp if isinstance(target, jax.core.Tracer) else np
+    t_all = xp.broadcast_to(xp.asarray(target, dtype if xp is jnp else np.float64), w_all.shape)
     scalar_target = np.ndim(target) == 0
     out, start = [], 0
     for theta, size in zip(fset.group_directions_deg, fset.group_sizes, strict=True):
@@ -640,7 +642,7 @@ def spectrum_terms(fset: FrequencySet, n: int, *, weights=None, target=0.0,
             out.append(ListTerm(
                 jnp.asarray(np.pad(fg, pad + ((0, 0),)), dtype), jnp.asarray(np.pad(wg, pad),
                                                                            dtype),
-                jnp.asarray(tg[0] if scalar_target else np.pad(tg, pad), dtype),
+                jnp.asarray(tg[0] if scalar_target else xp.pad(tg, pad), dtype),
                 rotation(theta, dtype), how, squared, eps))
             continue
         if box_area(segs) * _GRID_BYTES_PER_FREQ > memory_bytes() // 2:
@@ -659,7 +661,9 @@ def spectrum_terms(fset: FrequencySet, n: int, *, weights=None, target=0.0,
             wgrid = np.zeros(shape)
             wgrid[u[:, 0], u[:, 1]] = wg[sel]
             if scalar_target:
-                tgrid = np.asarray(tg[0])
+                tgrid = tg[0]
+            elif xp is jnp:
+                tgrid = jnp.zeros(shape, dtype).at[u[:, 0], u[:, 1]].set(tg[sel])
             else:
                 tgrid = np.zeros(shape)
                 tgrid[u[:, 0], u[:, 1]] = tg[sel]
