@@ -127,7 +127,10 @@ def _band_energy(pts, phi, n, radius=32.0):
 def _compare_warm(args):
     """Warm (from the 3-direction table) vs cold (jittered) 4-direction sets at n = 256 and
     4096: the final loss, the band energy along every line and the variance of an edge at the
-    first extra direction, with the two-point slope of that variance from 256 to 4096."""
+    first extra direction, with the two-point slope of that variance from 256 to 4096.
+    ``--neighbour-steps S``: also sets started from the nearest 4-direction set, ``(a, b - 1)``
+    (itself warm-started with :data:`~anisosample._table_build.WARM_STEPS` steps), run for ``S``
+    steps at ``--neighbour-lr``: the warm start a table could chain, measured, not used."""
     pairs = [(16, 146), (33, 43), (61, 118)][: args.pairs]
     ns = (256, 4096)
     var = {}
@@ -141,6 +144,16 @@ def _compare_warm(args):
             for steps in args.warm_steps:
                 runs[f"warm {steps}"] = dict(initial_points=start, steps=steps,
                                              learning_rate=_table_build.WARM_LEARNING_RATE)
+            if args.neighbour_steps:
+                start4 = _table_build.warm_points(n, (a, b - 1), src.settings["fingerprint"])
+                near = asp.synthesize(jax.random.key(1), n, (0, 90, a, b - 1),
+                                      show_progress=False, initial_points=start4,
+                                      steps=_table_build.WARM_STEPS,
+                                      learning_rate=_table_build.WARM_LEARNING_RATE)
+                for steps in args.neighbour_steps:
+                    runs[f"neighbour {steps}"] = dict(initial_points=np.asarray(near.points),
+                                                      steps=steps,
+                                                      learning_rate=args.neighbour_lr)
             for label, kw in runs.items():
                 t0 = time.perf_counter()
                 r = asp.synthesize(jax.random.key(1), n, dirs, show_progress=False, **kw)
@@ -158,7 +171,7 @@ def _compare_warm(args):
                       f"{r.final_loss:.5f}, band n P_S (|v| <= {min(32, int(n**0.5))}) {bands}, "
                       f"edge {a} deg variance {v:.3e} (load {os.getloadavg()[0]:.1f})",
                       flush=True)
-        for label in ("cold", *(f"warm {s}" for s in args.warm_steps)):
+        for label in runs:
             slope = math.log(var[(a, b, 4096, label)] / var[(a, b, 256, label)]) / math.log(16)
             print(f"{dirs} {label}: edge variance slope 256 -> 4096: {slope:.2f}")
 
@@ -200,6 +213,10 @@ def main(argv=None):
     p.add_argument("--pairs", type=int, default=2, help="direction pairs for --compare-warm")
     p.add_argument("--warm-steps", type=int, nargs="+", default=[_table_build.WARM_STEPS],
                    help="step counts of the warm starts --compare-warm measures")
+    p.add_argument("--neighbour-steps", type=int, nargs="*", default=[],
+                   help="--compare-warm: also start from the set (a, b - 1), for these steps")
+    p.add_argument("--neighbour-lr", type=float, default=0.05,
+                   help="learning rate of the --neighbour-steps runs")
     args = p.parse_args(argv)
     print(f"devices: {len(jax.local_devices())} x {jax.devices()[0].platform}, "
           f"cpu_count {os.cpu_count()}, load average {os.getloadavg()}, n = {args.n}")
