@@ -236,6 +236,38 @@ def summarize(rows) -> dict:
         out["block_direction_error_deg"] = {
             "median": float(np.median(err)), "within_3_deg": float(np.mean(err <= 3.0)),
             "pixels_with_estimate": int(len(err)), "pixels": len(rows)}
+        out["by_block_error"] = by_block_error(rows)
+    return out
+
+
+ERROR_BINS_DEG = (1.0, 3.0, 10.0, 90.0)
+
+
+def by_block_error(rows) -> list[dict]:
+    """The aligned methods' gain as a function of the block estimate's error: per bin of the
+    error (block's strongest direction against the pixel's first edge; upper bounds
+    ``ERROR_BINS_DEG``), the pixel count and the median slope and variance ratio at the largest
+    n (to pmj02bn) of ``aligned (block)``, with ``aligned (true)`` on the same pixels."""
+    err, idx = [], []
+    for i, r in enumerate(rows):
+        if r["block_directions_deg"] and r["true_directions_deg"]:
+            err.append(directions.axial_distance_deg(r["block_directions_deg"][0],
+                                                     r["true_directions_deg"][0]))
+            idx.append(i)
+    err = np.asarray(err, float)
+    out, lo = [], 0.0
+    for hi in ERROR_BINS_DEG:
+        sel = [idx[k] for k in np.flatnonzero((err > lo) & (err <= hi) | ((lo == 0) & (err == 0)))]
+        entry = {"error_deg": [lo, hi], "pixels": len(sel)}
+        for m in ("aligned (block)", "aligned (true)"):
+            if sel:
+                r_m = [rows[i]["methods"][m] for i in sel]
+                ratio = [c["variance"][-1] / rows[i]["methods"]["pmj02bn"]["variance"][-1]
+                         for c, i in zip(r_m, sel, strict=True)]
+                entry[m] = {"slope_median": float(np.median([c["slope"] for c in r_m])),
+                            "ratio_median": float(np.median(ratio))}
+        out.append(entry)
+        lo = hi
     return out
 
 
@@ -256,6 +288,8 @@ def run_scene(name, cfg, key, out, fresh):
             for cname in absent:
                 cached["classes"][cname] = measure_extra_class(name, cname, cfg, key, full, base)
             asp.io.save_json(path, cached, overwrite=True)
+        for c in cached["classes"].values():  # derived: follows this script's summary
+            c["summary"] = summarize(c["pixels"])
         return cached
     started = time.time()
     rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).astype(np.uint32))
@@ -329,6 +363,15 @@ def main(argv=None):
                 if m == "block_direction_error_deg":
                     print(f"    block direction error: median {sm['median']:.1f} deg, "
                           f"{100 * sm['within_3_deg']:.0f}% within 3 deg")
+                    continue
+                if m == "by_block_error":
+                    for b in sm:
+                        if b["pixels"]:
+                            print(f"    block error {b['error_deg'][0]:g}-{b['error_deg'][1]:g}"
+                                  f" deg: {b['pixels']} px, aligned (block) Var / pmj02bn "
+                                  f"{b['aligned (block)']['ratio_median']:.2f}, slope "
+                                  f"{b['aligned (block)']['slope_median']:+.2f}; aligned (true)"
+                                  f" {b['aligned (true)']['ratio_median']:.2f}")
                     continue
                 q = sm["slope_quartiles"]
                 print(f"    {m:22s} slope {sm['slope_median']:+.2f} [{q[0]:+.2f}, {q[1]:+.2f}]"
