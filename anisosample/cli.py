@@ -375,6 +375,9 @@ def _run_tables(args):
         return
     if args.processes != 1:
         return _run_local_processes(args)
+    affinity = os.environ.pop(_AFFINITY_ENV, None)
+    if affinity:  # a worker of --processes: its share of the cores, before any thread starts
+        os.sched_setaffinity(0, {int(c) for c in affinity.split(",")})
     given = [a is not None for a in (args.coordinator, args.num_processes, args.process_id)]
     if any(given) and not args.distributed:
         raise ValueError("--coordinator, --num-processes and --process-id need --distributed")
@@ -391,9 +394,6 @@ def _run_tables(args):
             jax.distributed.initialize(args.coordinator, args.num_processes, args.process_id)
         else:
             jax.distributed.initialize()
-    affinity = os.environ.pop(_AFFINITY_ENV, None)
-    if affinity:  # a worker of --processes: its share of the cores, before XLA starts
-        os.sched_setaffinity(0, {int(c) for c in affinity.split(",")})
     opts = {k: v for k, v in (("recipe", args.recipe), ("steps", args.steps)) if v is not None}
     summary = tables.build(args.n, args.directions, out=args.out, seed=args.seed,
                            sets=_parse_sets(args.sets), checkpoint_every=args.checkpoint_every,
@@ -431,6 +431,7 @@ def _run_local_processes(args):
     workers do not compete for them. Resumable as a single build is."""
     import socket
     import subprocess
+    import time
 
     if args.processes < 1:
         raise ValueError(f"--processes must be >= 1, got {args.processes}")
@@ -438,6 +439,12 @@ def _run_local_processes(args):
                                                         args.process_id)):
         raise ValueError("--processes starts its own local jax.distributed workers; it does not "
                          "go with --distributed, --coordinator, --num-processes or --process-id")
+    from . import tables
+
+    out = Path(args.out) if args.out else tables.cache_dir() / tables.table_name(
+        args.directions, args.n)
+    if (out / "table.json").exists():  # a damaged or foreign table: one message, not P
+        tables.open_table(out, n=args.n, kind=args.directions)
     try:
         cores = sorted(os.sched_getaffinity(0))
     except (AttributeError, OSError):
@@ -455,22 +462,23 @@ def _run_local_processes(args):
             env[_AFFINITY_ENV] = ",".join(str(c) for c in cores[pid::args.processes])
             procs.append(subprocess.Popen(
                 [sys.executable, "-m", "anisosample", *_worker_argv(args, pid, port)], env=env))
+        codes = [None] * len(procs)
+        while None in codes:  # a failed worker stops the others (they would wait for it)
+            codes = [p.poll() for p in procs]
+            if any(c for c in codes if c is not None):
+                break
+            time.sleep(0.2)
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.terminate()
         codes = [p.wait() for p in procs]
-    except BaseException:
-        for p in procs:
-            p.terminate()
-        for p in procs:
-            p.wait()
-        raise
-    bad = [(i, c) for i, c in enumerate(codes) if c]
+    bad = [(i, c) for i, c in enumerate(codes) if c and c > 0] or [
+        (i, c) for i, c in enumerate(codes) if c]
     if bad:
-        raise RuntimeError(f"tables build: worker(s) {', '.join(str(i) for i, _ in bad)} of "
-                           f"{args.processes} failed (exit {bad[0][1]}); rerun the same command "
-                           "to resume")
-    from . import tables
-
-    out = Path(args.out) if args.out else tables.cache_dir() / tables.table_name(
-        args.directions, args.n)
+        raise RuntimeError(f"worker(s) {', '.join(str(i) for i, _ in bad)} of "
+                           f"{args.processes} failed (exit {bad[0][1]}; their messages are "
+                           "above); the same command resumes what they finished")
     tab = tables.open_table(out)
     have = sum(tab.has(e) for e in tables.canonical_sets(tab.kind))
     print(f"table {out}: {args.processes} local processes done; {have}/"

@@ -1019,6 +1019,8 @@ cli("tables-build-process-without-distributed", "tables build --n 64 --process-i
     r"need --distributed")
 cli("tables-build-processes-beyond-cores", "tables build --n 64 --processes 999 --out {o}/t",
     r"--processes must be at most the \d+ usable cores, got 999")
+cli("tables-build-processes-damaged-table",
+    "tables build --n 64 --processes 2 --out {d}/table_json", r"table_json.*table\.json")
 cli("tables-build-processes-and-distributed",
     "tables build --n 64 --processes 2 --distributed --out {o}/t", r"does not go with")
 cli("variance-integrand-unknown", "variance --integrand torus:1 -o {o}/v.json", r"torus")
