@@ -1,7 +1,8 @@
 """Benchmark: aligned point-set tables (W Sec. 5.4) on this machine.
 
 Default (``--kind 4``): the 4-direction sets *on demand*, as a user meets them. For ``--sets``
-canonical 4-direction sets spread over the 4,141 (every ``4141 // sets``-th), each is looked up
+canonical 4-direction sets spread over the 4,141 (every ``4141 // sets``-th; ``--block K``:
+runs of ``K`` consecutive sets, as a whole table's build meets them), each is looked up
 with default arguments (``tables.lookup``) in an empty user cache, so each is synthesized (warm-
 started from the shipped 3-direction table where there is one, else cold), written and verified;
 prints each set's wall time (compilation included) and the number of XLA compilations it caused
@@ -62,10 +63,13 @@ def _count_compiles():
 
 def _four_direction(args):
     canon = tables.canonical_sets(4)
-    step = max(1, len(canon) // args.sets)
-    pick = [canon[i] for i in range(step // 2, len(canon), step)][: args.sets]
+    runs = max(1, args.sets // args.block)  # runs of --block consecutive sets, spread evenly
+    step = max(1, len(canon) // runs)
+    pick = [canon[i + j] for i in range(step // 2, len(canon) - args.block + 1, step)
+            for j in range(args.block)][: args.sets]
     src = _table_build.warm_source(args.n)
-    print(f"{len(pick)} canonical 4-direction sets, every {step}th; warm start from "
+    print(f"{len(pick)} canonical 4-direction sets, {runs} run(s) of {args.block} consecutive "
+          f"one(s), every {step}th; warm start from "
           f"{src.path if src is not None else 'nothing (cold)'}")
     with tempfile.TemporaryDirectory() as tmp:
         os.environ["XDG_CACHE_HOME"] = tmp  # an empty user cache: every lookup builds
@@ -202,6 +206,10 @@ def main(argv=None):
     p.add_argument("--n", type=int, default=4096)
     p.add_argument("--kind", type=int, default=4, choices=[3, 4])
     p.add_argument("--sets", type=int, default=20, help="4-direction sets to time")
+    p.add_argument("--block", type=int, default=1,
+                   help="time runs of this many consecutive canonical sets (a whole table's "
+                        "build meets the box shapes of its neighbours, compiled once; spread "
+                        "single sets each compile their own)")
     p.add_argument("--batch", type=int, default=1, help="sets per loop (kind 4, tables.build)")
     p.add_argument("--processes", type=int, default=1,
                    help="time `anisosample tables build --processes P` (kind 4) instead")
