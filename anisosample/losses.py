@@ -78,7 +78,7 @@ def linear_spectrum_loss(points, freqs, weights=None, *, method="auto", eps=None
 
 
 def linear_spectrum_loss_terms(freqs, n, weights=None, *, scale=1.0, method="auto", eps=None,
-                               dtype=jnp.float64):
+                               dtype=jnp.float64, precision="double"):
     """:func:`linear_spectrum_loss` for ``n`` points as data
     (:func:`anisosample.spectrum.spectrum_terms`; evaluate with ``terms_value(points, terms)``),
     times ``scale``: what synthesis iterates on (one compilation for every set whose boxes
@@ -86,11 +86,11 @@ def linear_spectrum_loss_terms(freqs, n, weights=None, *, scale=1.0, method="aut
     fset = _as_set(freqs)
     w = _weights(fset, weights)
     return spectrum_terms(fset, n, weights=w, scale=scale * n / float(np.sum(w)),
-                          method=method, eps=eps, dtype=dtype)
+                          method=method, eps=eps, dtype=dtype, precision=precision)
 
 
 def spectrum_loss_terms(freqs, n, target=0.0, weights=None, *, scale=1.0, method="auto",
-                        eps=None, dtype=jnp.float64):
+                        eps=None, dtype=jnp.float64, precision="double"):
     """:func:`spectrum_loss` for ``n`` points as data (see :func:`linear_spectrum_loss_terms`)."""
     fset = _as_set(freqs)
     w = _weights(fset, weights)
@@ -102,7 +102,7 @@ def spectrum_loss_terms(freqs, n, target=0.0, weights=None, *, scale=1.0, method
                          f"({len(fset)}), got shape {tgt.shape}")
     return spectrum_terms(fset, n, weights=w, target=tgt, squared=True,
                           scale=scale * n * n / float(np.sum(w)), method=method, eps=eps,
-                          dtype=dtype)
+                          dtype=dtype, precision=precision)
 
 
 def _dtype(points):

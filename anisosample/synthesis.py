@@ -92,7 +92,7 @@ _DEFAULTS = {
 _POSITIVE = ("learning_rate", "final_lr_fraction", "b1", "b2", "adam_eps", "nufft_eps")
 OPTIONS = ("steps", "learning_rate", "final_lr_fraction", "b1", "b2", "adam_eps", "c",
            "spectrum_weight", "boundary", "design", "frequency_options", "init", "method",
-           "nufft_eps")
+           "nufft_eps", "nufft_precision")
 """Every synthesis option a :class:`Recipe` holds (besides the recipe's name)."""
 
 
@@ -117,7 +117,9 @@ class Recipe(eqx.Module):
     term and ``spectrum_weight`` the spectrum term (W Eq. 10; 0 drops a term, W Fig. 3);
     ``design`` and ``frequency_options`` choose the frequency set
     (:func:`anisosample.frequencies.design`); ``init`` names the sampler of the initial set;
-    ``method`` and ``nufft_eps`` are the spectrum engine's (:mod:`anisosample.spectrum`).
+    ``method``, ``nufft_eps`` and ``nufft_precision`` (``"double"``, or ``"single"``: the type-1
+    transforms in float32, :data:`anisosample.spectrum.PRECISIONS`; the 4-direction tables'
+    choice) are the spectrum engine's (:mod:`anisosample.spectrum`).
     """
 
     name: str = eqx.field(static=True, default="rate")
@@ -135,6 +137,7 @@ class Recipe(eqx.Module):
     init: str = eqx.field(static=True, default="jittered")
     method: str = eqx.field(static=True, default="auto")
     nufft_eps: float = eqx.field(static=True, default=1e-7)
+    nufft_precision: str = eqx.field(static=True, default="double")
 
     def __check_init__(self):
         from . import samplers
@@ -152,6 +155,7 @@ class Recipe(eqx.Module):
         if self.init not in samplers.names():
             raise ValueError(f"init must be one of {samplers.names()}, got {self.init!r}")
         check_choice("method", self.method, _spectrum.METHODS)
+        check_choice("nufft_precision", self.nufft_precision, _spectrum.PRECISIONS)
 
     def record(self) -> dict:
         """The JSON-able record of every option (stored with results, fingerprinted by tables)."""
@@ -278,7 +282,8 @@ def _objective(fset, directions_deg, recipe: Recipe, n: int) -> _Objective:
         if a > 0:
             make = (_losses.linear_spectrum_loss_terms if recipe.name == "rate"
                     else _losses.spectrum_loss_terms)
-            terms = make(fset, n, scale=a, method=recipe.method, eps=recipe.nufft_eps)
+            terms = make(fset, n, scale=a, method=recipe.method, eps=recipe.nufft_eps,
+                         precision=recipe.nufft_precision)
         sw = _losses.sliced_wasserstein_targets(directions_deg, n) if c > 0 else None
     return _Objective(terms, sw, float(c))
 

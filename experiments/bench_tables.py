@@ -146,8 +146,10 @@ def _compare_warm(args):
             start = _table_build.warm_points(n, (a, b), src.settings["fingerprint"])
             runs = {"cold": {}}
             for steps in args.warm_steps:
-                runs[f"warm {steps}"] = dict(initial_points=start, steps=steps,
-                                             learning_rate=_table_build.WARM_LEARNING_RATE)
+                for prec in args.precisions:
+                    label = f"warm {steps}" + (f" {prec}" if len(args.precisions) > 1 else "")
+                    runs[label] = dict(initial_points=start, steps=steps, nufft_precision=prec,
+                                       learning_rate=_table_build.WARM_LEARNING_RATE)
             if args.neighbour_steps:
                 start4 = _table_build.warm_points(n, (a, b - 1), src.settings["fingerprint"])
                 near = asp.synthesize(jax.random.key(1), n, (0, 90, a, b - 1),
@@ -221,6 +223,9 @@ def main(argv=None):
     p.add_argument("--pairs", type=int, default=2, help="direction pairs for --compare-warm")
     p.add_argument("--warm-steps", type=int, nargs="+", default=[_table_build.WARM_STEPS],
                    help="step counts of the warm starts --compare-warm measures")
+    p.add_argument("--precisions", nargs="+", default=["double"],
+                   choices=["double", "single"],
+                   help="--compare-warm: the warm starts' nufft_precision (each one measured)")
     p.add_argument("--neighbour-steps", type=int, nargs="*", default=[],
                    help="--compare-warm: also start from the set (a, b - 1), for these steps")
     p.add_argument("--neighbour-lr", type=float, default=0.05,

@@ -74,6 +74,32 @@ def test_gradients_agree_between_paths_and_with_finite_differences():
     np.testing.assert_allclose(grads["nufft3"], grads["direct"], atol=1e-8)
 
 
+def test_single_precision_terms_agree_with_double():
+    """``spectrum_terms(precision='single')``: the type-1 boxes' transforms in float32 (eps
+    1e-6) against float64, n = 4096, four directions, uniform points. Rounding the box points
+    to float32 moves each phase by up to ``2 pi |u| 2^-24`` (about 3e-4 for the boxes' |u| <= 800),
+    so the loss and its gradient agree to a few 1e-4 relative, not to float64's 1e-10."""
+    from anisosample import frequencies, losses
+
+    with jax.enable_x64(True):
+        n = 4096
+        fset = frequencies.design(n, [0.0, 90.0, 16.0, 146.0], "rate")
+        x = jax.random.uniform(jax.random.key(3), (n, 2), jnp.float64)
+        out = {}
+        for prec in spectrum.PRECISIONS:
+            terms = losses.linear_spectrum_loss_terms(fset, n, eps=1e-7, precision=prec)
+            assert all(isinstance(t, spectrum.GridTerm) for t in terms)
+            assert all(t.single == (prec == "single") for t in terms)
+            assert all(t.eps == (1e-6 if prec == "single" else 1e-7) for t in terms)
+            out[prec] = jax.value_and_grad(lambda y, t=terms: spectrum.terms_value(y, t))(x)
+        (v64, g64), (v32, g32) = out["double"], out["single"]
+        assert g32.dtype == jnp.float64
+        assert abs(float(v32 - v64)) < 1e-3 * float(v64)
+        assert float(jnp.max(jnp.abs(g32 - g64))) < 3e-3 * float(jnp.max(jnp.abs(g64)))
+        with pytest.raises(ValueError, match="precision"):
+            spectrum.spectrum_terms(fset, n, precision="half")
+
+
 def test_basic_facts(pts4096):
     f = np.array([[0, 0], [3, 4], [-3, -4]])
     p = np.asarray(spectrum.power_spectrum(pts4096, f))

@@ -563,6 +563,24 @@ def test_on_demand_four_direction_set_is_warm_started_from_the_shipped_table(use
     assert np.asarray(tables.lookup([20, 50], 256, steps=4)).tobytes() == pts.tobytes()
 
 
+def test_four_direction_tables_run_single_precision_and_old_tables_keep_theirs(tmp_path):
+    """A new 4-direction table records nufft_precision 'single' (FOUR_DIRECTION_PRECISION) in
+    its settings; a table made before the option existed (no such field) is finished with its
+    own settings, not refused; a 3-direction table stays in double precision."""
+    new = tmp_path / "new"
+    tables.build(32, 4, out=new, sets=[(0, 0)], steps=2, show_progress=False)
+    assert tables.open_table(new).settings["synthesis"]["nufft_precision"] == "single"
+    old = tmp_path / "old"
+    _table_build.create_table(old, 32, 4, synthesis={"steps": 2})
+    tables.build(32, 4, out=old, sets=[(10, 20)], steps=2, show_progress=False)
+    tab = tables.open_table(old)
+    assert "nufft_precision" not in tab.settings["synthesis"]
+    assert tab.has((10, 20))
+    three = tmp_path / "three"
+    tables.build(32, 3, out=three, sets=[(10,)], steps=2, show_progress=False)
+    assert "nufft_precision" not in tables.open_table(three).settings["synthesis"]
+
+
 def test_deleted_set_makes_a_table_incomplete(tmp_path):
     """issue 17: a complete table with a set file deleted is not reported complete."""
     tab = _fake_table(tmp_path, sets=tables.canonical_sets(3))
