@@ -39,8 +39,9 @@ so each runs one term at a time (:func:`anisosample.synthesis.usable_cores`). On
 whose two threads share a step's terms (``experiments/bench_tables.py --processes 2``: 3.0 s
 per set against 4.1 s for one-at-a-time lookups, at load 1.3-1.7): the two threads of one
 process spend about a third more CPU per step than one. Runs of consecutive sets, as a whole
-build meets them, share their box shapes' compilations: 2.4 s per set, 2.8 h projected for the
-4,141 sets (``--sets 40 --block 10 --processes 2``).
+build meets them, share their box shapes' compilations; with the 4-direction tables' float32
+transforms (:data:`FOUR_DIRECTION_PRECISION`) that is 1.6 s per set, 1.88 h projected for the
+4,141 sets (``--sets 40 --block 10 --processes 2``; 2.8 h in float64).
 """
 
 from __future__ import annotations
