@@ -299,8 +299,9 @@ type-1 transforms in float32, 1.7 times as fast per step at n = 4096 (27.2 -> 15
 four terms of a 4-direction set). Measured against double precision
 (``experiments/bench_tables.py --compare-warm --pairs 3 --precisions double single``, n = 4096,
 150 warm steps): final rate loss within 1 %, band energy along every line as low, edge variance
--3..+14 % (cold 200-step sets with keys 1-4 spread over +-10 % on the same pair). Tables that
-exist keep the precision they were built with."""
+-3..+14 % (cold 200-step sets with keys 1-4 spread over 1.70-2.08e-7, +-10 %, on the pair
+(16, 146) where single precision measured 1.93e-7: ``--compare-warm --pairs 1 --cold-keys 1 2 3
+4 --precisions double single``). Tables that exist keep the precision they were built with."""
 
 
 def _existing_synthesis(out: Path, kind: int) -> dict | None:

@@ -30,7 +30,9 @@ time, by one of three methods (:data:`METHODS`):
 
 Accuracy policy (one for every caller, :func:`default_eps`): NUFFT tolerance ``1e-6`` in float32
 and ``1e-10`` in float64 unless a caller passes ``eps`` (synthesis uses ``1e-7``); every CPU
-FINUFFT call runs on :data:`NUFFT_THREADS` threads (deterministic, :func:`finufft_opts`).
+FINUFFT call runs on :data:`NUFFT_THREADS` threads (deterministic, :func:`finufft_opts`). The
+synthesis terms may run their type-1 transforms in float32 instead (:data:`PRECISIONS`,
+``spectrum_terms(precision="single")``, at ``eps >= 1e-6``): the 4-direction tables' choice.
 
 The losses take the same transforms as data (:func:`spectrum_terms`: one :class:`GridTerm` per
 type-1 box, the weighted sum taken on the box's grid; :func:`terms_value`), so only box shapes

@@ -144,7 +144,8 @@ def _compare_warm(args):
         for n in ns:
             src = _table_build.warm_source(n)
             start = _table_build.warm_points(n, (a, b), src.settings["fingerprint"])
-            runs = {"cold": {}}
+            runs = {("cold" if len(args.cold_keys) == 1 else f"cold key {k}"): {"key": k}
+                    for k in args.cold_keys}
             for steps in args.warm_steps:
                 for prec in args.precisions:
                     label = f"warm {steps}" + (f" {prec}" if len(args.precisions) > 1 else "")
@@ -161,8 +162,10 @@ def _compare_warm(args):
                                                       steps=steps,
                                                       learning_rate=args.neighbour_lr)
             for label, kw in runs.items():
+                kw = dict(kw)
                 t0 = time.perf_counter()
-                r = asp.synthesize(jax.random.key(1), n, dirs, show_progress=False, **kw)
+                r = asp.synthesize(jax.random.key(kw.pop("key", 1)), n, dirs,
+                                   show_progress=False, **kw)
                 sec = time.perf_counter() - t0
                 pts = r.points
 
@@ -223,6 +226,9 @@ def main(argv=None):
     p.add_argument("--pairs", type=int, default=2, help="direction pairs for --compare-warm")
     p.add_argument("--warm-steps", type=int, nargs="+", default=[_table_build.WARM_STEPS],
                    help="step counts of the warm starts --compare-warm measures")
+    p.add_argument("--cold-keys", type=int, nargs="+", default=[1],
+                   help="--compare-warm: keys of the cold sets (several: their spread is the "
+                        "set-to-set noise the warm starts are judged against)")
     p.add_argument("--precisions", nargs="+", default=["double"],
                    choices=["double", "single"],
                    help="--compare-warm: the warm starts' nufft_precision (each one measured)")
