@@ -13,6 +13,7 @@ compilation) and the mean of the rest give a projection at the recipe's step cou
 ``--steps`` is small.
 
     python experiments/bench_synthesis.py [--log2-n 12 16] [--directions 0,90,30] [--steps 10]
+        [--nufft-precision single]
 """
 
 from __future__ import annotations
@@ -34,6 +35,8 @@ def main(argv=None):
     ap.add_argument("--log2-n", type=int, nargs="+", default=[12, 16])
     ap.add_argument("--directions", default="0,90,30")
     ap.add_argument("--steps", type=int, default=None, help="override the recipe's steps")
+    ap.add_argument("--nufft-precision", default="double", choices=["double", "single"],
+                    help="the synthesis run's nufft_precision (single: the 4-direction tables')")
     args = ap.parse_args(argv)
     dirs = [float(x) for x in args.directions.split(",")]
     opts = synthesis.recipe_defaults("rate")
@@ -67,6 +70,7 @@ def main(argv=None):
         c0 = time.process_time()
         stamps = []  # one chunk per step: the time after each step
         result = synthesis.synthesize(jax.random.key(0), n, dirs, steps=args.steps,
+                                      nufft_precision=args.nufft_precision,
                                       show_progress=True, checkpoint_every=1,
                                       callback=lambda k, loss, s=stamps: s.append(
                                           time.perf_counter()))
@@ -77,7 +81,8 @@ def main(argv=None):
         first = stamps[0] - t  # set-up, compilation and the first step
         per_step = (stamps[-1] - stamps[0]) / max(steps - 1, 1)
         projected = first + (opts["steps"] - 1) * per_step
-        print(f"n=2^{k} synthesize: first step (set-up, compilation) {first:.1f} s, then "
+        print(f"n=2^{k} synthesize ({args.nufft_precision} precision): first step (set-up, "
+              f"compilation) {first:.1f} s, then "
               f"{per_step:.3f} s per step (the terms on {os.cpu_count()} threads); projected "
               f"at the recipe's {opts['steps']} steps: {projected:.0f} s", flush=True)
         print(f"n=2^{k}: {len(fset)} frequencies; gradient {grad_s['auto']:.3f} s (FINUFFT on "
