@@ -36,8 +36,8 @@ One machine, several cores: ``anisosample tables build --n 4096 --directions 4 -
 starts P such workers itself (a localhost coordinator), each pinned to its share of the cores,
 so each runs one term at a time (:func:`anisosample.synthesis.usable_cores`). On this project's
 2-core machine two workers build the 4-direction table about 1.4 times as fast as one process
-whose two threads share a step's terms (``experiments/bench_tables.py --processes 2``: 3.0 s
-per set against 4.1 s for one-at-a-time lookups, at load 1.3-1.7): the two threads of one
+whose two threads share a step's terms (``experiments/bench_tables.py --processes 2``, float64:
+3.0 s per set against 4.1 s for one-at-a-time lookups, at load 1.3-1.7): the two threads of one
 process spend about a third more CPU per step than one. Runs of consecutive sets, as a whole
 build meets them, share their box shapes' compilations; with the 4-direction tables' float32
 transforms (:data:`FOUR_DIRECTION_PRECISION`) that is 1.6 s per set, 1.88 h projected for the
@@ -315,12 +315,6 @@ def _existing_synthesis(out: Path, kind: int) -> dict | None:
     return None
 
 
-def _existing_warm_start(out: Path, kind: int) -> bool:
-    """The warm start of the table at ``out`` if there is one, else ``kind == 4``."""
-    syn = _existing_synthesis(out, kind)
-    return kind == 4 if syn is None else "warm_start" in syn
-
-
 def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: int = 1,
           devices=None, checkpoint_every: int = 25, show_progress: bool = True,
           warm_start: bool | None = None, **synthesis_options) -> dict:
@@ -370,16 +364,17 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
     synth = {k: v for k, v in synthesis_options.items() if v is not None}
     if batch > 1:
         synth["batch"] = batch
-    out = Path(out) if out is not None else _t.cache_dir() / _t.table_name(kind, n)
+    out = Path(out) if out is not None else _t.cache_table_path(kind, n)
+    existing = _existing_synthesis(out, kind)  # an existing table keeps its own choices
     if warm_start is None:
-        warm_start = _existing_warm_start(out, kind)
+        warm_start = kind == 4 if existing is None else "warm_start" in existing
     if not isinstance(warm_start, bool):
         raise TypeError(f"warm_start must be True, False or None, got {warm_start!r}")
     if kind == 4 and "nufft_precision" not in synth:
-        syn = _existing_synthesis(out, kind)  # an existing table keeps its own (or none)
-        if syn is None or "nufft_precision" in syn:
-            synth["nufft_precision"] = (FOUR_DIRECTION_PRECISION if syn is None
-                                        else syn["nufft_precision"])
+        if existing is None:
+            synth["nufft_precision"] = FOUR_DIRECTION_PRECISION
+        elif "nufft_precision" in existing:  # a table from before the option has none
+            synth["nufft_precision"] = existing["nufft_precision"]
     src = warm_source(n, exclude=out) if warm_start and kind == 4 else None
     if src is not None:
         synth["warm_start"] = {"table": _t.table_name(3, n),

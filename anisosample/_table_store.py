@@ -201,6 +201,12 @@ def cache_dir() -> Path:
     return Path(base) / "anisosample" / "tables"
 
 
+def cache_table_path(kind: int, n: int) -> Path:
+    """Where the user cache keeps the ``kind``-direction table for ``n`` points (the default
+    ``out`` of a build and the target of on-demand lookups)."""
+    return cache_dir() / table_name(kind, n)
+
+
 def shipped_dir() -> Path:
     """The tables installed with the package (``anisosample/data/tables``)."""
     return Path(__file__).parent / "data" / "tables"

@@ -439,16 +439,12 @@ def _run_local_processes(args):
                                                         args.process_id)):
         raise ValueError("--processes starts its own local jax.distributed workers; it does not "
                          "go with --distributed, --coordinator, --num-processes or --process-id")
-    from . import tables
+    from . import synthesis, tables
 
-    out = Path(args.out) if args.out else tables.cache_dir() / tables.table_name(
-        args.directions, args.n)
+    out = Path(args.out) if args.out else tables.cache_table_path(args.directions, args.n)
     if (out / "table.json").exists():  # a damaged or foreign table: one message, not P
         tables.open_table(out, n=args.n, kind=args.directions)
-    try:
-        cores = sorted(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        cores = list(range(os.cpu_count() or 1))
+    cores = synthesis.usable_cpus()
     if args.processes > len(cores):
         raise ValueError(f"--processes must be at most the {len(cores)} usable cores, got "
                          f"{args.processes}")
@@ -480,9 +476,9 @@ def _run_local_processes(args):
                            f"{args.processes} failed (exit {bad[0][1]}; their messages are "
                            "above); the same command resumes what they finished")
     tab = tables.open_table(out)
-    have = sum(tab.has(e) for e in tables.canonical_sets(tab.kind))
-    print(f"table {out}: {args.processes} local processes done; {have}/"
-          f"{len(tables.canonical_sets(tab.kind))} sets, complete={tab.complete}")
+    sets = tables.canonical_sets(tab.kind)
+    print(f"table {out}: {args.processes} local processes done; "
+          f"{sum(tab.has(e) for e in sets)}/{len(sets)} sets, complete={tab.complete}")
 
 
 # --- variance ----------------------------------------------------------------------------------

@@ -78,7 +78,7 @@ from .progress import progress as _progress
 
 __all__ = ["RECIPES", "BOUNDARIES", "Recipe", "make_recipe", "recipe_defaults",
            "SynthesisResult", "synthesize", "synthesize_batch", "adam_update", "save_result",
-           "load_result", "load_or_synthesize", "max_directions", "usable_cores"]
+           "load_result", "load_or_synthesize", "max_directions", "usable_cpus", "usable_cores"]
 
 RECIPES = ("rate", "paper")
 BOUNDARIES = ("wrap", "clip")
@@ -324,14 +324,20 @@ _POOL: list = []
 _POOL_LOCK = threading.Lock()
 
 
-def usable_cores() -> int:
-    """The cores this process may run on (its CPU affinity where the OS tells, else
-    ``os.cpu_count()``): the size of the synthesis thread pool, so a process pinned to one core
-    (``anisosample tables build --processes P``) runs one term at a time."""
+def usable_cpus() -> list[int]:
+    """The CPUs this process may run on, sorted (its affinity where the OS tells, else all of
+    ``os.cpu_count()``)."""
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        return sorted(os.sched_getaffinity(0))
     except (AttributeError, OSError):
-        return max(1, os.cpu_count() or 1)
+        return list(range(max(1, os.cpu_count() or 1)))
+
+
+def usable_cores() -> int:
+    """How many CPUs this process may run on (:func:`usable_cpus`): the size of the synthesis
+    thread pool, so a process pinned to one core (``anisosample tables build --processes P``)
+    runs one term at a time."""
+    return len(usable_cpus())
 
 
 def _pool():

@@ -76,6 +76,7 @@ from ._table_store import Canonical as Canonical
 from ._table_store import Table as Table
 from ._table_store import apply_symmetry as apply_symmetry
 from ._table_store import cache_dir as cache_dir
+from ._table_store import cache_table_path as cache_table_path
 from ._table_store import canonical_sets as canonical_sets
 from ._table_store import canonicalize as canonicalize
 from ._table_store import find_table as find_table
@@ -102,6 +103,7 @@ __all__ = [
     "set_directions",
     "table_dirs",
     "cache_dir",
+    "cache_table_path",
     "find_table",
     "Table",
     "open_table",
@@ -153,7 +155,7 @@ def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
         elif path is not None and path.parent != shipped_dir():
             out = path  # a table on the search path (the cache, $ANISOSAMPLE_TABLES) lacks it
         else:
-            out = cache_dir() / table_name(canon.kind, n)
+            out = cache_table_path(canon.kind, n)
         _table_build.build_set(n, canon.kind, canon.extra, out=out,
                                show_progress=show_progress, **build_options)
         path = out
