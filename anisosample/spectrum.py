@@ -102,7 +102,7 @@ PRECISIONS = ("double", "single")
 ``M^T x mod 1`` and phases in the points' precision, rounds them to float32 and runs both
 NUFFTs in float32 (about 1.9 times as fast at n = 4096; see :func:`spectrum_terms`)."""
 SINGLE_EPS = 1e-6
-"""The finest NUFFT tolerance of a ``"single"`` term (float32 FINUFFT's floor is near 1e-7)."""
+"""The finest NUFFT tolerance a ``"single"`` term asks for (float32 resolves about 6e-8)."""
 _ALIASES = {"nufft": "nufft1"}  # the old name of the type-1 path (spectrum CLI, scripts)
 
 _DIRECT_MAX_WORK = 2**21  # n * m up to which "auto" takes the direct sum
