@@ -227,62 +227,321 @@ def save_npy(path, array, *, overwrite: bool = False) -> Path:
     return Path(path)
 
 
-POINT_SUFFIXES = (".npy", ".npz", ".txt", ".csv")
-"""The files a point set is read from and written to: ``.npy``, the ``points`` array of an
-``.npz`` (with metadata), or text with one point ``x y`` (``.txt``) or ``x,y`` (``.csv``) a line."""
+POINT_FORMATS = ("npy", "npz", "txt", "csv", "utk", "utk-bin")
+"""The formats a point set is read from and written to (``format=`` of :func:`save_points` and
+:func:`load_point_sets`):
+
+* ``npy`` -- one ``(n, 2)`` array, or a stack ``(k, n, 2)`` of sets of one size.
+  Metadata: in ``NAME.npy.json`` beside it.
+* ``npz`` -- the array ``points`` (``(n, 2)`` or ``(k, n, 2)``), or ``points_0``, ``points_1``,
+  ... for sets of different sizes, with the JSON metadata record of :func:`save_npz`.
+* ``txt`` -- text, one point ``x y`` a line; ``#`` lines are comments, except a line holding only
+  ``#``, which ends a set (UTK's separator), and a ``# {...}`` line, the JSON metadata record.
+* ``csv`` -- one set, ``x,y`` a line under an ``x,y`` header row (spreadsheets, pandas).
+  Metadata: in ``NAME.csv.json`` beside it.
+* ``utk`` -- the text format of UTK (the Utk sampling toolkit, github.com/utk-team/utk:
+  ``include/utk/utils/PointsetIO.hpp``, ``write_text_pointsets`` / ``read_text_pointset``;
+  ``src/io/fileIO_dat.hpp`` in UTK 1): one point a line, its coordinates separated by white
+  space, sets separated by a line ``#``. The metadata record goes on one last line ``# {...}``
+  after the last set: both of UTK's readers end a set at a line starting with ``#`` and then
+  find no further points, so UTK reads the file as the plain sets.
+* ``utk-bin`` -- UTK's binary format (UTK 1 ``src/io/fileIO_bin.hpp``, ``PointsetWriter_BIN`` /
+  ``PointsetReader_BIN`` for ``Point<2, double>``, the type of UTK's 2D samplers): for each set,
+  a 4-byte unsigned count ``s`` and then ``s`` points of two 8-byte floats ``x, y``; no header,
+  no separator. UTK writes its machine's byte order (little-endian on x86 and ARM); we read and
+  write little-endian. The format has no place for metadata: it goes to a JSON file beside it,
+  ``NAME.bin.json`` (read back by :func:`load_point_sets`; UTK ignores it).
+
+Text writers keep every float32 bit (9 significant digits); binary writes float32 values as
+float64, exactly.
+"""
+
+POINT_SUFFIXES = (".npy", ".npz", ".txt", ".csv", ".dat", ".bin")
+"""The file name suffixes of point files: ``.npy``, ``.npz``, ``.txt`` (text), ``.csv``,
+``.dat`` (UTK text, UTK 1's name) and ``.bin`` (UTK binary)."""
+
+_FORMAT_SUFFIXES = {"npy": (".npy",), "npz": (".npz",), "txt": (".txt", ".dat"),
+                    "csv": (".csv",), "utk": (".txt", ".dat"), "utk-bin": (".bin",)}
+_SUFFIX_FORMAT = {".npy": "npy", ".npz": "npz", ".txt": "txt", ".csv": "csv", ".dat": "utk",
+                  ".bin": "utk-bin"}
 
 
-def load_points(path) -> np.ndarray:
-    """Load a point set from any of :data:`POINT_SUFFIXES` and check it: shape ``(n, 2)``,
-    floating point, finite, in ``[0, 1)^2`` (a ``ValueError`` naming the file otherwise)."""
-    from ._validate import check_points
-
-    path = _check_suffix(path, POINT_SUFFIXES, "points")
-    path = _existing(path)
+def _point_format(path: Path, format: str | None) -> str:
+    """The format of a point file: ``format`` (checked against the suffix) or the suffix's."""
     suffix = path.suffix.lower()
-    if suffix == ".npz":
-        arrays, _ = load_npz(path)
-        if "points" not in arrays:
-            raise ValueError(f"{path} holds no array named 'points' (has {sorted(arrays)})")
-        pts = arrays["points"]
-    elif suffix == ".npy":
-        pts = load_npy(path)
-    else:
-        with open(path, "rb") as fh:
-            first = fh.readline().strip()
-        header = first[:1].isalpha()  # a column-name row such as "x,y"
+    if format is None:
+        if suffix not in _SUFFIX_FORMAT:
+            raise ValueError(f"points file name must end in {' or '.join(POINT_SUFFIXES)}, got "
+                             f"{path.name}")
+        return _SUFFIX_FORMAT[suffix]
+    if format not in POINT_FORMATS:
+        raise ValueError(f"format must be one of {', '.join(POINT_FORMATS)}, got {format!r}")
+    if suffix not in _FORMAT_SUFFIXES[format]:
+        raise ValueError(f"a {format} points file name must end in "
+                         f"{' or '.join(_FORMAT_SUFFIXES[format])}, got {path.name}")
+    return format
+
+
+_SIDECAR_FORMATS = ("npy", "csv", "utk-bin")
+"""Formats with no place for metadata: it goes to ``NAME.json`` beside the file."""
+
+
+def _metadata_sidecar(path: Path) -> Path:
+    return path.with_name(path.name + ".json")
+
+
+def _locator(k: int, many: bool):
+    """Where point ``i`` of set ``k`` is, for an error message (``i=None``: the whole set)."""
+
+    def locate(i):
+        parts = ([f"set {k}"] if many else []) + ([] if i is None else [f"point {i}"])
+        return f" ({', '.join(parts)})" if parts else ""
+
+    return locate
+
+
+def _check_point_set(pts: np.ndarray, where: str, locate) -> np.ndarray:
+    """One set read from a file: ``(n, 2)`` floating point, finite, in ``[0, 1)^2`` once stored
+    as float32. ``locate(i)`` says where point ``i`` is in the file (a line, a set)."""
+    if pts.ndim != 2 or pts.shape[1] != 2 or pts.shape[0] < 1:
+        raise ValueError(f"{where} must have shape (n, 2) with n >= 1, got shape {pts.shape}"
+                         f"{locate(None)}")
+    if not np.issubdtype(pts.dtype, np.floating):
+        raise TypeError(f"{where} must be a floating-point array, got dtype {pts.dtype}")
+    bad = ~np.all(np.isfinite(pts), axis=1)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(f"{where} contains NaN or Inf: point {pts[i].tolist()}{locate(i)}")
+    p32 = pts.astype(np.float32)  # 0.999999999 becomes 1 in float32: check what is kept
+    out = np.any((p32 < 0) | (p32 >= 1), axis=1)
+    if out.any():
+        i = int(np.argmax(out))
+        raise ValueError(f"{where} must lie in [0, 1)^2 (as float32), got values in "
+                         f"[{pts.min()}, {pts.max()}]; the first outside is "
+                         f"{pts[i].tolist()}{locate(i)}")
+    return p32
+
+
+def _text_point_sets(path: Path, delimiter: str | None):
+    """Parse a text point file: ``(sets, line numbers of their points, metadata)``."""
+    raw = path.read_bytes()
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ValueError(f"{path} is not a text file of points, one 'x y' or 'x,y' a line "
+                         "(it is not UTF-8 text)") from None
+    sets: list[list[tuple[float, float]]] = []
+    lines: list[list[int]] = []
+    meta: dict = {}
+    cur: list[tuple[float, float]] = []
+    cur_lines: list[int] = []
+    first = True
+    for number, line in enumerate(text.splitlines(), start=1):
+        line = line.strip()
+        if not line:
+            continue
+        if line.startswith("#"):
+            body = line[1:].strip()
+            if not body and cur:  # UTK's separator: the set ends here
+                sets.append(cur)
+                lines.append(cur_lines)
+                cur, cur_lines = [], []
+            elif body.startswith("{"):  # the metadata record
+                try:
+                    record = json.loads(body)
+                except json.JSONDecodeError as exc:
+                    raise ValueError(f"{path}, line {number}: the metadata record '# {{...}}' "
+                                     f"is not valid JSON ({exc})") from None
+                if isinstance(record, dict):
+                    meta.update(record)
+            continue
+        parts = line.split(",") if delimiter == "," else line.split()
         try:
-            pts = np.loadtxt(path, delimiter="," if suffix == ".csv" else None, comments="#",
-                             dtype=np.float64, ndmin=2, skiprows=int(header))
-        except (ValueError, UnicodeDecodeError) as exc:
-            why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            if len(parts) != 2:
+                raise ValueError(f"{len(parts)} values")
+            point = (float(parts[0]), float(parts[1]))
+        except ValueError:
+            if first and line[:1].isalpha():  # a column-name row such as "x,y"
+                first = False
+                continue
             raise ValueError(f"{path} is not a text file of points, one 'x y' or 'x,y' a line "
-                             f"({why})") from None
-        pts = pts.astype(np.float32)
-    return np.asarray(check_points(f"points in {path}", pts))
+                             f"(line {number}: {line[:60]!r})") from None
+        first = False
+        cur.append(point)
+        cur_lines.append(number)
+    if cur:
+        sets.append(cur)
+        lines.append(cur_lines)
+    arrays = [np.asarray(s, dtype=np.float64).reshape(-1, 2) for s in sets]
+    return arrays, lines, meta
 
 
-def save_points(path, points, metadata: Mapping | None = None, *,
+def _utk_binary_point_sets(path: Path) -> list[np.ndarray]:
+    """Parse UTK's binary format (see :data:`POINT_FORMATS`)."""
+    data = path.read_bytes()
+    if not data:
+        raise ValueError(f"{path} is not a UTK binary point file (the file is empty)")
+    sets, offset = [], 0
+    while offset < len(data):
+        k = len(sets)
+        if len(data) - offset < 4:
+            raise ValueError(f"{path} is not a UTK binary point file: {len(data) - offset} "
+                             f"stray byte(s) after set {k - 1}, too few for a count")
+        n = int.from_bytes(data[offset:offset + 4], "little")
+        offset += 4
+        if n == 0:
+            raise ValueError(f"{path}: set {k} of the UTK binary file is empty (0 points)")
+        if len(data) - offset < 16 * n:
+            raise ValueError(f"{path} is not a UTK binary point file of 2D float64 points, or is "
+                             f"truncated: set {k} promises {n} points ({16 * n} bytes) but "
+                             f"{len(data) - offset} bytes remain")
+        sets.append(np.frombuffer(data, dtype="<f8", count=2 * n, offset=offset).reshape(n, 2))
+        offset += 16 * n
+    return sets
+
+
+def load_point_sets(path, *, format: str | None = None, metadata: bool = False):
+    """Load every point set in a file: a list of ``(n_i, 2)`` float32 arrays (and the metadata
+    record with ``metadata=True``: ``(sets, record)``, ``{}`` where the file has none).
+
+    ``format``: one of :data:`POINT_FORMATS`; by default the suffix's (``.txt`` is read by the
+    text reader, which reads UTK text files too). Every set is checked: two columns, finite,
+    in ``[0, 1)^2`` once stored as float32; an error names the file and, where the format has
+    them, the line (text) or the set and point (binary, stacks).
+    """
+    path = Path(path)
+    fmt = _point_format(path, format)
+    path = _existing(path)
+    meta: dict = {}
+    where = f"points in {path}"
+    if fmt in ("npy", "npz"):
+        if fmt == "npy":
+            arrays = {"points": load_npy(path)}
+        else:
+            arrays, meta = load_npz(path)
+        if "points" in arrays:
+            stack = arrays["points"]
+            if stack.ndim == 3:
+                raw = list(stack)
+            else:
+                raw = [stack]
+        else:
+            names = [f"points_{i}" for i in range(len(arrays))]
+            raw = [arrays[k] for k in names if k in arrays]
+            if not raw:
+                raise ValueError(f"{path} holds no array named 'points' (has {sorted(arrays)})")
+        sets = [_check_point_set(np.asarray(a), where, _locator(k, len(raw) > 1))
+                for k, a in enumerate(raw)]
+    elif fmt == "utk-bin":
+        raw = _utk_binary_point_sets(path)
+        sets = [_check_point_set(a, where, _locator(k, True)) for k, a in enumerate(raw)]
+    else:
+        raw, lines, meta = _text_point_sets(path, "," if fmt == "csv" else None)
+        if not raw:
+            raise ValueError(f"{where} must have shape (n, 2) with n >= 1: the file holds no "
+                             "points")
+        many = len(raw) > 1
+        sets = [_check_point_set(a, where,
+                                 lambda i, k=k: "" if i is None else
+                                 f" (line {lines[k][i]}{f', set {k}' if many else ''})")
+                for k, a in enumerate(raw)]
+    if fmt in _SIDECAR_FORMATS and metadata and _metadata_sidecar(path).exists():
+        meta = load_json(_metadata_sidecar(path))
+    return (sets, meta) if metadata else sets
+
+
+def load_points(path, *, format: str | None = None, metadata: bool = False):
+    """Load the one point set of a file (any of :data:`POINT_FORMATS`): ``(n, 2)`` float32,
+    checked as :func:`load_point_sets` checks it (``(points, record)`` with ``metadata=True``).
+    A file holding several sets is a ``ValueError`` (read it with :func:`load_point_sets`)."""
+    sets, meta = load_point_sets(path, format=format, metadata=True)
+    if len(sets) != 1:
+        raise ValueError(f"{path} holds {len(sets)} point sets (n = "
+                         f"{', '.join(str(len(s)) for s in sets)}), not one; read them with "
+                         "io.load_point_sets")
+    return (sets[0], meta) if metadata else sets[0]
+
+
+def _as_point_sets(points) -> list[np.ndarray]:
+    """``(n, 2)``, ``(k, n, 2)`` or a sequence of ``(n_i, 2)`` sets -> checked float32 sets."""
+    if isinstance(points, list | tuple):
+        raw = [np.asarray(p) for p in points]
+        if not raw:
+            raise ValueError("points must hold at least one set, got an empty sequence")
+    else:
+        arr = np.asarray(points)
+        raw = list(arr) if arr.ndim == 3 else [arr]
+    return [_check_point_set(a, "points", _locator(k, len(raw) > 1)) for k, a in enumerate(raw)]
+
+
+def _text_of_sets(sets, delimiter: str) -> str:
+    blocks = []
+    for s in sets:
+        buf = io.StringIO()
+        np.savetxt(buf, s.astype(np.float64), fmt="%.9g", delimiter=delimiter)
+        blocks.append(buf.getvalue())
+    return "#\n".join(blocks)
+
+
+def save_points(path, points, metadata: Mapping | None = None, *, format: str | None = None,
                 overwrite: bool = False) -> Path:
-    """Write a point set to any of :data:`POINT_SUFFIXES` (chosen by the suffix): ``.npy``,
-    ``.npz`` (``points`` and ``metadata``), ``.txt`` (``x y`` a line) or ``.csv`` (``x,y`` a
-    line, with a header). Text keeps every float32 bit (9 significant digits)."""
-    path = _check_suffix(path, POINT_SUFFIXES, "points")
-    pts = np.asarray(points)
-    suffix = path.suffix.lower()
-    if suffix == ".npy":
-        return save_npy(path, pts, overwrite=overwrite)
-    if suffix == ".npz":
-        return save_npz(path, {"points": pts}, metadata, overwrite=overwrite)
-    if suffix == ".csv":  # a plain header row, as spreadsheets and pandas expect
-        header, comments = "x,y", ""
-    else:  # the metadata as a comment line above the points
-        header, comments = "x y", "# "
-        if metadata:
-            header = f"{json.dumps(_to_jsonable(dict(metadata)), allow_nan=False)}\n{header}"
+    """Write one point set or several to a file in any of :data:`POINT_FORMATS` (by default
+    the suffix's: ``.npy``, ``.npz``, ``.txt``, ``.csv``, ``.dat`` UTK text, ``.bin`` UTK
+    binary; ``format="utk"`` writes UTK text under ``.txt``).
+
+    ``points``: ``(n, 2)``, a stack ``(k, n, 2)``, or a sequence of ``(n_i, 2)`` sets of any
+    sizes (not for ``csv``; ``npy`` takes sets of one size). Each set is checked (finite, in
+    ``[0, 1)^2`` as float32). ``metadata`` goes where the format keeps it (see
+    :data:`POINT_FORMATS`); ``npy``, ``csv`` and ``utk-bin`` have no place for it and get a
+    JSON file beside them, ``NAME.json`` (e.g. ``pts.csv.json``), so nothing is dropped. It
+    comes back from ``load_point_sets(..., metadata=True)``. An existing file is replaced only
+    with ``overwrite=True``.
+    """
+    path = Path(path)
+    fmt = _point_format(path, format)
+    sets = _as_point_sets(points)
+    sizes = {len(s) for s in sets}
+    record = _to_jsonable(dict(metadata)) if metadata else None
+    if fmt == "npz":
+        if len(sets) == 1:
+            arrays = {"points": sets[0]}
+        elif len(sizes) == 1:
+            arrays = {"points": np.stack(sets)}
+        else:
+            arrays = {f"points_{k}": s for k, s in enumerate(sets)}
+        return save_npz(path, arrays, metadata, overwrite=overwrite)
+    if fmt == "npy" and len(sizes) > 1:
+        raise ValueError(f"a .npy file holds sets of one size, got sizes {sorted(sizes)}; "
+                         "write .npz, .txt or UTK")
+    if fmt == "csv" and len(sets) > 1:
+        raise ValueError(f"a .csv file holds one point set, got {len(sets)}; write .txt, UTK "
+                         "or .npz for several")
+    sidecar = _metadata_sidecar(path) if fmt in _SIDECAR_FORMATS else None
+    if sidecar is not None and record and sidecar.exists() and not overwrite:
+        raise FileExistsError(f"{sidecar} exists; pass overwrite=True (CLI: --force) to "
+                              "replace it")
     with atomic_path(path, overwrite=overwrite) as tmp:
-        np.savetxt(tmp, pts.astype(np.float64), fmt="%.9g",
-                   delimiter="," if suffix == ".csv" else " ", header=header, comments=comments)
+        if fmt == "npy":
+            with open(tmp, "wb") as fh:
+                np.save(fh, sets[0] if len(sets) == 1 else np.stack(sets))
+        elif fmt == "utk-bin":
+            with open(tmp, "wb") as fh:
+                for s in sets:
+                    fh.write(np.asarray(len(s), dtype="<u4").tobytes())
+                    fh.write(s.astype("<f8").tobytes())
+        elif fmt == "csv":  # a plain header row, as spreadsheets and pandas expect
+            tmp.write_text("x,y\n" + _text_of_sets(sets, ","))
+        elif fmt == "txt":  # the metadata and a column-name comment above the points
+            head = f"# {json.dumps(record, allow_nan=False)}\n" if record else ""
+            tmp.write_text(head + "# x y\n" + _text_of_sets(sets, " "))
+        else:  # utk: nothing before the first point (UTK 1 stops at a leading '#')
+            tail = f"# {json.dumps(record, allow_nan=False)}\n" if record else ""
+            tmp.write_text(_text_of_sets(sets, " ") + tail)
+    if sidecar is not None:
+        if record:
+            save_json(sidecar, record, overwrite=True)
+        elif sidecar.exists() and overwrite:  # a stale record would describe other points
+            sidecar.unlink()
     return path
 
 
@@ -311,8 +570,26 @@ def write_exr(path, image, metadata: Mapping | None = None, *, overwrite: bool =
     return Path(path)
 
 
-def read_exr(path) -> np.ndarray:
-    """Read an EXR as float32: ``(h, w)`` for one channel, else ``(h, w, c)`` in RGBA order."""
+def _exr_metadata(header: Mapping) -> dict:
+    """The attributes :func:`write_exr` stored (JSON strings), decoded; other strings as they
+    are; OpenEXR's own attributes (channels, windows, compression, ...) left out."""
+    meta = {}
+    for key, value in header.items():
+        if not isinstance(value, str):
+            continue
+        try:
+            meta[key] = json.loads(value)
+        except json.JSONDecodeError:
+            meta[key] = value
+    return meta
+
+
+def read_exr(path, *, metadata: bool = False):
+    """Read an EXR as float32: ``(h, w)`` for one channel, else ``(h, w, c)`` in RGBA order.
+
+    Row 0 is the top row of the file, as :func:`write_exr` wrote it (no flip). With
+    ``metadata=True``: ``(image, record)``, the record holding what ``write_exr`` stored.
+    """
     import OpenEXR
 
     path = _existing(path)
@@ -325,8 +602,11 @@ def read_exr(path) -> np.ndarray:
             if not order:
                 raise ValueError("no channels")
             if len(order) == 1:
-                return np.asarray(ch[order[0]].pixels, dtype=np.float32)
-            return np.stack([np.asarray(ch[c].pixels, dtype=np.float32) for c in order], axis=-1)
+                img = np.asarray(ch[order[0]].pixels, dtype=np.float32)
+            else:
+                img = np.stack([np.asarray(ch[c].pixels, dtype=np.float32) for c in order],
+                               axis=-1)
+            return (img, _exr_metadata(f.header())) if metadata else img
     except (RuntimeError, OSError, ValueError, TypeError) as exc:
         detail = " ".join(said[0].split()) if said and said[0].strip() else str(exc)
         raise _damaged(path, ".exr", RuntimeError(detail)) from None

@@ -915,7 +915,11 @@ def angular_profile(
 def save_spectrum_image(path, grid, *, n: int, vmax: float = 2.0, overwrite: bool = False) -> Path:
     """Save a centred spectrum as PNG (``N P_S`` clipped to ``[0, vmax]``, grey) or EXR (``P_S``).
 
-    The picture is upright: ``v_y`` grows upwards, ``v_x`` to the right, ``v = 0`` at the centre.
+    The PNG is a picture, upright: ``v_y`` grows upwards, ``v_x`` to the right, ``v = 0`` at the
+    centre. The EXR is data: the grid itself, ``values[i, j] = P_S(j - r, i - r)`` (DESIGN's
+    grid convention, no flip: ``io.read_exr`` / ``io.load_grid`` give back ``grid``, and an EXR
+    viewer shows ``v_y`` growing downwards), with ``n``, ``radius`` and that layout in its
+    metadata (``io.read_exr(path, metadata=True)``).
     """
     from . import io
 
@@ -928,8 +932,10 @@ def save_spectrum_image(path, grid, *, n: int, vmax: float = 2.0, overwrite: boo
     if path.suffix == ".exr":
         return io.write_exr(
             path,
-            upright.astype(np.float32),
-            {"quantity": "P_S (white noise = 1/n)", "n": n},
+            g.astype(np.float32),  # the grid, not the upright picture (issue 27)
+            {"quantity": "P_S (white noise = 1/n)", "n": n, "radius": (g.shape[0] - 1) // 2,
+             "layout": "values[i, j] = P_S(v_x = j - radius, v_y = i - radius); row 0 is "
+                       "v_y = -radius (DESIGN grid, no image flip)"},
             overwrite=overwrite,
         )
     if path.suffix == ".png":

@@ -873,7 +873,8 @@ api("io-load-points-missing", lambda d: A().io.load_points(d / "nosuch.npy"), Fi
 api("io-load-points-directory", lambda d: A().io.load_points(d / "dir.npy"), IsADirectoryError,
     r"dir\.npy is a directory", owner=O)
 api("io-load-points-suffix", lambda d: A().io.load_points(d / "pts.bmp"), ValueError,
-    r"points file name must end in \.npy or \.npz or \.txt or \.csv, got pts\.bmp", owner=O)
+    r"points file name must end in \.npy or \.npz or \.txt or \.csv or \.dat or \.bin, "
+    r"got pts\.bmp", owner=O)
 api("io-load-npz-damaged", lambda d: A().io.load_npz(d / "flip.npz"), ValueError,
     r"flip\.npz is a damaged", owner=O)
 api("io-read-exr-junk", lambda d: A().io.read_exr(d / "junk.exr"), ValueError,

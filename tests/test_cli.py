@@ -70,7 +70,8 @@ def test_help_lists_commands():
 
 def test_points_and_spectrum_files_hold_what_the_library_computes(tmp_path):
     """The written points are the library's set for key(seed) (split: points, shift) bit for bit,
-    and the EXR spectrum is power_spectrum_grid of those points, upright (v_y grows upwards)."""
+    and the EXR spectrum read back by io is power_spectrum_grid of those points, unflipped (DESIGN
+    grid: row 0 is v_y = -r; issue 27: it came back upside down, a 30-degree line at 150)."""
     import jax
 
     from anisosample import samplers, spectrum
@@ -84,9 +85,10 @@ def test_points_and_spectrum_files_hold_what_the_library_computes(tmp_path):
     exr = tmp_path / "s.exr"
     assert cli.main(["spectrum", str(npz), "-o", str(exr), "--radius", "6"]) == 0
     grid = np.asarray(spectrum.power_spectrum_grid(got, 6))
-    np.testing.assert_allclose(io.read_exr(exr)[::-1], grid, rtol=1e-6, atol=1e-9)
-    # upright: the top-left pixel of the file is v = (-6, +6)
-    v = np.array([[-6, 6]])
+    np.testing.assert_allclose(io.read_exr(exr), grid, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(io.load_grid(exr), grid, rtol=1e-6, atol=1e-9)
+    # a grid: row 0, column 0 of the file is v = (-6, -6), by an independent direct sum
+    v = np.array([[-6, -6]])
     ref = np.abs(np.exp(-2j * np.pi * (got.astype(np.float64) @ v.T)).mean()) ** 2
     assert io.read_exr(exr)[0, 0] == pytest.approx(ref, rel=1e-4, abs=1e-7)
 

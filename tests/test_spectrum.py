@@ -139,8 +139,9 @@ def test_spectrum_images(tmp_path, pts4096):
     assert png.stat().st_size > 0
     from anisosample import io
 
-    back = io.read_exr(exr)
-    np.testing.assert_allclose(back[::-1], np.asarray(g), rtol=1e-6)
+    back, meta = io.read_exr(exr, metadata=True)
+    np.testing.assert_allclose(back, np.asarray(g), rtol=1e-6)  # the grid, no flip (issue 27)
+    assert meta["n"] == 4096 and meta["radius"] == 32
     with pytest.raises(FileExistsError):
         spectrum.save_spectrum_image(tmp_path / "s.png", g, n=4096)
 
