@@ -549,6 +549,34 @@ class ConvergenceResult:
         }
 
 
+def _fixed_sets_by_size(label, sampler, ns) -> dict[int, jax.Array] | None:
+    """``{n: (n, 2) set}`` when ``sampler`` is fixed sets, one per size (a mapping by size or a
+    list of sets), checked to cover ``ns``; ``None`` for names and callables."""
+    if isinstance(sampler, Mapping):
+        items = list(sampler.items())
+    elif isinstance(sampler, list | tuple) and not isinstance(sampler, str):
+        items = [(None, s) for s in sampler]
+    else:
+        return None
+    if not items:
+        raise ValueError(f"sampler {label!r} holds no point sets")
+    sets: dict[int, jax.Array] = {}
+    for i, (size, pts) in enumerate(items):
+        pts = check_points(f"sampler {label!r}: set {size if size is not None else i}", pts)
+        m = int(pts.shape[0])
+        if size is not None and int(size) != m:
+            raise ValueError(f"sampler {label!r}: the set under key {size} has {m} points")
+        if m in sets:
+            raise ValueError(f"sampler {label!r} holds two sets of n = {m}; give one set per "
+                             "size (a convergence run shifts each one)")
+        sets[m] = jnp.asarray(pts, dtype=jnp.float32)
+    missing = [m for m in ns if m not in sets]
+    if missing:
+        raise ValueError(f"sampler {label!r} has fixed sets of n = {sorted(sets)}, none of n = "
+                         f"{missing}; ns must be sizes it holds")
+    return sets
+
+
 def convergence(
     f: Callable,
     samplers: Sequence[str] | Mapping[str, object],
@@ -565,8 +593,11 @@ def convergence(
 ) -> ConvergenceResult:
     """Sweep ``n`` over ``ns`` for each sampler and fit ``Var ~ n^slope`` (W Figs. 6, 11).
 
-    ``samplers``: names, or a mapping ``label -> sampler`` (a name or a callable ``(key, n)``;
-    fixed point sets do not fit a sweep over n). ``randomization`` and ``patterns`` may be
+    ``samplers``: names, or a mapping ``label -> sampler``: a name, a callable ``(key, n)``, or
+    *fixed sets, one per size* -- a mapping ``{n: (n, 2) points}`` or a list of ``(n_i, 2)``
+    sets (a user's own sets, e.g. ``io.load_point_sets(path)``), which must hold a set of every
+    size in ``ns`` and are randomized by toroidal shifts (``randomization`` ``"shift"`` or
+    ``"auto"``, one pattern). ``randomization`` and ``patterns`` may be
     per-label mappings; ``patterns`` applies to the samplers randomized by ``"shift"``.
     The same key is used for every n and sampler (common random numbers).
     Only ``n >= fit_min_n`` enter the fit (skip the pre-asymptotic regime).
@@ -594,6 +625,7 @@ def convergence(
         for opt, name in ((randomization, "randomization"), (patterns, "patterns")):
             if isinstance(opt, Mapping) and label not in opt:
                 raise ValueError(f"{name} has no entry for sampler {label!r}")
+    fixed = {label: _fixed_sets_by_size(label, smp, ns) for label, smp in table.items()}
 
     def option(opt, label):
         return opt[label] if isinstance(opt, Mapping) else opt
@@ -605,13 +637,17 @@ def convergence(
         row = []
         mode = option(randomization, label)
         pats = option(patterns, label)
-        if _choose_randomization(mode, *_resolve_sampler(smp, ns[0])) != "shift":
+        sets = fixed[label]
+        if sets is not None:
+            _choose_randomization(mode, None, sets[ns[0]])  # "shift" or "auto" only
+            pats = 1  # one fixed set per size
+        elif _choose_randomization(mode, *_resolve_sampler(smp, ns[0])) != "shift":
             pats = 1  # patterns counts fixed sets; fresh randomizations have none
         for m in ns:
             row.append(
                 estimate_variance(
                     f,
-                    smp,
+                    smp if sets is None else sets[m],
                     m,
                     key,
                     realizations,

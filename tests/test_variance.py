@@ -264,6 +264,39 @@ def test_randomizations_and_fixed_sets(getkey):
     )
 
 
+def _grid_set(m: int) -> np.ndarray:
+    g = (np.arange(m) + 0.5) / m
+    return np.stack(np.meshgrid(g, g), -1).reshape(-1, 2).astype(np.float32)
+
+
+def test_convergence_takes_a_fixed_set_per_size(getkey):
+    """Issue 27: a user's sets, one per size, shifted toroidally per realization. A shifted
+    m x m grid integrating f(x, y) = x is a sawtooth in the shift, uniform over 1/m: its
+    variance is exactly 1 / (12 m^2) = 1 / (12 n), slope -1."""
+
+    def f(x):
+        return x[..., 0]
+
+    ns = (16, 64, 256)
+    key = getkey()
+    sets = [_grid_set(int(math.isqrt(n))) for n in reversed(ns)]  # any order, a list
+    by_size = {n: _grid_set(int(math.isqrt(n))) for n in ns}
+    res = V.convergence(f, {"mine": sets, "by-size": by_size}, ns, key, 4096, exact=0.5)
+    for label in ("mine", "by-size"):
+        np.testing.assert_allclose(res.variances(label), [1 / (12 * n) for n in ns], rtol=0.06)
+        assert res.estimates[label][0].randomization == "shift"
+        assert res.fits[label].ci_low < -1 < res.fits[label].ci_high
+    with pytest.raises(ValueError, match=r"'mine' has fixed sets of n = \[16, 64\], none of "
+                                         r"n = \[256\]"):
+        V.convergence(f, {"mine": sets[1:]}, ns, key, 8)
+    with pytest.raises(ValueError, match=r"'mine' holds two sets of n = 16"):
+        V.convergence(f, {"mine": [_grid_set(4), _grid_set(4), *sets]}, ns, key, 8)
+    with pytest.raises(ValueError, match="fixed point set"):
+        V.convergence(f, {"mine": sets}, ns, key, 8, randomization="fresh")
+    with pytest.raises(ValueError, match=r"'mine': set 1 must lie in \[0, 1\)\^2"):
+        V.convergence(f, {"mine": [sets[0], sets[1] + 1]}, ns, key, 8)
+
+
 def test_bad_input_is_refused():
     f = I.edges([30.0])
     key = jax.random.key(0)
