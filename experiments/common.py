@@ -57,11 +57,25 @@ def reuse_or_compute(path: Path, settings: dict, fresh: bool, compute, *, field:
     return value
 
 
+def portable_path(value):
+    """A path as a record may keep it: relative to the repository (``results/demo``) when it lies
+    inside, else ``<outside>/<name>``; never an absolute path of the machine that wrote it.
+    Anything that is not an absolute path comes back unchanged."""
+    if not isinstance(value, str | Path) or not Path(value).is_absolute():
+        return value
+    path = Path(value).resolve()
+    try:
+        return path.relative_to(ROOT).as_posix()
+    except ValueError:
+        return f"<outside>/{path.name}"
+
+
 def write_record(out: Path, name: str, data: dict, settings: dict, started: float) -> Path:
-    """``out/<name>.json`` with the numbers, the settings, the package version and the machine."""
+    """``out/<name>.json`` with the numbers, the settings (paths made repository-relative by
+    :func:`portable_path`), the package version and the machine."""
     record = {
         "experiment": name,
-        "settings": settings,
+        "settings": {key: portable_path(value) for key, value in settings.items()},
         "provenance": asp.io.provenance(),
         "seconds": round(time.time() - started, 2),
         "command": " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),
