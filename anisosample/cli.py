@@ -164,28 +164,67 @@ def _run_points(args):
 
 
 def _add_spectrum(sub):
-    p = sub.add_parser("spectrum", help="power spectrum image of a point set (PNG or EXR)")
+    p = sub.add_parser("spectrum", help="power spectrum of a point set: a PNG figure (frequency "
+                                        "axes, colour bar) or the raw P_S grid as EXR")
     p.add_argument("points", help=".npy or .npz point set")
-    p.add_argument("-o", "--output", required=True, help="output .png or .exr")
+    p.add_argument("-o", "--output", required=True,
+                   help="output .png (a figure of N P_S, white noise = 1) or .exr (raw P_S, "
+                        "rows v_y)")
     p.add_argument("--radius", type=int, default=None,
                    help="half-width of the frequency grid (default: 2 sqrt(n))")
     p.add_argument("--method", default="auto", choices=["auto", "direct", "nufft"])
+    p.add_argument("--scale", default=None, choices=["linear", "log"],
+                   help="PNG colour scale of N P_S, white noise = 1 (default: linear)")
+    p.add_argument("--clip", type=_clip_option, default=None, metavar="X",
+                   help="PNG: top of the colour range as a multiple of white noise, larger "
+                        "values shown at it (default: 2); 'none' clips nothing")
+    p.add_argument("--mark-directions", type=_float_list, default=None, metavar="DEG,DEG,...",
+                   help="PNG: spectral directions in [0, 180) degrees to mark as dashed lines "
+                        "through the origin, e.g. 0,90,30")
     p.add_argument("--force", action="store_true", help="overwrite an existing output")
+
+
+def _clip_option(text: str) -> float | str:
+    """``--clip``: a finite number > 0, or ``none`` (no clipping)."""
+    if text.strip().lower() == "none":
+        return "none"
+    value = _finite_float(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a number > 0 or 'none', got {text!r}")
+    return value
 
 
 def _run_spectrum(args):
     import numpy as np
 
-    from . import io, spectrum
+    from . import io, plot, spectrum
+    from ._validate import check_directions_deg
 
     pts = io.load_points(args.points)
     out = Path(args.output)
     if out.suffix not in (".png", ".exr"):
         raise ValueError(f"--output must end in .png or .exr, got {out.name}")
+    if out.exists() and not args.force:
+        raise FileExistsError(f"{out} exists; pass --force to replace it")
+    # the picture's options, checked before the spectrum is computed
+    given = [flag for flag, value in (("--scale", args.scale), ("--clip", args.clip),
+                                      ("--mark-directions", args.mark_directions))
+             if value is not None]
+    if out.suffix == ".exr" and given:  # the raw P_S grid: the picture's options do not apply
+        raise ValueError(f"{', '.join(given)} shape the PNG picture; the .exr output holds the "
+                         "raw P_S grid")
+    marks = check_directions_deg("--mark-directions", args.mark_directions or (),
+                                 allow_empty=True)
+    clip = 2.0 if args.clip is None else None if args.clip == "none" else args.clip
     n = pts.shape[0]
     radius = args.radius if args.radius is not None else max(8, int(2 * np.sqrt(n)))
     grid = spectrum.power_spectrum_grid(pts, radius, method=args.method)
-    spectrum.save_spectrum_image(out, grid, n=n, overwrite=args.force)
+    if out.suffix == ".exr":
+        spectrum.save_spectrum_image(out, grid, n=n, overwrite=args.force)
+    else:  # a figure: frequency axes, colour bar, marked directions (plot.spectrum_panel)
+        plot.save_spectrum_figure(out, grid, n=n, scale=args.scale or "linear", clip=clip,
+                                  directions_deg=marks, title=f"power spectrum, {n} points",
+                                  overwrite=args.force)
     print(f"wrote the {2 * radius + 1}^2 power spectrum of {n} points to {out}")
 
 
@@ -245,8 +284,9 @@ def _add_directions(sub):
     p.add_argument("--block", type=int, default=None,
                    help="samples per block side: estimate per block (W Sec. 5.3, e.g. 96)")
     p.add_argument("-o", "--output", default=None,
-                   help="per-block maps as PNG (needs --block): one panel per slot, hue = "
-                        "direction, black = none")
+                   help="per-block maps as a PNG figure (needs --block): one panel per "
+                        "slot at the grid's size, y up, hue = 2 x direction (0 and 180 alike: "
+                        "axial) with a half-wheel key, grey hatched = no estimate")
     p.add_argument("--top-down", action="store_true",
                    help="the grid's first row is the largest y (renderer images)")
     p.add_argument("--method", default="fixed", choices=["fixed", "gradient"])
@@ -268,9 +308,17 @@ def _run_directions(args):
                         ("sigma_px", args.sigma)):
         if value is not None:
             opts[name] = value
-    if args.block is None:
-        if args.output is not None:
+    out = None if args.output is None else Path(args.output)
+    if out is not None:  # before the estimate, which takes seconds
+        if args.block is None:
             raise ValueError("--output (per-block maps) needs --block")
+        if out.suffix != ".png":
+            raise ValueError(f"--output must end in .png, got {out.name}")
+        if out.exists() and not args.force:
+            raise FileExistsError(f"{out} exists; pass --force to replace it")
+        if args.k < 1:
+            raise ValueError(f"--output (per-block maps) needs -k >= 1, got {args.k}")
+    if args.block is None:
         est = directions.estimate(values, k=args.k, details=True, **opts)
         found = [(float(d), float(c)) for d, c, v in
                  zip(est.directions_deg, est.confidence, est.valid, strict=True) if v]
@@ -281,25 +329,18 @@ def _run_directions(args):
             print(f"{d:.1f} deg (confidence {c:.3f})")
         return
     est = directions.estimate_blocks(values, k=args.k, samples_per_block=args.block, **opts)
-    d, v = np.asarray(est.directions_deg), np.asarray(est.valid)
+    v = np.asarray(est.valid)
     by, bx = v.shape[:2]
     counts = np.bincount(v.sum(axis=-1).reshape(-1), minlength=args.k + 1)
     print(f"{by}x{bx} blocks of {args.block}^2 samples; blocks with 0..{args.k} extra "
           f"directions: {counts.tolist()}")
     if args.output is not None:
-        out = Path(args.output)
-        if out.suffix != ".png":
-            raise ValueError(f"--output must end in .png, got {out.name}")
-        import matplotlib
+        from . import plot
 
-        # hue = direction / 180 (a cyclic map for axial data), black where there is none;
-        # row 0 (smallest y) at the bottom, as in DESIGN's grid convention
-        rgb = matplotlib.colormaps["hsv"](np.clip(d, 0, 180) / 180.0)[..., :3]
-        rgb = np.where(v[..., None], rgb, 0.0)
-        panels = [np.pad(rgb[:, :, s][::-1], ((0, 0), (0, 1), (0, 0)), constant_values=1.0)
-                  for s in range(args.k)]
-        io.save_png(out, np.concatenate(panels, axis=1) if panels else np.zeros((by, bx, 3)),
-                    overwrite=args.force)
+        # one panel per slot at the grid's size, row 0 (smallest y) at the bottom as in
+        # DESIGN's grid convention, axial hue with its half-wheel key, no-estimate blocks hatched
+        plot.save_direction_map(out, est, block=args.block, shape=values.shape, origin="lower",
+                                overwrite=args.force)
         print(f"wrote per-block direction maps to {out}")
 
 

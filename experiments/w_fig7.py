@@ -243,7 +243,7 @@ def figure(results, out, cfg, vmax=15.0):
             ax.set_title(titles[slot], fontsize=7)
             ax.set_xticks([])
             ax.set_yticks([])
-    hue = mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(0, 180), cmap="hsv")
+    hue = mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(0, 180), cmap=plot.axial_colormap())
     fig.colorbar(hue, ax=axes[:, 1].ravel().tolist(), label="direction (deg)", shrink=0.6)
     vir = mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(0, vmax), cmap="viridis")
     fig.colorbar(vir, ax=axes[:, 2].ravel().tolist(), label="block error (deg, clipped)",
