@@ -67,7 +67,18 @@ def _seed(text: str) -> int:
 
 # --- points ------------------------------------------------------------------------------------
 
-_POINT_OUTPUTS = (".npy", ".npz", ".txt", ".csv", ".png")
+_POINT_OUTPUTS = (".npy", ".npz", ".txt", ".csv", ".dat", ".bin", ".png")
+_POINT_FORMATS = ("npy", "npz", "txt", "csv", "utk", "utk-bin")  # io.POINT_FORMATS, JAX-free
+
+
+def _add_format_option(p):
+    """``--format``: the point file format, for outputs whose suffix leaves a choice."""
+    p.add_argument("--format", default=None, choices=_POINT_FORMATS,
+                   help="point file format (default: by the suffix: .npy, .npz, .txt, .csv, "
+                        ".dat = UTK text, .bin = UTK binary); 'utk' writes UTK's text format "
+                        "(one 'x y' a line, sets separated by a '#' line) under .txt or .dat, "
+                        "'utk-bin' its binary format (.bin)")
+
 
 
 def _add_directional_options(p):
@@ -94,7 +105,9 @@ def _add_points(sub):
     _add_directional_options(p)
     p.add_argument("-o", "--output", required=True,
                    help="output .npy, .npz (with metadata), .txt ('x y' a line), .csv ('x,y' a "
-                        "line) or .png (a scatter plot of the set)")
+                        "line), .dat / .bin (UTK text / binary) or .png (a scatter plot of the "
+                        "set)")
+    _add_format_option(p)
     p.add_argument("--force", action="store_true", help="overwrite an existing output")
 
 
@@ -129,6 +142,9 @@ def _run_points(args):
     out = Path(args.output)
     if out.suffix.lower() not in _POINT_OUTPUTS:
         raise ValueError(f"--output must end in {', '.join(_POINT_OUTPUTS)}, got {out.name}")
+    if out.suffix.lower() == ".png" and args.format is not None:
+        raise ValueError("--format applies to point files, not to the .png picture")
+    io._point_format(out, args.format)  # a --format the suffix does not take: before the work
     if out.exists() and not args.force:
         raise FileExistsError(f"{out} exists; pass --force to replace it")
     if args.base != "pmj02bn" and args.sampler != "sheared":
@@ -156,8 +172,33 @@ def _run_points(args):
         plot.save_points_figure(out, pts, title=f"{sampler.name}, n = {args.n}",
                                 overwrite=args.force)
     else:
-        io.save_points(out, pts, meta, overwrite=args.force)
+        io.save_points(out, pts, meta, format=args.format, overwrite=args.force)
     print(f"wrote {args.n} {sampler.name} points to {out}")
+
+
+def _add_points_option(p, what: str):
+    p.add_argument("--points", dest="points_file", default=None, metavar="FILE",
+                   help=f"{what}: a point file, .npy, .npz, .txt, .csv, UTK text (.dat, or "
+                        ".txt with sets separated by '#' lines) or UTK binary (.bin); points "
+                        "finite, in [0, 1)^2")
+
+
+def _load_user_points(args, *, one: bool):
+    """The user's point sets from ``--points FILE`` (or the positional file of ``spectrum``):
+    a list of checked ``(n_i, 2)`` float32 sets; ``one``: the file must hold exactly one."""
+    from . import io
+
+    positional = getattr(args, "points", None)
+    if positional is not None and args.points_file is not None:
+        raise ValueError("give the point file once: as --points FILE or as the positional file")
+    path = args.points_file if args.points_file is not None else positional
+    if path is None:
+        raise ValueError("--points FILE is required: the point set to measure")
+    sets = io.load_point_sets(path)
+    if one and len(sets) != 1:
+        raise ValueError(f"{path} holds {len(sets)} point sets (n = "
+                         f"{', '.join(str(len(s)) for s in sets)}); this command takes one set")
+    return sets
 
 
 # --- spectrum ----------------------------------------------------------------------------------
@@ -166,7 +207,9 @@ def _run_points(args):
 def _add_spectrum(sub):
     p = sub.add_parser("spectrum", help="power spectrum of a point set: a PNG figure (frequency "
                                         "axes, colour bar) or the raw P_S grid as EXR")
-    p.add_argument("points", help=".npy or .npz point set")
+    p.add_argument("points", nargs="?", default=None,
+                   help="point file (as --points; kept for older command lines)")
+    _add_points_option(p, "the point set (one set)")
     p.add_argument("-o", "--output", required=True,
                    help="output .png (a figure of N P_S, white noise = 1) or .exr (raw P_S, "
                         "rows v_y)")
@@ -197,10 +240,10 @@ def _clip_option(text: str) -> float | str:
 def _run_spectrum(args):
     import numpy as np
 
-    from . import io, plot, spectrum
+    from . import plot, spectrum
     from ._validate import check_directions_deg
 
-    pts = io.load_points(args.points)
+    pts = _load_user_points(args, one=True)[0]
     out = Path(args.output)
     if out.suffix not in (".png", ".exr"):
         raise ValueError(f"--output must end in .png or .exr, got {out.name}")
@@ -530,9 +573,18 @@ def _add_variance(sub):
 
     p = sub.add_parser("variance", help="estimator variance vs n on an analytic integrand")
     p.add_argument("--integrand", required=True, help=INTEGRAND_SPEC_HELP)
-    p.add_argument("--sampler", default="random,jittered,sobol-owen,pmj02bn",
-                   help=f"comma-separated; any of: {', '.join(BASELINES + DIRECTIONAL_SAMPLERS)}")
-    p.add_argument("--n", type=_int_list, default=[64, 256, 1024], help="comma-separated sizes")
+    p.add_argument("--sampler", default=None,
+                   help="comma-separated; any of: "
+                        f"{', '.join(BASELINES + DIRECTIONAL_SAMPLERS)} (default: "
+                        f"{','.join(_DEFAULT_VARIANCE_SAMPLERS)}, or none with --points)")
+    p.add_argument("--points", dest="points_files", action="append", default=None,
+                   metavar="FILE",
+                   help="your own point sets: a point file (.npy, .npz, .txt, .csv, UTK .dat / "
+                        ".bin) with one fixed set per size, each shifted toroidally per "
+                        "realization; repeat to compare several files")
+    p.add_argument("--n", type=_int_list, default=None,
+                   help="comma-separated sizes (default: 64,256,1024, or the sizes of the "
+                        "--points sets)")
     p.add_argument("--realizations", type=int, default=1024)
     p.add_argument("--randomization", default="auto",
                    choices=["auto", "shift", "fresh", "fresh+shift"],
@@ -541,8 +593,43 @@ def _add_variance(sub):
                    help="fixed sets per n for randomization 'shift'")
     p.add_argument("--seed", type=_seed, default=0, help="integer seed of the JAX key")
     _add_directional_options(p)
-    p.add_argument("-o", "--output", default="variance.json", help="output JSON")
-    p.add_argument("--force", action="store_true", help="overwrite an existing output")
+    p.add_argument("-o", "--output", action="append", default=None, metavar="FILE",
+                   help="also write FILE: .json (the record) or .png (a convergence plot with "
+                        "the fitted slopes and their intervals); repeat for both (default: "
+                        "print the table only)")
+    p.add_argument("--force", action="store_true", help="overwrite existing outputs")
+
+
+
+_DEFAULT_VARIANCE_SAMPLERS = ("random", "jittered", "sobol-owen", "pmj02bn")
+
+
+def _variance_outputs(args) -> list[Path]:
+    """The ``-o`` files: .json or .png, each once, none existing unless ``--force``."""
+    outs = [Path(o) for o in args.output or []]
+    for out in outs:
+        if out.suffix.lower() not in (".json", ".png"):
+            raise ValueError(f"--output must end in .json or .png, got {out.name}")
+    if len({o.suffix.lower() for o in outs}) != len(outs):
+        raise ValueError("--output names two files of one kind; give at most one .json and one "
+                         ".png")
+    for out in outs:
+        if out.exists() and not args.force:
+            raise FileExistsError(f"{out} exists; pass --force to replace it")
+    return outs
+
+
+def _user_point_sets(args) -> dict[str, list]:
+    """``--points`` files -> ``{label: sets}``, labelled by file name (the path if two names
+    agree)."""
+    from . import io
+
+    files = args.points_files or []
+    names = [Path(f).name for f in files]
+    labels = [n if names.count(n) == 1 else str(f) for n, f in zip(names, files, strict=True)]
+    if len(set(labels)) != len(labels):
+        raise ValueError("--points names a file twice")
+    return {label: io.load_point_sets(f) for label, f in zip(labels, files, strict=True)}
 
 
 def _run_variance(args):
@@ -551,17 +638,22 @@ def _run_variance(args):
     from . import integrands, io
     from . import variance as V
 
-    out = Path(args.output)
-    if out.suffix != ".json":
-        raise ValueError(f"--output must end in .json, got {out.name}")
-    if out.exists() and not args.force:
-        raise FileExistsError(f"{out} exists; pass --force to overwrite it")
+    outs = _variance_outputs(args)
     f = integrands.from_spec(args.integrand)
-    names = [s.strip() for s in args.sampler.split(",") if s.strip()]
-    if not names:
-        raise ValueError("--sampler must name at least one sampler")
+    mine = _user_point_sets(args)
+    spec = args.sampler if args.sampler is not None else (
+        "" if mine else ",".join(_DEFAULT_VARIANCE_SAMPLERS))
+    names = [s.strip() for s in spec.split(",") if s.strip()]
+    if not names and not mine:
+        raise ValueError("--sampler must name at least one sampler (or give --points FILE)")
     if len(set(names)) != len(names):
         raise ValueError(f"--sampler names a sampler twice: {args.sampler!r}")
+    clash = [name for name in names if name in mine]
+    if clash:
+        raise ValueError(f"--points file {clash[0]!r} has a sampler's name; rename the file")
+    if args.patterns != 1 and not names:
+        raise ValueError("--patterns counts the sets a named sampler draws per n; the sets of a "
+                         "--points file are fixed (one per size)")
     if args.base != "pmj02bn" and "sheared" not in names:
         raise ValueError("--base applies to the sheared sampler, which --sampler does not name")
     chosen = {name: _make_sampler(name, args, only=False) for name in names}
@@ -571,28 +663,105 @@ def _run_variance(args):
     if unused:
         raise ValueError(f"{' and '.join(unused)} given but --sampler names neither aligned nor "
                          "sheared")
-    result = V.convergence(f, chosen, args.n, jax.random.key(args.seed), args.realizations,
-                           exact=f.integral, randomization=args.randomization,
-                           patterns=args.patterns, progress=True)
-    width = max(16, *(len(s) + 2 for s in names))
+    ns = args.n
+    if ns is None:
+        if mine:  # the sizes every --points file holds
+            common = set.intersection(*({len(s) for s in sets} for sets in mine.values()))
+            if not common:
+                raise ValueError("the --points files hold no size in common; choose sizes with "
+                                 "--n")
+            ns = sorted(common)
+        else:
+            ns = [64, 256, 1024]
+    for label, sets in mine.items():
+        held = sorted(len(s) for s in sets)
+        missing = [m for m in ns if m not in held]
+        if missing:
+            raise ValueError(f"--points {label} holds sets of n = {held}, none of n = {missing}")
+        if len(set(held)) != len(held):
+            raise ValueError(f"--points {label} holds two sets of one size (n = {held}); a "
+                             "convergence run takes one fixed set per size")
+    table = {**chosen, **{label: {len(s): s for s in sets} for label, sets in mine.items()}}
+    labels = list(table)
+    randomization = {label: "shift" if label in mine else args.randomization for label in labels}
+    key = jax.random.key(args.seed)
+    if len(set(ns)) >= 2:
+        result = V.convergence(f, table, ns, key, args.realizations, exact=f.integral,
+                               randomization=randomization, patterns=args.patterns,
+                               progress=True)
+        record = result.as_dict()
+        estimates, fits = result.estimates, result.fits
+    else:  # one size: the variances, no slope
+        estimates = {label: (V.estimate_variance(
+            f, smp[ns[0]] if label in mine else smp, ns[0], key, args.realizations, f.integral,
+            randomization=randomization[label],
+            patterns=args.patterns if label not in mine else 1),) for label, smp in table.items()}
+        fits = {}
+        record = {"ns": list(ns), "samplers": {
+            label: {"variance": [e.variance for e in ests],
+                    "std_error": [e.std_error for e in ests],
+                    "ci_low": [e.ci_low for e in ests], "ci_high": [e.ci_high for e in ests],
+                    "randomization": ests[0].randomization,
+                    "realizations": ests[0].realizations, "fit": None}
+            for label, ests in estimates.items()}}
+    width = max(16, *(len(s) + 2 for s in labels))
     print(f"integrand {args.integrand}: exact integral {f.integral:.12g}")
-    print(f"{'n':>8}" + "".join(f"{s:>{width}}" for s in names))
-    for i, n in enumerate(result.ns):
-        print(f"{n:>8}" + "".join(f"{result.estimates[s][i].variance:>{width}.4e}" for s in names))
-    print(f"{'slope':>8}" + "".join(f"{result.fits[s].slope:>{width}.3f}" for s in names))
-    print(f"{'95% CI':>8}" + "".join(
-        f"{f' [{result.fits[s].ci_low:.2f},{result.fits[s].ci_high:.2f}]':>{width}}"
-        for s in names))
-    record = {"integrand": args.integrand, "integral": f.integral, "seed": args.seed,
-              "realizations": args.realizations, "patterns": args.patterns,
-              "randomization": args.randomization,
-              "sampler_options": {name: {"directions_deg": args.directions} if name == "aligned"
-                                  else {"direction_deg": args.direction, "base": args.base}
-                                  for name in names if name in ("aligned", "sheared")},
-              **result.as_dict(),
-              "provenance": io.provenance()}
-    io.save_json(out, record, overwrite=args.force)
-    print(f"wrote {out}")
+    print(f"{'n':>8}" + "".join(f"{s:>{width}}" for s in labels))
+    for i, n in enumerate(ns):
+        print(f"{n:>8}" + "".join(f"{estimates[s][i].variance:>{width}.4e}" for s in labels))
+    if fits:
+        print(f"{'slope':>8}" + "".join(f"{fits[s].slope:>{width}.3f}" for s in labels))
+        print(f"{'95% CI':>8}" + "".join(
+            f"{f' [{fits[s].ci_low:.2f},{fits[s].ci_high:.2f}]':>{width}}" for s in labels))
+    else:
+        print("(one size: no slope; give sets or --n of two sizes or more for one)")
+    for out in outs:
+        if out.suffix.lower() == ".json":
+            full = {"integrand": args.integrand, "integral": f.integral, "seed": args.seed,
+                    "realizations": args.realizations, "patterns": args.patterns,
+                    "randomization": args.randomization,
+                    "points_files": {label: str(p) for label, p in
+                                     zip(mine, args.points_files or [], strict=True)},
+                    "sampler_options": {name: {"directions_deg": args.directions}
+                                        if name == "aligned"
+                                        else {"direction_deg": args.direction, "base": args.base}
+                                        for name in names if name in ("aligned", "sheared")},
+                    **record,
+                    "provenance": io.provenance()}
+            io.save_json(out, full, overwrite=args.force)
+        else:
+            _save_variance_figure(out, ns, estimates, fits, title=f"{args.integrand}",
+                                  overwrite=args.force)
+        print(f"wrote {out}")
+
+
+def _save_variance_figure(path, ns, estimates, fits, *, title: str, overwrite: bool):
+    """Log-log variance against n per sampler (``plot.convergence_panel``): the measured
+    variances with their intervals shaded, the fitted power law dashed, slope and its interval
+    in the legend."""
+    import numpy as np
+
+    from . import plot
+
+    fig, axes = plot.new_figure(size=4.2)
+    ax = axes[0, 0]
+    x = np.asarray(ns, dtype=float)
+    for label, ests in estimates.items():
+        fit = fits.get(label)
+        line = plot.convergence_panel(
+            ax, x, [e.variance for e in ests], label=label,
+            slope=None if fit is None else fit.slope,
+            slope_ci=None if fit is None else (fit.ci_low, fit.ci_high),
+            lower=[e.ci_low for e in ests], upper=[e.ci_high for e in ests])
+        if fit is not None:
+            ax.loglog(x, np.exp(fit.intercept) * x ** fit.slope, ls="--", lw=0.8,
+                      color=line.get_color())
+    ax.set_xscale("log", base=2)
+    ax.set_title(f"variance vs N: {title}\n(slope [95% CI] of the dashed fit; shaded: "
+                 "95% CI per N)", fontsize=8)
+    ax.legend(fontsize=7)
+    plot.save_figure(fig, path, formats=(Path(path).suffix.lower().lstrip("."),),
+                     overwrite=overwrite)
 
 
 # --- render ------------------------------------------------------------------------------------
