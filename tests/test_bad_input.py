@@ -923,6 +923,28 @@ api("plot-points-nan", lambda d: A().plot.save_points_figure(d / "o_pts_nan.png"
     np.load(d / "nan.npy")), ValueError, r"points contains NaN or Inf", owner="plot")
 api("plot-save-points-figure-suffix", lambda d: A().plot.save_points_figure(d / "p.bmp", PTS),
     ValueError, r"must end in \.png, \.pdf or \.svg", owner="plot")
+api("plot-spectrum-scale-unknown", lambda d: A().plot.spectrum_image(np.ones((5, 5)), n=4,
+    scale="cubic"), ValueError, r"scale must be one of \['linear', 'log'\]", owner="plot")
+api("plot-spectrum-clip-negative", lambda d: A().plot.spectrum_image(np.ones((5, 5)), n=4,
+    clip=-1.0), ValueError, r"clip must be None \(no clipping\) or a finite multiple",
+    owner="plot")
+api("plot-spectrum-clip-nan", lambda d: A().plot.spectrum_image(np.ones((5, 5)), n=4, clip=NAN),
+    ValueError, r"clip must be None", owner="plot")
+api("plot-spectrum-grid-nan", lambda d: A().plot.spectrum_image(np.full((5, 5), NAN), n=4),
+    ValueError, r"grid contains NaN or Inf", owner="plot")
+api("plot-spectrum-grid-even", lambda d: A().plot.spectrum_image(np.ones((4, 4)), n=4),
+    ValueError, r"grid must be a square centred spectrum of odd side", owner="plot")
+api("plot-spectrum-directions-200", lambda d: A().plot.save_spectrum_figure(d / "o_sp.png",
+    np.ones((5, 5)), n=4, directions_deg=[200.0]), ValueError,
+    r"directions_deg must lie in \[0, 180\)", owner="plot")
+api("plot-direction-map-k-zero", lambda d: A().plot.save_direction_map(d / "o_dm.png",
+    A().directions.Estimate(*(np.zeros((2, 2, 0)),) * 4), block=4, shape=(8, 8)), ValueError,
+    r"no direction slots \(k = 0\)", owner="plot")
+api("plot-direction-map-shape", lambda d: A().plot.direction_map_rgb(np.zeros((2, 2)),
+    np.ones((2, 2), bool), block=4, shape=(8, 20)), ValueError,
+    r"shape \(8, 20\) does not fit 2x2 blocks of 4", owner="plot")
+api("plot-direction-rgb-nan", lambda d: A().plot.direction_rgb(NAN, True), ValueError,
+    r"directions_deg holds NaN or Inf where valid is true", owner="plot")
 
 # --- the command line ---------------------------------------------------------------------------
 
@@ -974,6 +996,18 @@ cli("spectrum-radius-huge", "spectrum {d}/pts.npy -o {o}/s.png --radius 100000",
 cli("spectrum-method-unknown", "spectrum {d}/pts.npy -o {o}/s.png --method fft",
     r"argument --method: invalid choice: 'fft'")
 cli("spectrum-wrong-suffix", "spectrum {d}/pts.npy -o {o}/s.jpg", r"--output must end in \.png")
+cli("spectrum-clip-negative", "spectrum {d}/pts.npy -o {o}/s.png --clip -1",
+    r"argument --clip: expected a number > 0 or 'none'")
+cli("spectrum-clip-nan", "spectrum {d}/pts.npy -o {o}/s.png --clip nan",
+    r"argument --clip: expected a finite number")
+cli("spectrum-scale-unknown", "spectrum {d}/pts.npy -o {o}/s.png --scale cubic",
+    r"argument --scale: invalid choice: 'cubic'")
+cli("spectrum-mark-directions-200", "spectrum {d}/pts.npy -o {o}/s.png --mark-directions 0,200",
+    r"--mark-directions must lie in \[0, 180\) degrees")
+cli("spectrum-mark-directions-text", "spectrum {d}/pts.npy -o {o}/s.png --mark-directions 3x",
+    r"argument --mark-directions: expected comma-separated numbers")
+cli("spectrum-picture-options-for-exr", "spectrum {d}/pts.npy -o {o}/s.exr --scale log",
+    r"--scale shape the PNG picture; the \.exr output holds the raw P_S grid")
 cli("synthesize-n-zero", "synthesize -n 0 --directions 0,90,30 -o {o}/o.npz", r"n must be >= ")
 cli("synthesize-direction-200", "synthesize -n 64 --directions 0,90,200 -o {o}/o.npz",
     r"directions_deg must lie in \[0, 180\)")
@@ -1003,6 +1037,10 @@ cli("directions-sigma-inf", "directions {d}/grid.npy --sigma inf",
     r"argument --sigma: expected a finite number")
 cli("directions-output-without-block", "directions {d}/grid.npy -o {o}/m.png",
     r"--output \(per-block maps\) needs --block")
+cli("directions-output-k-zero", "directions {d}/grid.npy --block 48 -k 0 -o {o}/m.png",
+    r"--output \(per-block maps\) needs -k >= 1, got 0")
+cli("directions-output-wrong-suffix", "directions {d}/grid.npy --block 48 -o {o}/m.jpg",
+    r"--output must end in \.png")
 cli("tables-no-action", "tables", r"required: ACTION")
 cli("tables-info-missing", "tables info {d}/nosuch", r"nosuch")
 cli("tables-info-not-a-table", "tables info {d}/not_a_table", r"not_a_table.*table\.json")
