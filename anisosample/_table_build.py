@@ -121,11 +121,12 @@ WARM_LEARNING_RATE = 0.2
 """Learning rate of a warm-started set (in units of the point spacing; cold: 0.5)."""
 
 
-def warm_source(n: int, *, exclude=None) -> _t.Table | None:
-    """The complete 3-direction table for ``n`` on the search path (the shipped tables first
-    after ``$ANISOSAMPLE_TABLES``), the fixed source a 4-direction set is warm-started from."""
+def warm_source(n: int, *, exclude=None, prefix: str = "none") -> _t.Table | None:
+    """The complete 3-direction table for ``n`` (and ``prefix``) on the search path (the shipped
+    tables first after ``$ANISOSAMPLE_TABLES``), the fixed source a 4-direction set is
+    warm-started from."""
     for root in _t.table_dirs():
-        path = root / _t.table_name(3, n)
+        path = root / _t.table_name(3, n, prefix)
         if exclude is not None and path == Path(exclude):
             continue
         if (path / "table.json").exists():
@@ -138,17 +139,19 @@ def warm_source(n: int, *, exclude=None) -> _t.Table | None:
     return None
 
 
-def warm_points(n: int, extra, fingerprint: str) -> np.ndarray:
+def warm_points(n: int, extra, fingerprint: str, prefix: str = "none") -> np.ndarray:
     """The warm start of the 4-direction set ``extra = (a, b)``: the set of the 3-direction
     table ``fingerprint`` for ``a`` (dark along 0, 90 and ``a``), turned by the symmetry that
-    maps its canonical set to ``a``. Deterministic: it depends on the source table only."""
+    maps its canonical set to ``a`` (its prefix put back in the prefix's order). Deterministic:
+    it depends on the source table only."""
     for root in _t.table_dirs():
-        path = root / _t.table_name(3, n)
+        path = root / _t.table_name(3, n, prefix)
         if (path / "table.json").exists():
             tab = _t.open_table(path, n=n, kind=3)
             if tab.settings["fingerprint"] == fingerprint:
                 c = _t.canonicalize((int(extra[0]),), kind=3)
-                return _t.transform_points(tab.load(c.extra), c.transform)
+                return _t.restore_prefix(_t.transform_points(tab.load(c.extra), c.transform),
+                                         prefix)
     raise FileNotFoundError(f"the 3-direction table for n={n} this table is warm-started from "
                             f"(fingerprint {fingerprint[:12]}...) is not on the search path")
 
@@ -173,7 +176,8 @@ def _build_one(table: _t.Table, index: int, extra, device, checkpoint_every: int
     opts = dict(settings["synthesis"])
     opts.pop("batch", None)
     warm = opts.pop("warm_start", None)
-    init = None if warm is None else warm_points(table.n, extra, warm["fingerprint"])
+    init = None if warm is None else warm_points(table.n, extra, warm["fingerprint"],
+                                                 _t.table_prefix(table))
     ckdir = table.path / ".ckpt"
     ckdir.mkdir(exist_ok=True)
     ckpt = ckdir / f"{_t.set_name(extra)}.npz"
@@ -206,7 +210,8 @@ def _build_group(table: _t.Table, indices, group, devices, checkpoint_every: int
     opts = dict(settings["synthesis"])
     opts.pop("batch", None)
     warm = opts.pop("warm_start", None)
-    init = None if warm is None else np.stack([warm_points(table.n, e, warm["fingerprint"])
+    init = None if warm is None else np.stack([warm_points(table.n, e, warm["fingerprint"],
+                                                           _t.table_prefix(table))
                                                for e in group])
     ckpt = None
     if len(devices) == 1:
@@ -364,7 +369,8 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
     synth = {k: v for k, v in synthesis_options.items() if v is not None}
     if batch > 1:
         synth["batch"] = batch
-    out = Path(out) if out is not None else _t.cache_table_path(kind, n)
+    prefix = _t.check_table_prefix(synth.get("prefix"))
+    out = Path(out) if out is not None else _t.cache_table_path(kind, n, prefix)
     existing = _existing_synthesis(out, kind)  # an existing table keeps its own choices
     if warm_start is None:
         warm_start = kind == 4 if existing is None else "warm_start" in existing
@@ -375,9 +381,9 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
             synth["nufft_precision"] = FOUR_DIRECTION_PRECISION
         elif "nufft_precision" in existing:  # a table from before the option has none
             synth["nufft_precision"] = existing["nufft_precision"]
-    src = warm_source(n, exclude=out) if warm_start and kind == 4 else None
+    src = warm_source(n, exclude=out, prefix=prefix) if warm_start and kind == 4 else None
     if src is not None:
-        synth["warm_start"] = {"table": _t.table_name(3, n),
+        synth["warm_start"] = {"table": _t.table_name(3, n, prefix),
                                "fingerprint": src.settings["fingerprint"]}
         synth.setdefault("steps", WARM_STEPS)
         synth.setdefault("learning_rate", WARM_LEARNING_RATE)

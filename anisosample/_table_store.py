@@ -174,6 +174,22 @@ def transform_points(points: np.ndarray, transform: str) -> np.ndarray:
     return np.stack(out, axis=-1).astype(np.float32)
 
 
+def restore_prefix(points: np.ndarray, prefix: str) -> np.ndarray:
+    """A transformed set of a table with a (symmetric) ``prefix``: its first ``m`` points are
+    the prefix's points in another order; put them back in the prefix's order, so every set a
+    table serves starts with the prefix bit for bit (:func:`anisosample.prefix.align_prefix`)."""
+    if prefix == "none":
+        return points
+    from . import prefix as _prefix
+
+    return _prefix.align_prefix(points, _prefix.prefix_points(prefix))
+
+
+def table_prefix(table: Table) -> str:
+    """The prefix the sets of ``table`` start with (``"none"`` for tables without one)."""
+    return table.settings["synthesis"].get("prefix", "none")
+
+
 def apply_symmetry(points, transform: str) -> jax.Array:
     """Apply one of :data:`TRANSFORMS` to a point set (float32, stays in ``[0, 1)^2``).
 
@@ -201,10 +217,10 @@ def cache_dir() -> Path:
     return Path(base) / "anisosample" / "tables"
 
 
-def cache_table_path(kind: int, n: int) -> Path:
+def cache_table_path(kind: int, n: int, prefix: str = "none") -> Path:
     """Where the user cache keeps the ``kind``-direction table for ``n`` points (the default
     ``out`` of a build and the target of on-demand lookups)."""
-    return cache_dir() / table_name(kind, n)
+    return cache_dir() / table_name(kind, n, prefix)
 
 
 def shipped_dir() -> Path:
@@ -218,23 +234,41 @@ def table_dirs() -> list[Path]:
     return [Path(p) for p in env.split(os.pathsep) if p] + [shipped_dir(), cache_dir()]
 
 
-def table_name(kind: int, n: int) -> str:
-    return f"d{kind}_n{n}"
+def table_name(kind: int, n: int, prefix: str = "none") -> str:
+    """``d{kind}_n{n}``, or ``d{kind}_n{n}_{prefix}`` for sets with a fixed prefix
+    (:mod:`anisosample.prefix`, e.g. ``d3_n4096_dihedral-32``)."""
+    return f"d{kind}_n{n}" + ("" if prefix == "none" else f"_{prefix}")
 
 
-def find_table(kind: int, n: int, *, root=None) -> Path | None:
-    """The directory of the ``kind``-direction table for ``n`` points, or ``None``.
+def check_table_prefix(prefix) -> str:
+    """A prefix a table can hold: ``"none"`` or a symmetric ``"dihedral-<m>"`` (a table serves
+    most directions by mirroring, swapping or rotating a canonical set, which keeps only a prefix
+    that the square's symmetries map onto itself: :mod:`anisosample.prefix`)."""
+    from . import prefix as _prefix
 
-    ``root``: a table directory itself or a directory holding ``d{kind}_n{n}/``; default: the
+    spec = _prefix.check_prefix("prefix", "none" if prefix is None else prefix)
+    if spec != "none" and not spec.startswith("dihedral-"):
+        raise ValueError(f"prefix {spec!r} cannot be held by a table: its symmetry reduction "
+                         "mirrors, swaps and rotates sets, which keeps only a symmetric prefix; "
+                         f"use 'dihedral-<m>' (e.g. {_prefix.DEFAULT_PREFIX!r}) or 'none'")
+    return spec
+
+
+def find_table(kind: int, n: int, *, root=None, prefix: str = "none") -> Path | None:
+    """The directory of the ``kind``-direction table for ``n`` points (and ``prefix``), or
+    ``None``.
+
+    ``root``: a table directory itself or a directory holding :func:`table_name`; default: the
     search path :func:`table_dirs`.
     """
     kind, n = check_kind(kind), check_int("n", n, minimum=2)
+    name = table_name(kind, n, check_table_prefix(prefix))
     roots = [Path(root)] if root is not None else table_dirs()
     for r in roots:
         if (r / "table.json").exists():
             return r
-        if (r / table_name(kind, n) / "table.json").exists():
-            return r / table_name(kind, n)
+        if (r / name / "table.json").exists():
+            return r / name
     return None
 
 

@@ -64,6 +64,7 @@ import numpy as np
 from . import frequencies as _freq
 from . import io as _io
 from . import losses as _losses
+from . import prefix as _prefix
 from . import spectrum as _spectrum
 from ._validate import (
     ONE_MINUS_EPSILON,
@@ -92,7 +93,7 @@ _DEFAULTS = {
 _POSITIVE = ("learning_rate", "final_lr_fraction", "b1", "b2", "adam_eps", "nufft_eps")
 OPTIONS = ("steps", "learning_rate", "final_lr_fraction", "b1", "b2", "adam_eps", "c",
            "spectrum_weight", "boundary", "design", "frequency_options", "init", "method",
-           "nufft_eps", "nufft_precision")
+           "nufft_eps", "nufft_precision", "prefix")
 """Every synthesis option a :class:`Recipe` holds (besides the recipe's name)."""
 
 
@@ -119,7 +120,9 @@ class Recipe(eqx.Module):
     (:func:`anisosample.frequencies.design`); ``init`` names the sampler of the initial set;
     ``method``, ``nufft_eps`` and ``nufft_precision`` (``"double"``, or ``"single"``: the type-1
     transforms in float32, :data:`anisosample.spectrum.PRECISIONS`; the 4-direction tables'
-    choice) are the spectrum engine's (:mod:`anisosample.spectrum`).
+    choice) are the spectrum engine's (:mod:`anisosample.spectrum`). ``prefix`` (W Sec. 7;
+    :mod:`anisosample.prefix`): ``"none"``, ``"dihedral-<m>"`` or ``"pmj02bn-<m>"``: the set's
+    first ``m`` points are that fixed isotropic prefix, bit for bit, and only the others move.
     """
 
     name: str = eqx.field(static=True, default="rate")
@@ -138,6 +141,7 @@ class Recipe(eqx.Module):
     method: str = eqx.field(static=True, default="auto")
     nufft_eps: float = eqx.field(static=True, default=1e-7)
     nufft_precision: str = eqx.field(static=True, default="double")
+    prefix: str = eqx.field(static=True, default="none")
 
     def __check_init__(self):
         from . import samplers
@@ -156,10 +160,15 @@ class Recipe(eqx.Module):
             raise ValueError(f"init must be one of {samplers.names()}, got {self.init!r}")
         check_choice("method", self.method, _spectrum.METHODS)
         check_choice("nufft_precision", self.nufft_precision, _spectrum.PRECISIONS)
+        _prefix.check_prefix("prefix", self.prefix)
 
     def record(self) -> dict:
-        """The JSON-able record of every option (stored with results, fingerprinted by tables)."""
+        """The JSON-able record of every option (stored with results, fingerprinted by tables).
+        ``prefix`` appears only when there is one, so the records (and table fingerprints) of
+        sets without a prefix are what they were before the option existed."""
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        if out["prefix"] == "none":
+            del out["prefix"]
         out["recipe"] = out.pop("name")
         out["frequency_options"] = dict(self.frequency_options)
         return _io.to_jsonable(out)
@@ -301,12 +310,18 @@ def _sw_value_and_grad(c, x, d, tgt):
 @functools.partial(jax.jit, static_argnums=0)
 def _adam_step(hyper, x, m, v, t, vals, grads):
     """Sum the terms' values and gradients (in their order), take one Adam step at the decayed
-    learning rate, wrap or clip: ``(x, m, v, t + 1, loss before the step)``."""
-    lr0, decay, b1, b2, eps, wrap = hyper
+    learning rate, wrap or clip: ``(x, m, v, t + 1, loss before the step)``. The first ``fixed``
+    points (a prefix, W Sec. 7) get no gradient and no step: they stay as they are, bit for bit."""
+    lr0, decay, b1, b2, eps, wrap, fixed = hyper
     val = functools.reduce(jnp.add, vals)
     g = functools.reduce(jnp.add, grads)
+    if fixed:
+        free = (jnp.arange(x.shape[0]) >= fixed)[:, None]
+        g = jnp.where(free, g, 0.0)
     lr = lr0 * decay ** t.astype(jnp.float64)
     dx, (m, v) = adam_update(g, (m, v), (t + 1).astype(x.dtype), lr=lr, b1=b1, b2=b2, eps=eps)
+    if fixed:
+        dx = jnp.where(free, dx, 0.0)
     x = x + dx
     x = x - jnp.floor(x) if wrap else jnp.clip(x, 0.0, 1.0 - 2.0**-53)
     return x, m, v, t + 1, val
@@ -377,7 +392,37 @@ def _evaluate(objectives, xs) -> list:
 def _hyper(recipe: Recipe, n: int) -> tuple:
     lr0 = recipe.learning_rate / math.sqrt(n)
     decay = recipe.final_lr_fraction ** (1.0 / max(recipe.steps - 1, 1))
-    return (lr0, decay, recipe.b1, recipe.b2, recipe.adam_eps, recipe.boundary == "wrap")
+    return (lr0, decay, recipe.b1, recipe.b2, recipe.adam_eps, recipe.boundary == "wrap",
+            _prefix.prefix_size(recipe.prefix))
+
+
+def _resolve_prefix(prefix, options: dict):
+    """``synthesize``'s ``prefix=``: ``None`` (the recipe's), a spec string (goes to the recipe)
+    or explicit ``(m, 2)`` points (the recipe gets their
+    :func:`~anisosample.prefix.explicit_prefix_name`). Returns
+    the explicit points (float32) or ``None``."""
+    if prefix is None:
+        return None
+    if isinstance(prefix, str):
+        options["prefix"] = prefix
+        return None
+    pts = np.asarray(check_points("prefix", prefix), np.float32)
+    options["prefix"] = _prefix.explicit_prefix_name(pts)
+    return pts
+
+
+def _check_prefix_fits(rec: Recipe, n: int) -> None:
+    m = _prefix.prefix_size(rec.prefix)
+    if m and 4 * m > n:
+        raise ValueError(f"prefix has {m} points, more than n/4 = {n / 4:g} for n={n}: a prefix "
+                         "holds 1 to n/4 points (the rest must be free to shape the spectrum)")
+
+
+def _start_with_prefix(x0: np.ndarray, rec: Recipe, explicit) -> np.ndarray:
+    if _prefix.prefix_size(rec.prefix) == 0:
+        return x0
+    pts = explicit if explicit is not None else _prefix.prefix_points(rec.prefix)
+    return _prefix.place_prefix(x0, pts)
 
 
 def _run_chunk(objectives, state, hyper, chunk: int, last: bool):
@@ -529,7 +574,7 @@ def _initial_points(key, n, init):
 
 
 def synthesize(key, n: int, directions_deg, *, recipe: str | Recipe = "rate",
-               initial_points=None, checkpoint: str | Path | None = None,
+               initial_points=None, prefix=None, checkpoint: str | Path | None = None,
                checkpoint_every: int = 50, show_progress: bool = True, callback=None,
                return_info: bool = False, **options) -> SynthesisResult:
     """Synthesize ``n`` points whose spectrum is dark along the spectral ``directions_deg``.
@@ -548,6 +593,13 @@ def synthesize(key, n: int, directions_deg, *, recipe: str | Recipe = "rate",
         initial_points: start from these ``(n, 2)`` points in ``[0, 1)^2`` instead of the
             recipe's ``init`` sampler (a warm start; the key is then unused, and the points'
             SHA-256 is part of the record).
+        prefix: fixed first points (W Sec. 7): ``None`` (the recipe's, default none), a spec
+            ``"dihedral-<m>"`` / ``"pmj02bn-<m>"`` (:mod:`anisosample.prefix`) or explicit
+            ``(m, 2)`` points in ``[0, 1)^2``, ``1 <= m <= n / 4``. The result's first ``m``
+            points are the prefix bit for bit (float32); the other ``n - m`` are optimized so
+            that the whole set has the aligned spectrum (they start from the ``init`` set with
+            the point nearest each prefix point removed,
+            :func:`~anisosample.prefix.place_prefix`).
         checkpoint: ``.npz`` path; saved every ``checkpoint_every`` steps, resumed if present
             (a checkpoint of other settings, shape or a step past ``steps`` is refused).
         callback: ``callback(step, loss)`` after each chunk (may raise to stop).
@@ -559,7 +611,9 @@ def synthesize(key, n: int, directions_deg, *, recipe: str | Recipe = "rate",
     key = check_key("key", key)
     n = check_int("n", n, minimum=2)
     directions_deg = check_directions_deg("directions_deg", directions_deg)
+    explicit = _resolve_prefix(prefix, options)
     rec = make_recipe(recipe, **options)
+    _check_prefix_fits(rec, n)
     checkpoint_every = check_int("checkpoint_every", checkpoint_every, minimum=1)
     _check_size(n, directions_deg)
     fset = _freq.design(n, directions_deg, rec.design, **dict(rec.frequency_options))
@@ -572,6 +626,7 @@ def synthesize(key, n: int, directions_deg, *, recipe: str | Recipe = "rate",
         if x0.shape != (n, 2):
             raise ValueError(f"initial_points must have shape ({n}, 2), got {x0.shape}")
         meta["initial_points_sha256"] = hashlib.sha256(x0.astype("<f8").tobytes()).hexdigest()
+    x0 = _start_with_prefix(x0, rec, explicit)
     x, hist, final = _iterate([_objective(fset, directions_deg, rec, n)], x0[None], rec, n,
                               meta=meta,
                               checkpoint=checkpoint, checkpoint_every=checkpoint_every,
@@ -583,7 +638,8 @@ def synthesize(key, n: int, directions_deg, *, recipe: str | Recipe = "rate",
 
 
 def synthesize_batch(key, n: int, direction_sets, *, recipe: str | Recipe = "rate",
-                     initial_points=None, devices=None, checkpoint: str | Path | None = None,
+                     initial_points=None, prefix=None, devices=None,
+                     checkpoint: str | Path | None = None,
                      checkpoint_every: int = 50, show_progress: bool = True,
                      return_info: bool = False, **options) -> SynthesisResult:
     """``B`` sets at once through the same loop as :func:`synthesize`: ``direction_sets`` is a
@@ -598,6 +654,7 @@ def synthesize_batch(key, n: int, direction_sets, *, recipe: str | Recipe = "rat
     on one device. On the CPU, try it with ``XLA_FLAGS=--xla_force_host_platform_device_count=2``.
     ``checkpoint`` (one device): as in :func:`synthesize`, for the whole batch.
     ``initial_points``: ``(B, n, 2)`` warm starts instead of the ``init`` sampler.
+    ``prefix``: as in :func:`synthesize`, one prefix for every set.
     """
     key = check_key("key", key)
     n = check_int("n", n, minimum=2)
@@ -609,7 +666,9 @@ def synthesize_batch(key, n: int, direction_sets, *, recipe: str | Recipe = "rat
     if len({len(d) for d in sets}) != 1:
         raise ValueError("direction_sets must all have the same number of directions, got "
                          f"{[len(d) for d in sets]}")
+    explicit = _resolve_prefix(prefix, options)
     rec = make_recipe(recipe, **options)
+    _check_prefix_fits(rec, n)
     checkpoint_every = check_int("checkpoint_every", checkpoint_every, minimum=1)
     for d in sets:
         _check_size(n, d)
@@ -627,6 +686,7 @@ def synthesize_batch(key, n: int, direction_sets, *, recipe: str | Recipe = "rat
             raise ValueError(f"initial_points must have shape ({b}, {n}, 2), got {x_init.shape}")
         for i in range(b):
             check_points(f"initial_points[{i}]", x_init[i])
+    x_init = np.stack([_start_with_prefix(x, rec, explicit) for x in x_init])
     slices = np.array_split(np.arange(b), len(devs))
     out: dict[int, tuple] = {}
     errors: list[BaseException] = []

@@ -79,16 +79,19 @@ from ._table_store import cache_dir as cache_dir
 from ._table_store import cache_table_path as cache_table_path
 from ._table_store import canonical_sets as canonical_sets
 from ._table_store import canonicalize as canonicalize
+from ._table_store import check_table_prefix as check_table_prefix
 from ._table_store import find_table as find_table
 from ._table_store import open_table as open_table
 from ._table_store import points_checksum as points_checksum
 from ._table_store import read_set as read_set
+from ._table_store import restore_prefix as restore_prefix
 from ._table_store import set_directions as set_directions
 from ._table_store import set_name as set_name
 from ._table_store import settings_fingerprint as settings_fingerprint
 from ._table_store import shipped_dir as shipped_dir
 from ._table_store import table_dirs as table_dirs
 from ._table_store import table_name as table_name
+from ._table_store import table_prefix as table_prefix
 from ._table_store import transform_points as transform_points
 from ._validate import check_int
 
@@ -109,6 +112,8 @@ __all__ = [
     "open_table",
     "lookup",
     "build",
+    "build_command",
+    "installed_sizes",
 ]
 
 # --- lookup ---------------------------------------------------------------------------------------
@@ -116,13 +121,19 @@ __all__ = [
 
 def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
            build_missing: bool | None = None, show_progress: bool = True,
-           **build_options) -> jax.Array:
+           prefix: str | None = None, **build_options) -> jax.Array:
     """The aligned set of ``n`` points for integer ``directions_deg`` (W Sec. 5.4).
 
     Reduces the request by symmetry (:func:`canonicalize`), loads the canonical set from the
     table for ``n`` (``table``: a table directory, or a folder of tables; default: the search path
     :func:`table_dirs`), and applies the symmetry so the set's low-energy directions are the
     requested ones. Returns float32 ``(n, 2)`` in ``[0, 1)^2``.
+
+    ``prefix`` (W Sec. 7; :mod:`anisosample.prefix`): ``None``/``"none"`` (the tables W
+    describes) or a symmetric ``"dihedral-<m>"`` (e.g. :data:`anisosample.prefix.DEFAULT_PREFIX`):
+    the set comes from the table ``d{kind}_n{n}_{prefix}`` and its first ``m`` points are the
+    prefix bit for bit, whatever the directions (the symmetry's reordering of the prefix is
+    undone, :func:`anisosample._table_store.restore_prefix`).
 
     Every set on demand: a set no table on the search path holds is synthesized at once (one
     set, with a progress bar) into the user cache's table for ``(kind, n)``
@@ -134,45 +145,95 @@ def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
     ``build_missing``: ``None`` (default) builds into the cache as above, but never into an
     explicit ``table=`` (a missing set there raises ``FileNotFoundError``); ``True`` also
     builds into ``table``; ``False`` refuses: ``FileNotFoundError`` with the command that
-    builds the set. Damaged or incompatible tables raise ``ValueError``.
+    builds the set (:func:`build_command`). Any ``n >= 2`` builds (a table size or not; the
+    installed sizes: :func:`installed_sizes`). ``show_progress``: the build's progress bar.
+    The same rule holds everywhere sets are looked up (``samplers.get("aligned", ...)``,
+    :mod:`anisosample.selection`, ``render(sampler="aligned")``, and the CLI, whose
+    ``--no-build`` is ``build_missing=False``). Damaged or incompatible tables raise
+    ``ValueError``.
     """
     canon = canonicalize(directions_deg, kind=kind)
     n = check_int("n", n, minimum=2)
     if build_missing is not None and not isinstance(build_missing, bool):
         raise TypeError(f"build_missing must be None, True or False, got {build_missing!r}")
-    path = find_table(canon.kind, n, root=table)
+    prefix = check_table_prefix(prefix)
+    if prefix != "none":
+        build_options["prefix"] = prefix
+    path = find_table(canon.kind, n, root=table, prefix=prefix)
     if path is None or not (path / f"{canon.name}.npz").exists():
         explicit = table is not None and build_missing is None
         if build_missing is False or explicit:
             where = table if table is not None else os.pathsep.join(map(str, table_dirs()))
+            into = None if table is None else (
+                path if path is not None else Path(table) / table_name(canon.kind, n, prefix))
             raise FileNotFoundError(
                 f"no {canon.kind}-direction table for n={n} with set {canon.name} in {where}; "
-                f"build it with `anisosample tables build --n {n} --directions {canon.kind}` "
-                "(or pass build_missing=True)"
+                f"build it with "
+                f"`{build_command(canon.kind, n, [canon.extra], out=into, prefix=prefix)}` "
+                + ("(or pass build_missing=True to build it there on demand)" if explicit else
+                   "(or build on demand: the default, refused by build_missing=False / "
+                   "--no-build)")
             )
         if table is not None:
-            out = path if path is not None else Path(table) / table_name(canon.kind, n)
+            out = path if path is not None else Path(table) / table_name(canon.kind, n, prefix)
         elif path is not None and path.parent != shipped_dir():
             out = path  # a table on the search path (the cache, $ANISOSAMPLE_TABLES) lacks it
         else:
-            out = cache_table_path(canon.kind, n)
+            out = cache_table_path(canon.kind, n, prefix)
+        if (Path(out) / "table.json").exists():
+            build_options.pop("prefix", None)  # an existing table is finished as it was made
         _table_build.build_set(n, canon.kind, canon.extra, out=out,
                                show_progress=show_progress, **build_options)
         path = out
     set_file = Path(path) / f"{canon.name}.npz"
     st = set_file.stat()
-    pts = _load_verified(str(path), n, canon.kind, canon.extra, st.st_mtime_ns, st.st_size,
-                         (Path(path) / "table.json").stat().st_mtime_ns)
-    return jnp.asarray(transform_points(pts, canon.transform))
+    pts, held = _load_verified(str(path), n, canon.kind, canon.extra, st.st_mtime_ns,
+                               st.st_size, (Path(path) / "table.json").stat().st_mtime_ns)
+    if held != prefix:
+        raise ValueError(f"table {path} holds sets with prefix {held!r}, not the requested "
+                         f"{prefix!r}")
+    return jnp.asarray(restore_prefix(transform_points(pts, canon.transform), prefix))
+
+
+def build_command(kind: int, n: int, sets=None, *, out=None, prefix: str = "none") -> str:
+    """The ``anisosample tables build`` command that builds the canonical ``sets`` (extra
+    direction tuples, default: the whole table) of the ``kind``-direction table for ``n`` into
+    ``out`` (default: the user cache, where :func:`lookup` finds them) -- with the settings an
+    on-demand build uses, so the sets are the ones :func:`lookup` would have built."""
+    cmd = f"anisosample tables build --n {n} --directions {kind}"
+    if sets:
+        cmd += " --sets " + ",".join(":".join(str(int(a)) for a in e) for e in sets)
+    if prefix != "none":
+        cmd += f" --prefix {prefix}"
+    if out is not None:
+        cmd += f" --out {out}"
+    return cmd
+
+
+def installed_sizes(kind: int) -> list[int]:
+    """The ``n`` of the ``kind``-direction tables on the search path (:func:`table_dirs`),
+    complete or not, ascending. Other sizes are built on demand (any ``n >= 2``)."""
+    from ._table_store import check_kind
+
+    kind = check_kind(kind)
+    out = set()
+    for root in table_dirs():
+        for d in root.glob(f"d{kind}_n*"):
+            tail = d.name[len(f"d{kind}_n"):]
+            if tail.isdigit() and (d / "table.json").exists():
+                out.add(int(tail))
+    return sorted(out)
 
 
 @functools.lru_cache(maxsize=64)
 def _load_verified(path: str, n: int, kind: int, extra, mtime_ns: int, size: int,
                    index_mtime_ns: int) -> np.ndarray:
-    """Verified canonical set, cached per file version (a renderer looks sets up per pixel)."""
-    pts = open_table(path, n=n, kind=kind).load(extra)
+    """Verified canonical set and its table's prefix, cached per file version (a renderer looks
+    sets up per pixel)."""
+    tab = open_table(path, n=n, kind=kind)
+    pts = tab.load(extra)
     pts.setflags(write=False)
-    return pts
+    return pts, table_prefix(tab)
 
 
 def build(n: int, kind: int = 3, **options):

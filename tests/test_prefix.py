@@ -1,0 +1,173 @@
+"""Fixed isotropic prefixes (W Sec. 7, issue 22 item 1): the named prefixes, sets that start with
+them bit for bit (single, batched, resumed), and tables whose every served set starts with them
+whatever its directions' symmetry transform."""
+
+import jax
+import numpy as np
+import pytest
+
+import anisosample as asp
+from anisosample import prefix as P
+from anisosample import synthesis, tables
+
+SMALL = dict(steps=20, method="direct", show_progress=False)
+
+
+@pytest.mark.parametrize("m", [8, 16, 32, 64])
+def test_dihedral_prefix_is_a_symmetric_dyadic_set(m):
+    pts = P.dihedral_points(m)
+    assert pts.shape == (m, 2) and pts.dtype == np.float32
+    assert len({tuple(p) for p in pts.tolist()}) == m  # m distinct points
+    assert np.all((pts > 0) & (pts < 1))
+    # coordinates on the 2^-16 grid: (-t) mod 1 is exact in float32
+    np.testing.assert_array_equal(np.round(pts * 2**16), pts * 2**16)
+    assert P.is_symmetric(pts)
+    # every one of the tables' transforms maps the set onto itself (checked here independently)
+    own = {tuple(p) for p in pts.tolist()}
+    for t in tables.TRANSFORMS:
+        assert {tuple(p) for p in tables.transform_points(pts, t).tolist()} == own
+    # recomputed from scratch (the cache bypassed): the same bits
+    np.testing.assert_array_equal(P._dihedral.__wrapped__(m), pts)
+
+
+def test_pmj_prefix_is_the_head_of_pmj02bn_and_not_symmetric():
+    pts = P.prefix_points("pmj02bn-32")
+    ref = np.asarray(asp.samplers.get("pmj02bn")(jax.random.key(P.PMJ_KEY), 256))[:32]
+    np.testing.assert_array_equal(pts, ref)
+    assert not P.is_symmetric(pts)
+
+
+def test_prefix_specs_are_validated():
+    assert P.prefix_size("none") == 0 and P.prefix_size("dihedral-32") == 32
+    assert P.prefix_points("none").shape == (0, 2)
+    for bad in ("dihedral-12", "dihedral-0", "pmj02bn-0", "pmj02bn-x", "sobol-16", "", "32",
+                "pmj02bn-016"):
+        with pytest.raises(ValueError, match="prefix"):
+            P.check_prefix("prefix", bad)
+    with pytest.raises(TypeError, match="prefix"):
+        P.check_prefix("prefix", 32)
+    with pytest.raises(ValueError, match="explicit"):
+        P.prefix_points(P.explicit_prefix_name(np.full((4, 2), 0.5, np.float32)))
+
+
+def test_place_and_align_prefix():
+    rng = np.random.default_rng(0)
+    x = rng.uniform(size=(64, 2))
+    pre = P.dihedral_points(8).astype(np.float64)
+    out = P.place_prefix(x, pre)
+    assert out.shape == x.shape
+    np.testing.assert_array_equal(out[:8], pre)
+    # the removed points are, one per prefix point, the nearest still present
+    kept = {tuple(p) for p in out[8:].tolist()}
+    assert len(kept) == 56 and kept <= {tuple(p) for p in x.tolist()}
+    # a set already starting with the prefix is left alone
+    np.testing.assert_array_equal(P.place_prefix(out, pre), out)
+    shuffled = np.concatenate([pre[::-1], out[8:]]).astype(np.float32)
+    np.testing.assert_array_equal(P.align_prefix(shuffled, pre)[:8], pre.astype(np.float32))
+    with pytest.raises(ValueError, match="prefix"):
+        P.align_prefix(x.astype(np.float32), pre)
+
+
+@pytest.mark.parametrize("spec", ["dihedral-16", "pmj02bn-16", "explicit"])
+def test_synthesize_keeps_the_prefix_bit_for_bit(getkey, spec):
+    n = 64
+    if spec == "explicit":
+        prefix = np.asarray(jax.random.uniform(jax.random.key(3), (16, 2)), np.float32)
+    else:
+        prefix = spec
+    r = asp.synthesize(getkey(), n, (0, 90, 30), prefix=prefix, **SMALL)
+    want = prefix if spec == "explicit" else P.prefix_points(spec)
+    assert np.asarray(r.points)[:16].tobytes() == want.tobytes()
+    assert r.recipe.prefix.endswith("-16")
+    assert r.history[-1] < r.history[0]  # the free points still optimize the whole set
+    if spec == "explicit":
+        assert r.recipe.prefix == P.explicit_prefix_name(prefix)
+
+
+def test_prefix_is_part_of_the_record_only_when_there_is_one():
+    assert "prefix" not in synthesis.make_recipe().record()
+    assert synthesis.make_recipe(prefix="dihedral-32").record()["prefix"] == "dihedral-32"
+
+
+def test_prefix_bad_sizes_are_refused(getkey):
+    with pytest.raises(ValueError, match="n/4"):
+        asp.synthesize(getkey(), 64, (0, 90, 30), prefix="dihedral-24", **SMALL)
+    with pytest.raises(ValueError, match="prefix"):
+        asp.synthesize(getkey(), 64, (0, 90, 30), prefix=np.full((4, 3), 0.5), **SMALL)
+    with pytest.raises(ValueError, match="prefix"):
+        asp.synthesize(getkey(), 64, (0, 90, 30), prefix=np.full((4, 2), 1.5), **SMALL)
+
+
+def test_batch_with_prefix_equals_single_runs(getkey):
+    key, n, dirs = getkey(), 64, [(0, 90, 30), (0, 90, 61)]
+    batch = asp.synthesis.synthesize_batch(key, n, dirs, prefix="dihedral-8", **SMALL)
+    keys = jax.random.split(key, 2)
+    for b in range(2):
+        single = asp.synthesize(keys[b], n, dirs[b], prefix="dihedral-8", **SMALL)
+        assert np.asarray(batch.points[b]).tobytes() == np.asarray(single.points).tobytes()
+        assert np.array_equal(np.asarray(batch.points[b])[:8], P.dihedral_points(8))
+
+
+class _Killed(Exception):
+    pass
+
+
+def test_killed_prefix_run_resumes_to_the_same_bits(getkey, tmp_path):
+    key, n, dirs = getkey(), 64, (0, 90, 30)
+    opts = dict(SMALL, checkpoint_every=5, prefix="dihedral-16")
+    full = asp.synthesize(key, n, dirs, **opts)
+    ck = tmp_path / "ck.npz"
+
+    def kill(step, _):
+        if step >= 10:
+            raise _Killed
+
+    with pytest.raises(_Killed):
+        asp.synthesize(key, n, dirs, checkpoint=ck, callback=kill, **opts)
+    resumed = asp.synthesize(key, n, dirs, checkpoint=ck, **opts)
+    assert np.asarray(resumed.points).tobytes() == np.asarray(full.points).tobytes()
+    # a checkpoint of a run without the prefix is refused, not reused
+    with pytest.raises(_Killed):
+        asp.synthesize(key, n, dirs, checkpoint=ck, callback=kill, **opts)
+    with pytest.raises(ValueError, match="other settings"):
+        asp.synthesize(key, n, dirs, checkpoint=ck, **dict(opts, prefix=None))
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.delenv("ANISOSAMPLE_TABLES", raising=False)
+    return tmp_path / "cache" / "anisosample" / "tables"
+
+
+def test_prefixed_table_serves_the_prefix_for_every_transform(cache):
+    pre = P.dihedral_points(16)
+    seen = set()
+    # one request per symmetry transform of the canonical set psi_030
+    for dirs in ([0, 90, 30], [0, 90, 150], [0, 90, 60], [0, 90, 120]):
+        seen.add(tables.canonicalize(dirs).transform)
+        pts = np.asarray(tables.lookup(dirs, 64, prefix="dihedral-16", show_progress=False,
+                                       steps=10, method="direct"))
+        assert pts[:16].tobytes() == pre.tobytes()
+        # the rest is the canonical set under that transform: the same multiset of points
+        canon = np.asarray(tables.lookup([0, 90, 30], 64, prefix="dihedral-16",
+                                         show_progress=False))
+        moved = tables.transform_points(canon, tables.canonicalize(dirs).transform)
+        assert sorted(map(tuple, moved.tolist())) == sorted(map(tuple, pts.tolist()))
+    assert seen == set(tables.TRANSFORMS)
+    assert (cache / "d3_n64_dihedral-16" / "psi_030.npz").exists()
+    # the table records its prefix; asking it for another prefix is refused
+    tab = tables.open_table(cache / "d3_n64_dihedral-16")
+    assert tables.table_prefix(tab) == "dihedral-16"
+    with pytest.raises(ValueError, match="prefix"):
+        tables.lookup([0, 90, 30], 64, table=cache / "d3_n64_dihedral-16",
+                      prefix="dihedral-8")
+
+
+def test_tables_refuse_an_asymmetric_prefix(cache):
+    with pytest.raises(ValueError, match="symmetric"):
+        tables.lookup([0, 90, 30], 64, prefix="pmj02bn-16")
+    with pytest.raises(ValueError, match="symmetric"):
+        tables.build(64, 3, prefix="pmj02bn-16", sets=[(30,)], show_progress=False)
+    assert tables.build_command(3, 64, [(30,)], prefix="dihedral-16").endswith(
+        "--sets 30 --prefix dihedral-16")
