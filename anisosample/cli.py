@@ -80,6 +80,14 @@ def _add_format_option(p):
                         "'utk-bin' its binary format (.bin)")
 
 
+def _add_no_build(p):
+    """``--no-build``: the one rule for aligned sets no table holds (tables.lookup's
+    ``build_missing``) -- built on demand into the user cache with progress by default."""
+    p.add_argument("--no-build", action="store_true",
+                   help="aligned: refuse (naming the `anisosample tables build` command) "
+                        "instead of synthesizing sets no table holds into the user cache "
+                        "(default: build them on demand, with progress)")
+
 
 def _add_directional_options(p):
     """``--directions`` (aligned) and ``--direction``/``--base`` (sheared), shared by the
@@ -90,7 +98,8 @@ def _add_directional_options(p):
     p.add_argument("--direction", type=_finite_float, default=None,
                    help="sheared: the spectral direction in degrees [0, 180) to shear to")
     p.add_argument("--base", default="pmj02bn",
-                   help="sheared: the baseline sampler that is sheared (default pmj02bn)")
+                   help="sheared: the baseline sampler that is sheared")
+    _add_no_build(p)
 
 
 def _add_points(sub):
@@ -113,8 +122,10 @@ def _add_points(sub):
 
 def _make_sampler(name, args, option="--sampler", *, only=True):
     """The sampler ``name`` with the directional options of ``args``: ``aligned`` needs
-    ``--directions``, ``sheared`` needs ``--direction``; a baseline takes neither (when it is
-    the ``only`` sampler named, giving them is an error)."""
+    ``--directions`` (a set no table holds is built on demand into the user cache, with
+    progress; ``--no-build`` refuses, naming the command that builds it), ``sheared`` needs
+    ``--direction``; a baseline takes neither (when it is the ``only`` sampler named, giving
+    them is an error)."""
     from . import samplers
 
     given = [flag for flag, value in (("--directions", args.directions),
@@ -123,7 +134,8 @@ def _make_sampler(name, args, option="--sampler", *, only=True):
         if args.directions is None:
             raise ValueError(f"{option} aligned needs --directions, the set's spectral "
                              "directions in degrees, e.g. --directions 0,90,30")
-        return samplers.get("aligned", directions_deg=args.directions)
+        return samplers.get("aligned", directions_deg=args.directions,
+                            build_missing=False if getattr(args, "no_build", False) else None)
     if name == "sheared":
         if args.direction is None:
             raise ValueError(f"{option} sheared needs --direction, the spectral direction in "
@@ -215,7 +227,8 @@ def _add_spectrum(sub):
                         "rows v_y)")
     p.add_argument("--radius", type=int, default=None,
                    help="half-width of the frequency grid (default: 2 sqrt(n))")
-    p.add_argument("--method", default="auto", choices=["auto", "direct", "nufft"])
+    p.add_argument("--method", default="auto", choices=["auto", "direct", "nufft"],
+                   help="spectrum engine: direct sum, NUFFT, or auto (by size)")
     p.add_argument("--scale", default=None, choices=["linear", "log"],
                    help="PNG colour scale of N P_S, white noise = 1 (default: linear)")
     p.add_argument("--clip", type=_clip_option, default=None, metavar="X",
@@ -332,7 +345,8 @@ def _add_directions(sub):
                         "axial) with a half-wheel key, grey hatched = no estimate")
     p.add_argument("--top-down", action="store_true",
                    help="the grid's first row is the largest y (renderer images)")
-    p.add_argument("--method", default="fixed", choices=["fixed", "gradient"])
+    p.add_argument("--method", default="fixed", choices=["fixed", "gradient"],
+                   help="W Sec. 5.2: fixed-kappa search or gradient fit of (mu, kappa)")
     p.add_argument("--kappa", type=_finite_float, default=None,
                    help="vMF concentration (doubled angle)")
     p.add_argument("--threshold", type=_finite_float, default=None, help="confidence threshold")
@@ -585,7 +599,8 @@ def _add_variance(sub):
     p.add_argument("--n", type=_int_list, default=None,
                    help="comma-separated sizes (default: 64,256,1024, or the sizes of the "
                         "--points sets)")
-    p.add_argument("--realizations", type=int, default=1024)
+    p.add_argument("--realizations", type=int, default=1024,
+                   help="independent estimates per sampler and n")
     p.add_argument("--randomization", default="auto",
                    choices=["auto", "shift", "fresh", "fresh+shift"],
                    help="auto: fresh for traceable samplers, shifts of fixed sets otherwise")
@@ -861,6 +876,7 @@ def _block_sampler(args, scene, spp):
     opts = {k: v for k, v in (("block_px", args.block), ("samples", args.estimation_samples),
                               ("k", args.k)) if v is not None}
     if args.no_gate:
+    _add_no_build(p)
         opts["gate"] = False
     if args.sampler not in aligned.BLOCK_SAMPLERS:
         if opts or args.direction_map is not None:
@@ -874,7 +890,9 @@ def _block_sampler(args, scene, spp):
         # synthesized into the user cache after the estimation, with progress. Say so up front.
         kinds = (3,) if opts.get("k", 2) == 1 else (3, 4)
         absent = [kd for kd in kinds if tables.find_table(kd, spp) is None]
-        if absent:
+        if args.no_build:
+            opts["build_missing"] = False
+        elif absent:
             print(f"note: no {' or '.join(f'{kd}-direction' for kd in absent)} table for n = "
                   f"{spp} is installed; the sets the blocks need are synthesized into "
                   f"{tables.cache_dir()} before rendering (`anisosample tables build --n {spp} "
@@ -893,9 +911,10 @@ def _block_sampler(args, scene, spp):
     print(f"direction estimate: {by}x{bx} blocks of {est.block_px}x{est.block_px} px, "
           f"{est.samples}^2 integrand samples each = {est.integrand_samples} samples "
           f"({est.samples_per_pixel:g} per pixel, {100 * est.samples_per_pixel / spp:.0f}% of "
-          f"--spp {spp}) in {est.seconds:.2f} s; {int(sampler.valid.sum())} of {by * bx} blocks "
-          f"have an extra direction (k = {sampler.k}); per-pixel gate "
-          + (f"on: {int((sampler.pixel_sampler == 1).sum())} pixels use {sampler.base}"
+          f"--spp {spp}) in {est.seconds:.2f} s; {rec['blocks_with_direction']} of "
+          f"{rec['blocks']} blocks have an extra direction, {rec['blocks_with_set']} a set "
+          f"(k = {sampler.k}); per-pixel gate "
+          + (f"on: {rec['pixels_gated']} pixels of blocks with a set gated to {sampler.base}"
              if sampler.gate else "off"))
     if map_path is not None:
         aligned.save_direction_map(map_path, sampler, overwrite=args.force)
@@ -918,7 +937,12 @@ _COMMANDS = {
 
 class _Parser(argparse.ArgumentParser):
     """argparse's parser with one-line errors: ``PROG: error: MESSAGE (see PROG --help)`` and
-    exit status 2, without the usage block argparse prints above it."""
+    exit status 2, without the usage block argparse prints above it; ``--help`` shows every
+    option's default (:class:`_HelpFormatter`), in subcommands too (they are ``_Parser`` s)."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        super().__init__(*args, **kwargs)
 
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
@@ -940,9 +964,25 @@ class _VersionAction(argparse.Action):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
+    if result.pixel_sampler is not None:
+        print(_pixel_summary(result))
         prog="anisosample",
         description="Anisotropic sampling patterns and product-sampling warps (JAX).",
     )
+def _pixel_summary(result) -> str:
+    """The per-block sampler's line, counted from the render's own record
+    (``RenderResult.pixel_sampler`` and ``settings["blocks"]``), so the two cannot disagree."""
+    import numpy as np
+
+    rec = result.settings["blocks"]
+    code = np.asarray(result.pixel_sampler)
+    own, none, gated = (int((code == c).sum()) for c in (2, 0, 1))
+    line = (f"pixels: {own} of {code.size} use their block's set ({rec['blocks_with_set']} of "
+            f"{rec['blocks']} blocks have one), {none + gated} use {rec['base']} ({none} in "
+            f"blocks without a set")
+    return line + (f", {gated} gated: their probe is smooth)" if rec["gate"] else ")")
+
+
     parser.add_argument("--version", action=_VersionAction)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add, _ in _COMMANDS.values():
@@ -963,6 +1003,7 @@ def _one_line(exc: BaseException) -> str:
     advice below it), or the exception's type if it has no message."""
     text = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
     inner = re.search(r"EquinoxRuntimeError: (.+)", text)  # a check inside jit, wrapped by XLA
+        # --no-build: refused after the estimation, naming the commands that build them.
     if inner:
         return inner.group(1).strip()
     lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
@@ -981,6 +1022,7 @@ def main(argv: list[str] | None = None) -> int:
 
     parser = build_parser()
     try:
+    rec = sampler.settings()  # the record the render keeps (settings["blocks"])
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, --version and argparse's errors end here
         return exc.code if isinstance(exc.code, int) else 2
@@ -999,3 +1041,18 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """argparse's help with every option's default, e.g. ``(default: random)``, lists written
+    as they are typed (``64,256,1024``) -- except where the help already states it, for flags
+    (off unless given) and for ``None`` (the help says what happens without the option)."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        d = action.default
+        if (not action.option_strings or d is None or isinstance(d, bool)
+                or d is argparse.SUPPRESS or "%(default)" in text or "default" in text.lower()):
+            return text
+        shown = ",".join(map(str, d)) if isinstance(d, list | tuple) else str(d)
+        return f"{text} (default: {shown.replace('%', '%%')})"
+
+

@@ -16,8 +16,10 @@ sampler (:mod:`anisosample.render.aligned`).
   (1 or 2) remain.
 * **The set** (:func:`aligned_set`): one remaining direction takes the 3-direction set, two the
   4-direction set (W's four low-energy directions) -- never the 3-direction set in place of a
-  missing 4-direction one. Sets come from :func:`anisosample.tables.lookup`; a missing one is
-  built on demand when ``build_missing`` (else ``FileNotFoundError`` naming the build command).
+  missing 4-direction one. Sets come from :func:`anisosample.tables.lookup`, with its one rule
+  for missing sets: built on demand into the user cache, with progress (``build_missing=None``,
+  the default; ``True`` also builds into an explicit ``table``); ``build_missing=False``
+  refuses with ``FileNotFoundError`` naming the build command. Any ``n >= 2``.
   No remaining direction: the fallback sampler (pmj02bn).
 """
 
@@ -61,13 +63,15 @@ def table_directions(directions_deg, k: int = 2) -> tuple[int, ...]:
     return tuple(out[:k])
 
 
-def aligned_set(extra_deg, n: int, key=None, *, table=None, build_missing: bool = False,
+def aligned_set(extra_deg, n: int, key=None, *, table=None, build_missing: bool | None = None,
                 **build_options) -> jax.Array:
     """The aligned set of ``n`` points for the integer extra directions ``extra_deg`` (one:
     the 3-direction table, two: the 4-direction table; from :func:`table_directions`),
     toroidally shifted by ``key`` when given (Cranley & Patterson 1976, W Sec. 5.4).
 
-    ``table``, ``build_missing`` and ``build_options`` go to :func:`anisosample.tables.lookup`.
+    ``table``, ``build_missing`` and ``build_options`` (``show_progress``, ``seed``, synthesis
+    options) go to :func:`anisosample.tables.lookup`: a missing set is built on demand unless
+    ``build_missing=False``.
     """
     extra = tuple(int(a) for a in np.asarray(extra_deg, np.int64).reshape(-1))
     if not 1 <= len(extra) <= 2 or any(a in _tables.AXES_DEG for a in extra):
@@ -99,7 +103,7 @@ def _grid_of(f, size: int) -> np.ndarray:
 
 def aligned_sampler(*, integrand=None, values=None, directions_deg=None, k: int = 2,
                     grid_size: int = 96, fallback: str = "pmj02bn", table=None,
-                    build_missing: bool = False, estimate_options: dict | None = None,
+                    build_missing: bool | None = None, estimate_options: dict | None = None,
                     **build_options) -> AlignedSampler:
     """The aligned sampler of W Sec. 5.4 for one integrand.
 
@@ -109,7 +113,9 @@ def aligned_sampler(*, integrand=None, values=None, directions_deg=None, k: int 
     (1 or 2) extra directions are estimated with :func:`anisosample.directions.estimate` and
     discretized by :func:`table_directions`; none -> ``fallback`` (an option-free baseline,
     default ``pmj02bn``). ``sampler(key, n)`` is :func:`aligned_set` for ``n`` points shifted
-    by ``key`` (``table``, ``build_missing``, ``build_options``: the table lookup's).
+    by ``key`` (``table``, ``build_missing``, ``build_options``: the table lookup's; a missing
+    set is built on demand, with progress unless ``show_progress=False``, and refused only with
+    ``build_missing=False``).
     """
     given = [v is not None for v in (integrand, values, directions_deg)]
     if sum(given) != 1:
@@ -117,6 +123,8 @@ def aligned_sampler(*, integrand=None, values=None, directions_deg=None, k: int 
                          "directions_deg=")
     k = check_int("k", k, minimum=1, maximum=2)
     check_choice("fallback", fallback, _samplers.BASELINES)  # option-free samplers only
+    if build_missing is not None and not isinstance(build_missing, bool):
+        raise TypeError(f"build_missing must be None, True or False, got {build_missing!r}")
     if directions_deg is not None:
         if isinstance(directions_deg, int | float | np.number):
             directions_deg = (directions_deg,)

@@ -122,7 +122,7 @@ def aligned_set(direction: int, n: int, key) -> jax.Array:
     """The aligned 3-direction set (table lookup; sets missing from the installed tables are
     synthesized on demand into ``results/w_render_tables``), toroidally shifted by ``key``."""
     try:
-        return aligned.aligned_set(direction, n, key)
+        return aligned.aligned_set(direction, n, key, build_missing=False)
     except (FileNotFoundError, ValueError):
         return aligned.aligned_set(direction, n, key, table=TABLES, build_missing=True)
 
@@ -131,7 +131,7 @@ def block_sets(direction: float | None, n: int, key) -> dict[str, jax.Array]:
     """The fixed point set of every method for a block with strongest direction ``direction``
     (``aligned.block_sets``; aligned sets from the installed tables, else ``TABLES``)."""
     try:
-        sets = aligned.block_sets(direction, n, key)
+        sets = aligned.block_sets(direction, n, key, build_missing=False)
     except (FileNotFoundError, ValueError):
         sets = aligned.block_sets(direction, n, key, table=TABLES, build_missing=True)
     return {"pmj02bn": sets["pmj02bn"], "sheared pmj02bn": sets["sheared"],

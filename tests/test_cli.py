@@ -258,4 +258,33 @@ def test_render_aligned_flags_refuse_bad_input(tmp_path, capsys, extra, needle):
     assert cli.main(args) == 2
     err = capsys.readouterr().err
     assert needle in err and len([ln for ln in err.splitlines() if ln.strip()]) == 1, err
+
+
+def test_help_shows_every_default(capsys):
+    """``--help`` of every command states each option's default (issue 27: ``render --help``
+    hid that ``--sampler`` defaults to ``random``): every option with a default other than
+    None (the help says what happens) and flags shows ``default`` in its help, read back from
+    the printed text."""
+    import argparse
+    import re
+
+    parser = cli.build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    commands = [([name], p) for name, p in sub.choices.items()]
+    commands += [(["tables", name], p) for name, p in sub.choices["tables"]._actions[-1]
+                 .choices.items()]
+    seen = 0
+    for argv, p in commands:
+        assert cli.main([*argv, "--help"]) == 0
+        text = re.sub(r"\s+", "", capsys.readouterr().out)  # wrapping differs by width
+        for a in p._actions:
+            if (not a.option_strings or a.default is None or isinstance(a.default, bool)
+                    or a.default == argparse.SUPPRESS or a.default == []):
+                continue
+            entry = re.sub(r"\s+", "", p._get_formatter()._format_action(a))
+            assert entry in text and "default" in entry.lower(), (argv, entry)
+            seen += 1
+    assert seen >= 20
+    assert cli.main(["render", "--help"]) == 0
+    assert "(default:random)" in re.sub(r"\s+", "", capsys.readouterr().out)
     assert not (tmp_path / "x.exr").exists()

@@ -390,6 +390,54 @@ def test_missing_sets_are_built_on_demand(scene, est, tmp_path, monkeypatch):
     np.testing.assert_array_equal(np.asarray(sets[1]), np.asarray(pts))
     assert one.settings()["sets_4_directions_deg"] == [[30, 100]]
 
+def test_a_block_marked_without_direction_gets_no_set(scene, est):
+    """Issue 27: blocks whose first slot failed the confidence test but whose second passed
+    got a set while marked without a direction. The marking is the strongest *valid* slot:
+    a block has a direction exactly when a slot is valid, and only such blocks get sets."""
+    e = est.estimate
+    d = np.asarray(e.directions_deg).copy()
+    v = np.asarray(e.valid).copy()
+    d[0, 0], v[0, 0] = (-1.0, 40.0), (False, True)  # the case of the issue
+    d[0, 1], v[0, 1] = (-1.0, -1.0), (False, False)  # none
+    d[0, 2], v[0, 2] = (0.3, -1.0), (True, False)  # valid, but rounds onto an axis: no set
+    fake = est._replace(estimate=e._replace(directions_deg=jnp.asarray(d), valid=jnp.asarray(v)))
+    for method in aligned.BLOCK_SAMPLERS:
+        s = aligned.block_sampler(scene, method, estimate=fake, gate=False, build_missing=False)
+        assert s.valid[0, 0] and s.directions_deg[0, 0] == 40.0
+        assert not s.valid[0, 1] and s.directions_deg[0, 1] == -1.0
+        np.testing.assert_array_equal(s.valid, v.any(-1))
+        has = np.array([i is not None for i in s._set_ids()]).reshape(s.valid.shape)
+        assert not (has & ~s.valid).any()  # no block without a direction gets a set
+        code = s.pixel_sampler
+        assert (code[:BLOCK, :BLOCK] == 2).all() and (code[:BLOCK, BLOCK:2 * BLOCK] == 0).all()
+        rec = s.settings()
+        assert rec["blocks_with_set"] == int(has.sum()) <= rec["blocks_with_direction"]
+        assert rec["pixels"] == (code == 2).sum() + rec["pixels_in_blocks_without_set"]
+    assert s.method == "sheared" and s.valid[0, 2] and has[0, 2]  # sheared: any direction
+    al = aligned.block_sampler(scene, "aligned", estimate=fake, gate=False, build_missing=False)
+    assert al.block_extra[0] == (40,) and al.block_extra[2] == ()  # 0.3 rounds onto 0
+
+
+def test_progress_false_silences_the_on_demand_builds(scene, est, tmp_path, monkeypatch, capfd):
+    """``render(..., sampler=<aligned>, progress=False)`` prints nothing, not even the
+    progress bar of a set it builds on demand; with progress the build's bar shows (so the
+    check would see one). A real build, kept small: one 4-direction set, 2 steps."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    s = aligned.block_sampler(scene, "aligned", estimate=est, gate=False,
+                              build_options={"steps": 2})
+    opts = dict(spp=16, pixel_center=True)
+    capfd.readouterr()
+    for extra, progress in (((31, 101), False), ((32, 102), True)):
+        one = dataclasses.replace(s, block_extra=(extra,) + ((),) * 15)
+        R.render(scene, jax.random.key(0), sampler=one, progress=progress, **opts)
+        out, err = capfd.readouterr()
+        assert tables.lookup(extra, 16, kind=4, build_missing=False).shape == (16, 2)
+        if progress:
+            assert "synthesize n=16" in err and "render" in err
+        else:
+            assert out == "" and err == "", (out, err)
+
+
 
 def test_selection_rounding_rule():
     """The one rule (selection.aligned_sampler and the renderer use it): nearest integer degree,
@@ -429,6 +477,18 @@ def test_cli_render_aligned(scene, four_tables, tmp_path, capsys, monkeypatch):
     ref = R.render(scene, jax.random.key(0), spp=SPP, realizations=2, pixel_center=True,
                    sampler="aligned", sampler_options=dict(block_px=8, samples=96),
                    progress=False)
+    # the summary's numbers are the record's (issue 27: it said the gated count "use pmj02bn")
+    code, rec = ref.pixel_sampler, ref.settings["blocks"]
+    line = next(ln for ln in text.splitlines() if ln.startswith("pixels: "))
+    want = (f"pixels: {(code == 2).sum()} of {SIZE * SIZE} use their block's set "
+            f"({rec['blocks_with_set']} of 16 blocks have one), {(code != 2).sum()} use pmj02bn "
+            f"({(code == 0).sum()} in blocks without a set, {(code == 1).sum()} gated")
+    assert line.startswith(want), (line, want)
+    assert rec["blocks_with_set"] == len({p // SIZE // BLOCK * 4 + p % SIZE // BLOCK
+                                          for p in np.flatnonzero(code.reshape(-1) != 0)}) >= 1
+    assert (f"{rec['blocks_with_direction']} of 16 blocks have an extra direction, "
+            f"{rec['blocks_with_set']} a set (k = 2); per-pixel gate on: "
+            f"{rec['pixels_gated']} pixels") in text
     np.testing.assert_array_equal(img[..., :3], ref.mean)
     assert (tmp_path / "a_variance.exr").exists()
     from matplotlib.image import imread

@@ -9,10 +9,11 @@ made by :func:`block_sampler`; the steps live in their own modules:
 * **Selection (W Sec. 5.4)**, :mod:`anisosample.selection`: a block's estimated directions
   (strongest first, at most ``k``) rounded by :func:`anisosample.selection.table_directions`; one
   direction takes the 3-direction set, two the 4-direction set (W's four low-energy directions);
-  missing sets are built on demand (``build_missing``, default on) with progress, before any
-  rendering. No direction: the base sampler (pmj02bn, W: "an existing anisotropic sampling
-  pattern"). ``method="sheared"`` gives pmj02bn sheared to the block's strongest direction (Singh
-  & Jarosz 2017) instead, for comparisons.
+  missing sets are built on demand with progress, before any rendering (the one rule of
+  :func:`anisosample.tables.lookup`; ``build_missing=False`` refuses and names the command).
+  No direction: the base sampler (pmj02bn, W: "an existing anisotropic sampling pattern").
+  ``method="sheared"`` gives pmj02bn sheared to the block's strongest direction (Singh & Jarosz
+  2017) instead, for comparisons.
 * **The gate (beyond W)**: pixels of a block with a set whose probe shows no jump
   (:func:`anisosample.render.estimation.probe_discontinuous`: fully lit, fully occluded) use the
   base sampler; on by default for ``"aligned"``. Each pixel's decision is in the render's record
@@ -79,13 +80,15 @@ aligned_set = selection.aligned_set
 
 
 def block_sets(direction_deg: float | None, n: int, key, *, table=None,
-               build_missing: bool = False) -> dict[str, jax.Array]:
+               build_missing: bool | None = None) -> dict[str, jax.Array]:
     """The point set of every method in :data:`METHODS` for a block whose strongest direction
     is ``direction_deg`` (None: no extra direction); ``aligned`` is its 3-direction set.
 
     ``key`` is split into two: pmj02bn from the first (the fallback, and the set the ``sheared``
     method shears), the aligned set's toroidal shift from the second. Without a direction (or
     one that rounds onto an axis, for ``aligned``) a method falls back to the pmj02bn set.
+    ``table``, ``build_missing``: the table lookup's (:func:`anisosample.tables.lookup`; a
+    missing set is built unless ``build_missing=False``).
     """
     from .. import samplers
 
@@ -109,9 +112,12 @@ class BlockSampler:
     """Per-pixel point sets for :func:`anisosample.render.render` (W Sec. 5.4).
 
     Made by :func:`block_sampler`. ``directions_deg``/``valid``: each block's strongest extra
-    direction (``(rows, cols)``); ``block_extra``: per block (row-major) the integer extra
-    directions of its aligned set (empty: the base sampler); ``estimate``: the
-    :class:`BlockEstimate` it came from; ``gate``: whether smooth pixels take the base sampler.
+    direction that passed the confidence test (``(rows, cols)``; the first valid slot of the
+    estimate, the one the block's set is chosen from, so a block marked without a direction
+    never gets a set); ``block_extra``: per block (row-major) the integer extra directions of
+    its aligned set (empty: the base sampler); ``estimate``: the :class:`BlockEstimate` it came
+    from; ``gate``: whether smooth pixels take the base sampler; ``build_missing``: the table
+    lookup's (None: build missing sets into the user cache; False: refuse).
     Per realization, :meth:`point_sets` gives the distinct sets and each pixel's index into
     them; the renderer shifts each pixel's set toroidally with the pixel's own key.
     """
@@ -128,7 +134,7 @@ class BlockSampler:
     square_aperture: bool = False
     base: str = "pmj02bn"
     table: object = None
-    build_missing: bool = True
+    build_missing: bool | None = None
     k: int = 2
     gate: bool = False
     block_extra: tuple = ()
@@ -170,8 +176,12 @@ class BlockSampler:
 
     def check_tables(self, n: int, *, progress: bool = True) -> None:
         """Make every aligned set needed for ``n`` points available now, before rendering:
-        missing sets are built (with progress) when ``build_missing``, else one
-        ``FileNotFoundError`` lists them with the build command."""
+        missing sets are built (the table lookup's rule, :func:`anisosample.tables.lookup`:
+        into the user cache unless ``build_missing=False``; into an explicit ``table`` only with
+        ``build_missing=True``), else one ``FileNotFoundError`` lists them with the commands
+        that build them. ``progress=False`` silences the builds' progress bars as well."""
+        from pathlib import Path
+
         from .. import tables
         from ..progress import progress as bar
 
@@ -183,19 +193,34 @@ class BlockSampler:
                               build_missing=False)
             except FileNotFoundError:
                 missing.append(extra)
-        if missing and not self.build_missing:
-            kinds = sorted({len(e) + 2 for e in missing})
+        if missing and (self.build_missing is False
+                        or (self.build_missing is None and self.table is not None)):
+            cmds = []
+            for kd in sorted({len(e) + 2 for e in missing}):
+                sets = sorted({tables.canonicalize(e, kind=kd).extra for e in missing
+                               if len(e) + 2 == kd})
+                out = None
+                if self.table is not None:
+                    out = (tables.find_table(kd, n, root=self.table)
+                           or Path(self.table) / tables.table_name(kd, n))
+                cmds.append(f"`{tables.build_command(kd, n, sets, out=out)}`")
+            sizes = "; ".join(f"{kd}-direction n = "
+                              + (", ".join(map(str, tables.installed_sizes(kd))) or "none")
+                              for kd in (3, 4))
+            how = ("build_missing=True builds them into the table" if self.table is not None
+                   else "without --no-build (build_missing=False) they are built on demand")
             raise FileNotFoundError(
                 f"the aligned sampler needs sets for n={n} and extra directions "
-                f"{[list(e) for e in missing]} deg that no installed table holds; build them "
-                f"with " + " and ".join(f"`anisosample tables build --n {n} --directions {kd}`"
-                                        for kd in kinds)
-                + " (Python: build_missing=True), or pick --spp among the tables' sizes"
+                f"{[list(e) for e in missing]} deg that no table holds; build them with "
+                + " and ".join(cmds) + f" ({how}), or pick --spp among the installed tables' "
+                f"sizes ({sizes})"
             )
+        opts = dict(self.build_options)
+        opts["show_progress"] = bool(progress) and opts.get("show_progress", True)
         for extra in bar(missing, desc=f"aligned sets n={n}", unit="set",
                          disable=None if progress and missing else True):
-            tables.lookup(extra, n, kind=len(extra) + 2, table=self.table, build_missing=True,
-                          **self.build_options)
+            tables.lookup(extra, n, kind=len(extra) + 2, table=self.table,
+                          build_missing=self.build_missing, **opts)
 
     def point_sets(self, key, n: int) -> tuple[jax.Array, np.ndarray]:
         """``(sets, pixel_set)``: ``sets`` ``(m, n, 2)`` float32, the distinct sets of one
@@ -230,7 +255,10 @@ class BlockSampler:
         code = self.pixel_sampler
         s = dict(method=self.method, base=self.base, block_px=self.block_px, k=self.k,
                  gate=self.gate, blocks_with_direction=int(self.valid.sum()),
-                 blocks=int(self.valid.size), pixels_with_block_set=int((code == 2).sum()),
+                 blocks_with_set=sum(i is not None for i in self._set_ids()),
+                 blocks=int(self.valid.size), pixels=int(code.size),
+                 pixels_with_block_set=int((code == 2).sum()),
+                 pixels_in_blocks_without_set=int((code == 0).sum()),
                  pixels_gated=int((code == 1).sum()))
         if self.method == "aligned":
             sets = self.table_directions
@@ -261,7 +289,7 @@ def block_sampler(
     probe: int = 6,
     estimate: BlockEstimate | None = None,
     table=None,
-    build_missing: bool = True,
+    build_missing: bool | None = None,
     build_options: dict | None = None,
     base: str = "pmj02bn",
     dimension: str = "auto",
@@ -281,7 +309,9 @@ def block_sampler(
     ``"sheared"``): pixels whose ``probe x probe`` probe is smooth use ``base``.
     ``dimension``, ``technique`` and ``square_aperture`` must be the render's. Aligned sets come
     from ``table`` (default: the installed tables and the user cache); missing ones are
-    synthesized there when ``build_missing`` (passing ``build_options`` to the build).
+    synthesized into the user cache (``build_missing=None``, the default; ``True`` also into an
+    explicit ``table``; ``False`` refuses, naming the build command), passing ``build_options``
+    to the build. Any ``spp >= 2`` works. ``progress``: the estimation's progress bars.
     """
     from .. import samplers
     from .integrator import default_dimension
@@ -289,6 +319,8 @@ def block_sampler(
     check_choice("method", method, BLOCK_SAMPLERS)
     check_choice("base", base, samplers.BASELINES)
     k = check_int("k", k, minimum=1, maximum=2)
+    if build_missing is not None and not isinstance(build_missing, bool):
+        raise TypeError(f"build_missing must be None, True or False, got {build_missing!r}")
     gate = (method == "aligned") if gate is None else bool(gate)
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
@@ -308,23 +340,31 @@ def block_sampler(
         estimate = gate_estimate(scene, estimate, probe, dimension=dimension,
                                  technique=technique, square_aperture=square_aperture,
                                  progress=progress)
-    d, v = strongest_directions(estimate)
     dirs = np.asarray(estimate.estimate.directions_deg, np.float64)
     ok = np.asarray(estimate.estimate.valid)
+    # The strongest *valid* direction: a block whose first slot fails the confidence test but
+    # whose second passes has a direction (and, aligned, a set from it), as the gate agrees.
+    first = np.argmax(ok, axis=-1)[..., None]
+    v = ok.any(-1)
+    d = np.where(v, np.take_along_axis(dirs, first, -1)[..., 0], -1.0)
     extra = tuple(selection.table_directions([x for x, y in zip(dd, vv, strict=True) if y], k)
                   for dd, vv in zip(dirs.reshape(-1, dirs.shape[-1]),
                                     ok.reshape(-1, ok.shape[-1]), strict=True))
     return BlockSampler(method, estimate.block_px, scene.width, scene.height, d, v, estimate,
                         dimension, technique, bool(square_aperture), base, table,
-                        bool(build_missing), k, gate, extra, dict(build_options or {}))
+                        build_missing, k, gate, extra, dict(build_options or {}))
 
 
 def resolve_sampler(scene: Scene, sampler, options: dict | None, *, dimension: str,
-                    technique: str, square_aperture: bool) -> BlockSampler | None:
+                    technique: str, square_aperture: bool,
+                    progress: bool = True) -> BlockSampler | None:
     """The renderer's hook: a :class:`BlockSampler` for ``sampler`` (one, or a name in
-    :data:`BLOCK_SAMPLERS` built with ``options``), None for ordinary samplers."""
+    :data:`BLOCK_SAMPLERS` built with ``options``), None for ordinary samplers.
+    ``progress=False`` (the render's) silences the estimation whatever ``options`` say."""
     if isinstance(sampler, str) and sampler in BLOCK_SAMPLERS:
         opts = dict(options or {})
+        if not progress:
+            opts["progress"] = False
         return block_sampler(scene, sampler, dimension=dimension, technique=technique,
                              square_aperture=square_aperture, **opts)
     if options:

@@ -81,7 +81,10 @@ def render(
     :func:`~anisosample.render.aligned.block_sampler`, e.g. ``block_px``, ``samples``, ``k``,
     ``gate``, ``table``), or pass a finished :class:`~anisosample.render.aligned.BlockSampler`;
     each pixel then uses its block's set (or, gated, pmj02bn) with its own toroidal shift, and
-    ``RenderResult.pixel_sampler`` records which.
+    ``RenderResult.pixel_sampler`` records which. Sets no table holds are built on demand into
+    the user cache first (``sampler_options={"build_missing": False}`` refuses instead, naming
+    the command that builds them). ``progress=False`` silences everything the call starts: the
+    render's bar, the estimation's and those of the sets it builds.
     """
     key = check_key("key", key)
     spp = check_int("spp", spp, minimum=1)
@@ -93,7 +96,8 @@ def render(
     from .aligned import render_chunk_sets, resolve_sampler
 
     blocks = resolve_sampler(scene, sampler, sampler_options, dimension=dimension,
-                             technique=technique, square_aperture=bool(square_aperture))
+                             technique=technique, square_aperture=bool(square_aperture),
+                             progress=progress)
     if blocks is None:
         sample_points, sampler_name = _get_sampler(sampler)
     else:
