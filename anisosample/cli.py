@@ -80,6 +80,7 @@ def _add_format_option(p):
                         "'utk-bin' its binary format (.bin)")
 
 
+
 def _add_no_build(p):
     """``--no-build``: the one rule for aligned sets no table holds (tables.lookup's
     ``build_missing``) -- built on demand into the user cache with progress by default."""
@@ -800,6 +801,7 @@ def _add_render(sub):
     p.add_argument("--no-gate", action="store_true",
                    help="aligned: give every pixel of a block with a direction its block's set "
                         "(W's rule); by default pixels whose own probe is smooth use pmj02bn")
+    _add_no_build(p)
     p.add_argument("--direction-map", default=None, metavar="PNG",
                    help="aligned/sheared: also write the per-block directions as PNG (hue = "
                         "direction / 180, black = none; one panel per direction)")
@@ -864,7 +866,23 @@ def _run_render(args):
         reference=None if reference is None else reference[..., :3],
         metadata={"scene": str(args.scene), "seed": args.seed, "params": params},
     )
+    if result.pixel_sampler is not None:
+        print(_pixel_summary(result))
     print(f"wrote {', '.join(str(w) for w in written)}")
+
+
+def _pixel_summary(result) -> str:
+    """The per-block sampler's line, counted from the render's own record
+    (``RenderResult.pixel_sampler`` and ``settings["blocks"]``), so the two cannot disagree."""
+    import numpy as np
+
+    rec = result.settings["blocks"]
+    code = np.asarray(result.pixel_sampler)
+    own, none, gated = (int((code == c).sum()) for c in (2, 0, 1))
+    line = (f"pixels: {own} of {code.size} use their block's set ({rec['blocks_with_set']} of "
+            f"{rec['blocks']} blocks have one), {none + gated} use {rec['base']} ({none} in "
+            f"blocks without a set")
+    return line + (f", {gated} gated: their probe is smooth)" if rec["gate"] else ")")
 
 
 def _block_sampler(args, scene, spp):
@@ -876,7 +894,6 @@ def _block_sampler(args, scene, spp):
     opts = {k: v for k, v in (("block_px", args.block), ("samples", args.estimation_samples),
                               ("k", args.k)) if v is not None}
     if args.no_gate:
-    _add_no_build(p)
         opts["gate"] = False
     if args.sampler not in aligned.BLOCK_SAMPLERS:
         if opts or args.direction_map is not None:
@@ -888,6 +905,7 @@ def _block_sampler(args, scene, spp):
             raise ValueError(f"--sampler aligned needs --spp >= 2 (a table set), got {spp}")
         # Sets build on demand (tables.lookup): the ones the blocks need and no table holds are
         # synthesized into the user cache after the estimation, with progress. Say so up front.
+        # --no-build: refused after the estimation, naming the commands that build them.
         kinds = (3,) if opts.get("k", 2) == 1 else (3, 4)
         absent = [kd for kd in kinds if tables.find_table(kd, spp) is None]
         if args.no_build:
@@ -908,6 +926,7 @@ def _block_sampler(args, scene, spp):
     sampler.check_tables(spp)
     est = sampler.estimate
     by, bx = est.blocks
+    rec = sampler.settings()  # the record the render keeps (settings["blocks"])
     print(f"direction estimate: {by}x{bx} blocks of {est.block_px}x{est.block_px} px, "
           f"{est.samples}^2 integrand samples each = {est.integrand_samples} samples "
           f"({est.samples_per_pixel:g} per pixel, {100 * est.samples_per_pixel / spp:.0f}% of "
@@ -933,6 +952,21 @@ _COMMANDS = {
     "variance": (_add_variance, _run_variance),
     "render": (_add_render, _run_render),
 }
+
+
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """argparse's help with every option's default, e.g. ``(default: random)``, lists written
+    as they are typed (``64,256,1024``) -- except where the help already states it, for flags
+    (off unless given) and for ``None`` (the help says what happens without the option)."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        d = action.default
+        if (not action.option_strings or d is None or isinstance(d, bool)
+                or d is argparse.SUPPRESS or "%(default)" in text or "default" in text.lower()):
+            return text
+        shown = ",".join(map(str, d)) if isinstance(d, list | tuple) else str(d)
+        return f"{text} (default: {shown.replace('%', '%%')})"
 
 
 class _Parser(argparse.ArgumentParser):
@@ -964,25 +998,9 @@ class _VersionAction(argparse.Action):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
-    if result.pixel_sampler is not None:
-        print(_pixel_summary(result))
         prog="anisosample",
         description="Anisotropic sampling patterns and product-sampling warps (JAX).",
     )
-def _pixel_summary(result) -> str:
-    """The per-block sampler's line, counted from the render's own record
-    (``RenderResult.pixel_sampler`` and ``settings["blocks"]``), so the two cannot disagree."""
-    import numpy as np
-
-    rec = result.settings["blocks"]
-    code = np.asarray(result.pixel_sampler)
-    own, none, gated = (int((code == c).sum()) for c in (2, 0, 1))
-    line = (f"pixels: {own} of {code.size} use their block's set ({rec['blocks_with_set']} of "
-            f"{rec['blocks']} blocks have one), {none + gated} use {rec['base']} ({none} in "
-            f"blocks without a set")
-    return line + (f", {gated} gated: their probe is smooth)" if rec["gate"] else ")")
-
-
     parser.add_argument("--version", action=_VersionAction)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add, _ in _COMMANDS.values():
@@ -1003,7 +1021,6 @@ def _one_line(exc: BaseException) -> str:
     advice below it), or the exception's type if it has no message."""
     text = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
     inner = re.search(r"EquinoxRuntimeError: (.+)", text)  # a check inside jit, wrapped by XLA
-        # --no-build: refused after the estimation, naming the commands that build them.
     if inner:
         return inner.group(1).strip()
     lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
@@ -1022,7 +1039,6 @@ def main(argv: list[str] | None = None) -> int:
 
     parser = build_parser()
     try:
-    rec = sampler.settings()  # the record the render keeps (settings["blocks"])
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, --version and argparse's errors end here
         return exc.code if isinstance(exc.code, int) else 2
@@ -1041,18 +1057,3 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
-class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
-    """argparse's help with every option's default, e.g. ``(default: random)``, lists written
-    as they are typed (``64,256,1024``) -- except where the help already states it, for flags
-    (off unless given) and for ``None`` (the help says what happens without the option)."""
-
-    def _get_help_string(self, action):
-        text = action.help or ""
-        d = action.default
-        if (not action.option_strings or d is None or isinstance(d, bool)
-                or d is argparse.SUPPRESS or "%(default)" in text or "default" in text.lower()):
-            return text
-        shown = ",".join(map(str, d)) if isinstance(d, list | tuple) else str(d)
-        return f"{text} (default: {shown.replace('%', '%%')})"
-
-

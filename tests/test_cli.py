@@ -258,6 +258,7 @@ def test_render_aligned_flags_refuse_bad_input(tmp_path, capsys, extra, needle):
     assert cli.main(args) == 2
     err = capsys.readouterr().err
     assert needle in err and len([ln for ln in err.splitlines() if ln.strip()]) == 1, err
+    assert not (tmp_path / "x.exr").exists()
 
 
 def test_help_shows_every_default(capsys):
@@ -287,4 +288,3 @@ def test_help_shows_every_default(capsys):
     assert seen >= 20
     assert cli.main(["render", "--help"]) == 0
     assert "(default:random)" in re.sub(r"\s+", "", capsys.readouterr().out)
-    assert not (tmp_path / "x.exr").exists()

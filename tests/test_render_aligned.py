@@ -390,6 +390,7 @@ def test_missing_sets_are_built_on_demand(scene, est, tmp_path, monkeypatch):
     np.testing.assert_array_equal(np.asarray(sets[1]), np.asarray(pts))
     assert one.settings()["sets_4_directions_deg"] == [[30, 100]]
 
+
 def test_a_block_marked_without_direction_gets_no_set(scene, est):
     """Issue 27: blocks whose first slot failed the confidence test but whose second passed
     got a set while marked without a direction. The marking is the strongest *valid* slot:
@@ -438,7 +439,6 @@ def test_progress_false_silences_the_on_demand_builds(scene, est, tmp_path, monk
             assert out == "" and err == "", (out, err)
 
 
-
 def test_selection_rounding_rule():
     """The one rule (selection.aligned_sampler and the renderer use it): nearest integer degree,
     halves up, mod 180; axes and repeats dropped; strongest first, at most k."""
@@ -477,6 +477,7 @@ def test_cli_render_aligned(scene, four_tables, tmp_path, capsys, monkeypatch):
     ref = R.render(scene, jax.random.key(0), spp=SPP, realizations=2, pixel_center=True,
                    sampler="aligned", sampler_options=dict(block_px=8, samples=96),
                    progress=False)
+    np.testing.assert_array_equal(img[..., :3], ref.mean)
     # the summary's numbers are the record's (issue 27: it said the gated count "use pmj02bn")
     code, rec = ref.pixel_sampler, ref.settings["blocks"]
     line = next(ln for ln in text.splitlines() if ln.startswith("pixels: "))
@@ -489,7 +490,6 @@ def test_cli_render_aligned(scene, four_tables, tmp_path, capsys, monkeypatch):
     assert (f"{rec['blocks_with_direction']} of 16 blocks have an extra direction, "
             f"{rec['blocks_with_set']} a set (k = 2); per-pixel gate on: "
             f"{rec['pixels_gated']} pixels") in text
-    np.testing.assert_array_equal(img[..., :3], ref.mean)
     assert (tmp_path / "a_variance.exr").exists()
     from matplotlib.image import imread
 
