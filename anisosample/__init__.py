@@ -23,6 +23,7 @@ if _TYPE_CHECKING:  # the explicit re-exports, for type checkers and readers
     from . import progress as progress
     from . import render as render
     from . import samplers as samplers
+    from . import scenes as scenes
     from . import selection as selection
     from . import spectrum as spectrum
     from . import synthesis as synthesis
@@ -35,8 +36,8 @@ if _TYPE_CHECKING:  # the explicit re-exports, for type checkers and readers
 
 _SUBMODULES = (
     "diagnostics", "directions", "frequencies", "integrands", "io", "losses", "plot", "progress",
-    "render", "samplers", "selection", "spectrum", "synthesis", "tables", "testing", "variance",
-    "vmf", "warps",
+    "render", "samplers", "scenes", "selection", "spectrum", "synthesis", "tables", "testing",
+    "variance", "vmf", "warps",
 )
 _FUNCTIONS = {"synthesize": "synthesis"}  # name -> the module that defines it
 

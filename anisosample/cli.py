@@ -785,7 +785,9 @@ def _save_variance_figure(path, ns, estimates, fits, *, title: str, overwrite: b
 
 def _add_render(sub):
     p = sub.add_parser("render", help="render a Mitsuba-XML scene (direct light, depth of field)")
-    p.add_argument("scene", help="Mitsuba 3 XML scene (the supported subset: anisosample.render)")
+    p.add_argument("scene", help="Mitsuba 3 XML scene (the supported subset: anisosample.render) "
+                                 "or the name of a shipped scene (anisosample.scenes: cornell, "
+                                 "blinds, attic, dof, ...)")
     p.add_argument("--sampler", default="random",
                    help="point-set sampler per pixel; 'aligned' (or 'sheared'): per-block sets "
                         "from a direction estimate per block (W Sec. 5.3-5.4)")
@@ -825,12 +827,27 @@ def _add_render(sub):
     p.add_argument("--mis", default=None, action=argparse.BooleanOptionalAction,
                    help="add one BSDF sample with MIS (default: the XML's bsdf_samples > 0)")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="override a <default> parameter of the XML (repeatable)")
+                   help="override a <default> parameter of the XML (repeatable); width, "
+                        "height and spp also resize a scene without such parameters (the "
+                        "film's size, the sampler's sample_count)")
     p.add_argument("--reference", default=None, help="reference EXR: also write *_mse.exr")
     p.add_argument("--exposure", type=_finite_float, default=0.0,
                    help="PNG preview exposure (stops)")
     p.add_argument("-o", "--output", required=True, help="output .exr (a .png preview beside)")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
+
+
+def _scene_file(text: str) -> Path:
+    """``render``'s scene argument: a file, or else the name of a shipped scene."""
+    from . import scenes
+
+    path = Path(text)
+    if not path.exists() and text in scenes.names():
+        return scenes.path(text)
+    if not path.exists():
+        raise FileNotFoundError(f"no such scene file: {text} (or give a shipped scene's name: "
+                                f"{', '.join(scenes.names())})")
+    return path
 
 
 def _run_render(args):
@@ -849,7 +866,7 @@ def _run_render(args):
             raise ValueError(f"--set expects NAME=VALUE, got {item!r}")
         k, v = item.split("=", 1)
         params[k.strip()] = v.strip()
-    scene, settings = render.load_xml_with_settings(args.scene, **params)
+    scene, settings = render.load_xml_with_settings(_scene_file(args.scene), **params)
     spp = settings.spp if args.spp is None else args.spp
     mis = settings.mis if args.mis is None else args.mis
     render.light_warps.check_light_warp(scene, args.light_warp)  # before any estimation

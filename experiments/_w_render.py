@@ -40,7 +40,7 @@ from anisosample.progress import progress
 from anisosample.render import aligned, estimation
 
 ROOT = Path(__file__).resolve().parent.parent
-SCENE_DIR = ROOT / "experiments" / "scenes"
+SCENE_DIR = asp.scenes.FOLDER
 # W Sec. 6.2's four scenes; ours are the shipped look-alikes (attic only if someone ships it).
 SCENES = {
     "cornell": dict(xml="cornell.xml", square_aperture=False),
@@ -53,7 +53,7 @@ TABLES = ROOT / "results" / "w_render_tables"  # on-demand aligned sets, shared 
 
 
 def available_scenes(names) -> tuple[list[str], list[str]]:
-    """``(present, missing)`` scene names (missing: no XML under experiments/scenes/)."""
+    """``(present, missing)`` scene names (missing: no XML under anisosample/scenes/)."""
     present = [s for s in names if (SCENE_DIR / SCENES[s]["xml"]).exists()]
     return present, [s for s in names if s not in present]
 
@@ -204,7 +204,7 @@ def run_scenes(name: str, args, cfg: dict, run_scene):
     and skipped. Returns ``(results, missing)``."""
     present, missing = available_scenes(args.scenes.split(","))
     for s in missing:
-        print(f"{s}: experiments/scenes/{SCENES[s]['xml']} is not shipped; skipped")
+        print(f"{s}: anisosample/scenes/{SCENES[s]['xml']} is not shipped; skipped")
     (args.out / "scenes").mkdir(parents=True, exist_ok=True)
     key = jax.random.key(args.seed)
     results = {s: run_scene(s, cfg, jax.random.fold_in(key, i), args.out, args.fresh)

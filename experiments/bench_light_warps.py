@@ -17,13 +17,12 @@ from __future__ import annotations
 import argparse
 import os
 import time
-from pathlib import Path
 
 import jax
 
-from anisosample import render
+from anisosample import render, scenes
 
-SCENES = Path(__file__).resolve().parent / "scenes"
+SCENES = scenes.FOLDER
 CASES = {  # scene -> (base technique, [light warps]); the first row of each is the base
     "triangle_light": ("solid_angle", ["none", "cosine-bilinear", "cosine-biquadratic",
                                        "arvo2001", "product-bilinear", "product-biquadratic",

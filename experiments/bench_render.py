@@ -19,9 +19,9 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from anisosample import render
+from anisosample import render, scenes
 
-SCENE = Path(__file__).resolve().parent / "scenes" / "cornell.xml"
+SCENE = scenes.path("cornell")
 DEBIAN_LLVM19 = "/usr/lib/x86_64-linux-gnu/libLLVM-19.so"  # apt-get install libllvm19
 
 

@@ -1,7 +1,7 @@
 """Beyond the papers: aligned anisotropic points *through* composed warps (W meets H).
 
 Cornell-box pixels whose light integrand has a straight shadow edge across the quad light
-(``experiments/scenes/cornell.xml``, fixed primary hit at the pixel centre, spherical-rectangle
+(``anisosample/scenes/cornell.xml``, fixed primary hit at the pixel centre, spherical-rectangle
 light sampling: Urena et al. 2013). Per pixel, four ways to draw its ``n`` light samples:
 
 * **base + pmj02bn**: spherical-rectangle sampling alone with an unaligned low-discrepancy set;
@@ -37,7 +37,7 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import ROOT, cached_json, parser, write_record
+from common import cached_json, parser, write_record
 
 import anisosample as asp
 from anisosample import selection
@@ -77,7 +77,7 @@ def pick_pixels(scene, settings):
 
 def run(settings, seed):
     scene = asp.render.load_xml(
-        ROOT / "experiments/scenes/cornell.xml", width=settings["size"], height=settings["size"]
+        asp.scenes.path("cornell"), width=settings["size"], height=settings["size"]
     )
     if scene.lights.n_prims != 1:
         raise ValueError("this experiment needs a scene with exactly one quad light")

@@ -1,6 +1,6 @@
 """H Fig. 2 on the JAX ray caster: a triangle light over a diffuse floor, four light samplers.
 
-Scene ``experiments/scenes/triangle_light.xml`` (floor, a small box, one triangle emitter),
+Scene ``anisosample/scenes/triangle_light.xml`` (floor, a small box, one triangle emitter),
 pixel-centre primary hits (a fixed shading point per pixel, the papers' 2D-integrand setting),
 one light sample + one BSDF sample per pixel sample combined with the power heuristic (H Sec. 4:
 "all images were rendered ... using multiple importance sampling with one light sample and one
@@ -19,7 +19,7 @@ shading point's ray origin (``render(technique="solid_angle", light_warp=...)``,
 Three scenes: the shipped one (the light 2.2 above the floor: the cosine hardly varies across
 it, and a box's shadow carries much of the error, which no light warp can remove), a "near"
 variant (the triangle enlarged 1.4x, 0.8 above the floor), written next to the results, and
-``h_regime``, H's regime (``experiments/scenes/h_triangle_plane.xml``: one large triangle light
+``h_regime``, H's regime (``anisosample/scenes/h_triangle_plane.xml``: one large triangle light
 0.5 above a diffuse plane, no occluder), measured as H did at 1 spp, with MIS on and, as
 ``methods_without_mis``, off (light sample only); and H's regime with the light raised to 1.0 and
 2.0 above the plane (``h_regime_raised1``, ``h_regime_raised2``; MIS on).
@@ -53,7 +53,7 @@ import _h_render as H
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import ROOT, parser, write_record
+from common import parser, write_record
 
 import anisosample as asp
 
@@ -72,7 +72,7 @@ SCALES = {
                   h_regime=dict(width=256, height=256, spp=1, realizations=256,
                                 reference_spp=8192), variants=list(VARIANTS)),
 }
-H_REGIME = ROOT / "experiments/scenes/h_triangle_plane.xml"
+H_REGIME = asp.scenes.path("h_triangle_plane")
 HART = {
     "+ bilinear cosine warp": dict(mse_improvement=1.75, time=1.01),
     "+ biquadratic cosine warp": dict(mse_improvement=1.91, time=1.06),
@@ -88,7 +88,7 @@ TECHNIQUES = {  # name -> (technique, light_warp) of asp.render.render
 }
 
 
-SHIPPED = ROOT / "experiments/scenes/triangle_light.xml"
+SHIPPED = asp.scenes.path("triangle_light")
 # "near": the shipped scene with its triangle enlarged 1.4x and lowered from y = 1.2 to y = -0.2
 # (0.8 above the floor), so that the incident cosine varies strongly across the light as in H's
 # close-up scene; same vertex order (normal -y).

@@ -1,7 +1,7 @@
 """Issue 14's defect, measured: rare samples of H Fig. 2's shipped scene and the 1-spp variance
 they carry, through the library renderer (after) or the old experiment pipeline (before).
 
-Shipped scene ``experiments/scenes/triangle_light.xml``, 48x48 pixel centres, ``N`` independent
+Shipped scene ``anisosample/scenes/triangle_light.xml``, 48x48 pixel centres, ``N`` independent
 1-spp MIS samples per pixel (one light sample, one BSDF sample, power heuristic), for uniform
 solid angle, the bilinear and biquadratic cosine warps and Arvo 2001. Per sample: its luminance;
 (a) the light sample's direction misses the triangle (ray-triangle test from the ray origin,
@@ -65,7 +65,7 @@ def after():
     from anisosample.render.light_warps import Receiver, chain
     from anisosample.render.lights import light_pdf
 
-    scene = asp.render.load_xml(ROOT / "experiments/scenes/triangle_light.xml", width=48, height=48)
+    scene = asp.render.load_xml(asp.scenes.path("triangle_light"), width=48, height=48)
     L = scene.lights
     verts = jnp.stack([L.p0[0], L.p0[0] + L.e1[0], L.p0[0] + L.e2[0]])
     lum = jnp.asarray(I.LUMINANCE, jnp.float32)

@@ -1,6 +1,6 @@
 """H Table 4 on the JAX ray caster: a bilinear-patch light, four patch samplers.
 
-Scene: ``experiments/scenes/patch_light.xml``, the floor and box of ``triangle_light.xml`` under
+Scene: ``anisosample/scenes/patch_light.xml``, the floor and box of ``triangle_light.xml`` under
 a twisted, non-planar bilinear-patch light with one short edge (H Fig. 3's situation), emitting
 downwards. The ray caster traces the exact patch (``<shape type="bilinear">``,
 :mod:`anisosample.render.patch`, Reshetov 2019), so the surface that rays hit (visibility,
@@ -35,7 +35,7 @@ import _h_render as H
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import ROOT, parser, write_record
+from common import parser, write_record
 
 import anisosample as asp
 import anisosample.warps as W
@@ -57,7 +57,7 @@ HART = {
 }
 
 
-SCENE = ROOT / "experiments" / "scenes" / "patch_light.xml"
+SCENE = asp.scenes.path("patch_light")
 
 
 def load_scene(settings):
@@ -103,7 +103,7 @@ def run(settings, seed, out):
             mean_variance_of_mean=float(ref_var.mean()),
         ),
         patch_corners=PATCH.tolist(),
-        scene="experiments/scenes/patch_light.xml (exact bilinear patch)",
+        scene="anisosample/scenes/patch_light.xml (exact bilinear patch)",
         hart=HART,
     )
     return scene, ref, images, data

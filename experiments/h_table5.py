@@ -1,6 +1,6 @@
 """H Table 5 on the JAX ray caster: BSDF product warps over a quad light, two base warps.
 
-Scene ``experiments/scenes/glossy.xml`` (rough gold floor, alpha 0.25; smoother copper panel,
+Scene ``anisosample/scenes/glossy.xml`` (rough gold floor, alpha 0.25; smoother copper panel,
 alpha 0.08; a diffuse sphere; one tilted quad light). Pixel-centre primary hits, one light
 sample + one BSDF sample with the power heuristic (H Sec. 4.3: "Multiple importance sampling was
 used for all cases"). Light-sampling techniques, the library renderer's ``(technique,
@@ -32,7 +32,7 @@ import time
 import _h_render as H
 import jax
 import numpy as np
-from common import ROOT, parser, write_record
+from common import parser, write_record
 
 import anisosample as asp
 
@@ -72,7 +72,7 @@ TECHNIQUES = {  # name -> (technique, light_warp) of asp.render.render
 
 def run(settings, seed):
     scene = asp.render.load_xml(
-        ROOT / "experiments/scenes/glossy.xml", width=settings["width"], height=settings["height"]
+        asp.scenes.path("glossy"), width=settings["width"], height=settings["height"]
     )
     techs = TECHNIQUES
     k_ref, k_run = jax.random.split(jax.random.key(seed))

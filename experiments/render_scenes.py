@@ -1,5 +1,5 @@
-"""Render every shipped scene (experiments/scenes/*.xml) with this package and, when Mitsuba 3
-is installed, with Mitsuba from the same XML; record the relative RMSE between the two.
+"""Render every shipped scene (``anisosample.scenes``) with this package and, when Mitsuba 3 is
+installed, with Mitsuba from the same XML; record the relative RMSE between the two.
 Mitsuba renders a copy in which our ``bilinear`` patches are fine tessellations
 (``render.mitsuba_compat``), written to ``<out>/mitsuba_scenes/``.
 
@@ -16,14 +16,14 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from anisosample import io, render
+from anisosample import io, render, scenes
 
 try:
-    from common import ROOT, parser, write_record
+    from common import parser, write_record
 except ImportError:  # run as a module
-    from experiments.common import ROOT, parser, write_record
+    from experiments.common import parser, write_record
 
-SCENES = ROOT / "experiments" / "scenes"
+SCENES = scenes.FOLDER
 SIZES = {"small": (96, 256), "paper": (512, 4096)}
 
 

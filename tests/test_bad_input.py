@@ -32,7 +32,7 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-SCENES = ROOT / "experiments" / "scenes"
+SCENES = ROOT / "anisosample" / "scenes"
 TABLE_256 = ROOT / "anisosample" / "data" / "tables" / "d3_n256"
 
 

@@ -2,12 +2,11 @@
 
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from anisosample import cli, io
+from anisosample import cli, io, scenes
 
 
 def run(*args):
@@ -219,7 +218,7 @@ def test_variance_with_aligned_and_sheared_samplers(tmp_path, capsys):
     assert set(rec["samplers"]) == {"aligned", "sheared"}
 
 
-CORNELL = Path(__file__).resolve().parents[1] / "experiments" / "scenes" / "cornell.xml"
+CORNELL = scenes.path("cornell")
 _ALIGNED = ["--sampler", "aligned", "--spp", "256", "--pixel-center", "--block", "8",
             "--estimation-samples", "48", "--set", "width=16", "--set", "height=16"]
 

@@ -49,7 +49,7 @@ def _python_blocks():
 
 @pytest.mark.parametrize("code, from_root", _python_blocks())
 def test_doc_example_runs(code, from_root, tmp_path, monkeypatch):
-    # README examples name repository paths (experiments/scenes/...): they run from the root
+    # README examples may name repository paths: they run from the root
     monkeypatch.chdir(ROOT if from_root else tmp_path)
     # a real module, so that classes defined in an example (equinox Modules are dataclasses,
     # which look their module up in sys.modules) behave as in a user's script

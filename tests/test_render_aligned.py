@@ -14,7 +14,6 @@ at the points).
 """
 
 import dataclasses
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -23,12 +22,12 @@ import pytest
 from render.test_directions import LIGHT_HALF, LIGHT_Y, _box_edges
 
 import anisosample.render as R
-from anisosample import _table_build, cli, io, samplers, selection, tables
+from anisosample import _table_build, cli, io, samplers, scenes, selection, tables
 from anisosample.render import aligned
 from anisosample.render.camera import generate_ray
 from anisosample.render.geometry import intersect
 
-CORNELL = Path(__file__).resolve().parents[1] / "experiments" / "scenes" / "cornell.xml"
+CORNELL = scenes.path("cornell")
 SIZE, BLOCK, S, SPP, R_ = 32, 8, 96, 256, 8  # 4x4 blocks of 8x8 px, 12x12 samples per pixel
 
 

@@ -8,7 +8,6 @@ occluder covers the light points ``q`` with ``n . q > T(p)`` (central projection
 occluded fraction of the light is a closed form; and analytic step / smooth probe grids.
 """
 
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -16,6 +15,7 @@ import numpy as np
 import pytest
 
 import anisosample.render as R
+from anisosample import scenes
 from anisosample.render import aligned, estimation
 from anisosample.render.camera import generate_ray
 from anisosample.render.geometry import intersect
@@ -197,7 +197,7 @@ def test_gate_agrees_with_the_pixel_classes_on_cornell():
     corner pixel (measured: 0 / 624 lit, 0 / 301 occluded, 51 / 57 one-edge, 23 / 23 corner)."""
     from anisosample.render import pixel_classes
 
-    xml = Path(__file__).resolve().parents[1] / "experiments" / "scenes" / "cornell.xml"
+    xml = scenes.path("cornell")
     cornell = R.load_xml(xml, width=32, height=32)
     disc = estimation.probe_discontinuous(estimation.pixel_probes(cornell))
     cls = pixel_classes.pixel_classes(cornell, grid=64)

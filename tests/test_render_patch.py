@@ -2,7 +2,6 @@
 solver, uv round trips, the area pdf against the Jacobian and the true area, irradiance from
 planar patches against closed forms, the XML extension and bad input."""
 
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -10,7 +9,7 @@ import numpy as np
 import pytest
 
 import anisosample.render as R
-from anisosample import warps
+from anisosample import scenes, warps
 from anisosample.render import patch as P
 from anisosample.render.geometry import intersect
 from anisosample.render.lights import light_pdf, sample_light
@@ -19,7 +18,7 @@ from anisosample.render.lights import light_pdf, sample_light
 TWISTED = np.array(
     [[[-0.9, 0.2, -0.6], [-0.8, 0.35, -0.45]], [[0.9, 0.05, -0.8], [0.6, 0.55, 0.9]]]
 )
-SCENE_XML = Path(__file__).resolve().parents[1] / "experiments" / "scenes" / "patch_light.xml"
+SCENE_XML = scenes.path("patch_light")
 
 
 def _point64(c, u, v):

@@ -1,6 +1,6 @@
 """Shipped files name only files that exist: every repository path written in the package, the
 experiments, the scenes, the docs, the tests and the top-level files (``tests/...py``,
-``experiments/scenes/...xml``, ``docs/...md``) is checked against the tree. The team's notes
+``anisosample/scenes/...xml``, ``docs/...md``) is checked against the tree. The team's notes
 outside the repository (``shared/``, ``papers/``) count as dangling too: users do not have them.
 """
 

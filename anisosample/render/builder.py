@@ -407,8 +407,17 @@ class SceneBuilder:
         aperture_radius: float = 0.0,
         focus_distance: float = 1.0,
         thinlens: bool = False,
+        rfilter: str = "box",
+        rfilter_stddev: float = 0.5,
     ) -> None:
-        """Mitsuba ``perspective`` / ``thinlens`` sensor (fov in degrees along ``fov_axis``)."""
+        """Mitsuba ``perspective`` / ``thinlens`` sensor (fov in degrees along ``fov_axis``).
+
+        ``rfilter``: the film's reconstruction filter, ``"box"`` (default here) or
+        ``"gaussian"`` with ``rfilter_stddev`` pixels (Mitsuba's default filter and stddev 0.5;
+        :mod:`anisosample.render.film`)."""
+        from .film import check_rfilter
+
+        rfilter, rfilter_stddev = check_rfilter(rfilter, rfilter_stddev)
         aspect = width / height
         t = np.tan(np.radians(fov) / 2)
         if (
@@ -428,6 +437,8 @@ class SceneBuilder:
             kind=THINLENS if thinlens else PERSPECTIVE,
             width=int(width),
             height=int(height),
+            rfilter=rfilter,
+            rfilter_stddev=rfilter_stddev,
         )
 
     # build --------------------------------------------------------------------------------------
@@ -517,6 +528,8 @@ class SceneBuilder:
             kind=c["kind"],
             width=c["width"],
             height=c["height"],
+            rfilter=c["rfilter"],
+            rfilter_stddev=c["rfilter_stddev"],
         )
 
         para = np.array([t.parallelogram for t in tris], bool)

@@ -12,8 +12,10 @@ The *integrand dimension* is the one the sampler under study drives; the others 
   connected deterministically to the point lights (W Sec. 6.2 depth of field).
 
 With ``pixel_center=True`` (W's setting) the film position is the pixel centre and
-:func:`pixel_integrand` is a true 2D function of ``x``. With ``pixel_center=False`` (default,
-Mitsuba's box-filtered film) the film position is uniform in the pixel, drawn from the key.
+:func:`pixel_integrand` is a true 2D function of ``x``. With ``pixel_center=False`` (default)
+the film position is drawn from the key: uniform in the pixel for a box-filtered film, from the
+pixel's reconstruction filter for a gaussian one (filter importance sampling,
+:mod:`anisosample.render.film`; Mitsuba's splatted image in expectation).
 
 MIS (``mis=True``): one light sample and one BSDF sample combined with the power heuristic
 (Veach & Guibas 1995, :func:`anisosample.warps.power_heuristic`; H renders with one light and
@@ -39,6 +41,7 @@ from ..warps import power_heuristic
 from ._vec import dot
 from .bsdf import eval_bsdf, pdf_bsdf, sample_bsdf
 from .camera import generate_ray
+from .film import film_offsets
 from .geometry import intersect, occluded, offset_origin
 from .light_warps import Receiver, check_light_warp
 from .lights import emitted, light_pdf, sample_light
@@ -312,10 +315,12 @@ def render_chunk(
         col = (q % w).astype(jnp.float32)
         row = (q // w).astype(jnp.float32)
         if pixel_center:
-            jit_ = jnp.full((spp, 2), 0.5, jnp.float32)
-        else:
-            jit_ = _uniform(k_film, spp)
-        film = jnp.stack([(col + jit_[:, 0]) / w, (row + jit_[:, 1]) / h], axis=-1)
+            pos = jnp.broadcast_to(jnp.stack([col, row]) + 0.5, (spp, 2))
+        else:  # uniform in the pixel (box) or from its reconstruction filter (render/film.py)
+            cam = scene.camera
+            pos = film_offsets(cam.rfilter, cam.rfilter_stddev, _uniform(k_film, spp), col, row,
+                               w, h)
+        film = pos / jnp.asarray([[w, h]], jnp.float32)
         # Draw only the random numbers this configuration uses.
         half = jnp.full((spp, 2), 0.5, jnp.float32)
         # (dimension "lens" implies point lights only: no light sample is needed.)

@@ -49,6 +49,10 @@ class Camera(eqx.Module):
     kind: int = eqx.field(static=True)
     width: int = eqx.field(static=True)
     height: int = eqx.field(static=True)
+    # The film's reconstruction filter (render/film.py): "box" or "gaussian" (with its stddev
+    # in pixels), which decides where a pixel's samples land on the film.
+    rfilter: str = eqx.field(static=True, default="box")
+    rfilter_stddev: float = eqx.field(static=True, default=0.5)
 
 
 class Materials(eqx.Module):

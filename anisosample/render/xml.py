@@ -3,7 +3,9 @@
 Supported (everything else is an error naming the tag and line):
 
 * ``<default name= value=>`` and ``$name`` substitution in attributes (overridable by keyword
-  arguments of :func:`load_xml`, like ``mitsuba.load_file(path, **params)``);
+  arguments of :func:`load_xml`, like ``mitsuba.load_file(path, **params)``); ``width``,
+  ``height`` and ``spp`` also work on a file that declares no such parameter: they then set the
+  film's size and the sampler's ``sample_count`` directly (so any scene can be rendered small);
 * shapes ``rectangle``, ``cube``, ``sphere`` (``center``/``radius``; ``to_world`` with translation
   and uniform scale), ``obj`` (triangles; polygons are fanned; per-vertex normals only with
   ``face_normals="true"``); ``to_world`` built from ``translate``, ``rotate``, ``scale``,
@@ -16,11 +18,17 @@ Supported (everything else is an error naming the tag and line):
   ``sample_visible``), ``twosided``; declared at top level with ``id`` and used by
   ``<ref id=...>``;
 * emitters ``area`` (constant ``radiance`` or an EXR ``bitmap`` texture) and ``point``;
-* sensors ``perspective`` and ``thinlens`` with an ``hdrfilm`` and a ``box`` ``rfilter``;
-  the sampler's ``sample_count`` becomes :attr:`RenderSettings.spp`;
+* sensors ``perspective`` and ``thinlens`` with an ``hdrfilm`` (default 768 x 576) and a
+  ``box`` or ``gaussian`` (``stddev``) ``rfilter``; a film without one, or a sensor without a
+  film, gets Mitsuba's default, the gaussian with stddev 0.5 pixels, rendered by filter
+  importance sampling (:mod:`anisosample.render.film`: Mitsuba's image in expectation, each
+  pixel still an independent estimator of its own integral); the sampler's ``sample_count``
+  becomes :attr:`RenderSettings.spp`;
 * integrator ``direct`` (``emitter_samples`` = 1, ``bsdf_samples`` 0 or 1; ``bsdf_samples = 1``
   turns on MIS with one BSDF sample per light sample, :attr:`RenderSettings.mis`; other counts
-  are refused: raise spp).
+  are refused: raise spp), or ``path`` with ``max_depth`` 2 (camera ray and one bounce:
+  Mitsuba's direct illumination, read as ``direct`` with MIS); other depths, and ``path``'s
+  default -1 (unlimited), are refused: there is no indirect light here.
 
 The sample count and the integrator are render settings, not scene data: :func:`load_xml`
 returns the :class:`~anisosample.render.scene.Scene` alone, :func:`load_xml_with_settings` the
@@ -39,6 +47,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .builder import SceneBuilder
+from .film import GAUSSIAN_STDDEV, RFILTERS
 from .obj import read_obj as _read_obj
 from .scene import Scene
 
@@ -103,6 +112,7 @@ class _Ctx:
         self.params = dict(params)
         self.bsdfs: dict[str, _Node] = {}
         self.settings = RenderSettings()
+        self.size: dict[str, int] = {}  # film width/height set directly (no such parameter)
 
     def err(self, node: _Node, msg: str) -> SceneFormatError:
         t = node.attrs.get("type")
@@ -513,7 +523,8 @@ def _sensor(ctx: _Ctx, b: SceneBuilder, node: _Node):
     elif kind != "perspective":
         raise ctx.err(node, "unsupported sensor plugin (perspective, thinlens)")
     props, objs = _props(ctx, node, allowed)
-    width, height = 768, 576
+    width, height = 768, 576  # Mitsuba's hdrfilm defaults
+    rfilter = ("gaussian", GAUSSIAN_STDDEV)  # Mitsuba's default reconstruction filter
     for o in objs:
         if o.tag == "film":
             if ctx.attr(o, "type") != "hdrfilm":
@@ -532,13 +543,10 @@ def _sensor(ctx: _Ctx, b: SceneBuilder, node: _Node):
             width, height = fp.get("width", width), fp.get("height", height)
             if width < 1 or height < 1:
                 raise ctx.err(o, f"film size must be positive, got {width}x{height}")
-            box = [r for r in fo if r.tag == "rfilter"]
-            if len(box) != 1 or len(fo) != 1 or ctx.attr(box[0], "type") != "box":
-                raise ctx.err(
-                    o,
-                    'the film needs <rfilter type="box"/> (Mitsuba\'s default is '
-                    "gaussian, which this renderer does not implement)",
-                )
+            if any(r.tag != "rfilter" for r in fo) or len(fo) > 1:
+                raise ctx.err(o, "a film takes one nested <rfilter> and nothing else")
+            if fo:
+                rfilter = _rfilter(ctx, fo[0])
         elif o.tag == "sampler":
             sp, so = _props(ctx, o, {"sample_count": "integer", "seed": "integer"})
             _no_objects(ctx, so)
@@ -557,12 +565,16 @@ def _sensor(ctx: _Ctx, b: SceneBuilder, node: _Node):
     fd = props.get("focus_distance", 0.0)
     if kind == "thinlens" and not (ar > 0 and fd > 0):
         raise ctx.err(node, "thinlens needs aperture_radius > 0 and focus_distance > 0")
+    width = ctx.size.get("width", width)  # --set width=... on a file without that parameter
+    height = ctx.size.get("height", height)
     m = props.get("to_world", np.eye(4))
     try:
         b.camera(
             m,
             width=width,
             height=height,
+            rfilter=rfilter[0],
+            rfilter_stddev=rfilter[1],
             fov=fov,
             fov_axis=props.get("fov_axis", "x"),
             aperture_radius=ar,
@@ -571,6 +583,61 @@ def _sensor(ctx: _Ctx, b: SceneBuilder, node: _Node):
         )
     except ValueError as exc:
         raise ctx.err(node, str(exc)) from None
+
+
+_SIZE_OVERRIDES = ("width", "height", "spp")
+
+
+def _positive_int(path: Path, name: str, value) -> int:
+    try:
+        v = int(str(value).strip())
+    except ValueError:
+        raise ValueError(f"{path.name}: override {name} must be an integer >= 1, got "
+                         f"{value!r}") from None
+    if v < 1:
+        raise ValueError(f"{path.name}: override {name} must be an integer >= 1, got {v}")
+    return v
+
+
+def _path_integrator(ctx: _Ctx, node: _Node) -> bool:
+    """Mitsuba 3's ``path`` integrator at ``max_depth`` 2: the renderer's direct illumination
+    with MIS (returned: True). Mitsuba's ``max_depth`` is the longest path depth, -1 unlimited
+    (its default): 1 renders only directly visible emitters, 2 "single-bounce (direct-only)
+    illumination" (docs of ``src/integrators/path.cpp``). At depth 2 the path tracer takes, at
+    the camera ray's hit, one emitter sample and one BSDF sample combined with the power
+    heuristic (its ``mis_weight``), and no further vertex: Mitsuba's ``direct`` integrator with
+    ``emitter_samples = bsdf_samples = 1``, which is ``mis=True`` here. Russian roulette starts
+    after ``rr_depth`` bounces and so never acts at depth 2; ``rr_depth`` is read and unused.
+    Other depths (and the default -1) are refused: this renderer has no indirect light."""
+    props, objs = _props(ctx, node, {"max_depth": "integer", "rr_depth": "integer",
+                                     "hide_emitters": "ignore"})
+    _no_objects(ctx, objs)
+    depth = props.get("max_depth", -1)
+    if depth != 2:
+        what = "-1 (unlimited, Mitsuba's default)" if depth == -1 else str(depth)
+        raise ctx.err(node, f"max_depth {what} is not supported: this renderer computes direct "
+                            "illumination only, which is the path integrator with max_depth 2 "
+                            '(write <integer name="max_depth" value="2"/>, or use the direct '
+                            "integrator)")
+    return True
+
+
+def _rfilter(ctx: _Ctx, node: _Node) -> tuple[str, float]:
+    """``<rfilter type="box"/>`` or ``<rfilter type="gaussian">`` (``stddev``, default 0.5):
+    ``(name, stddev)`` for :mod:`anisosample.render.film`."""
+    kind = ctx.attr(node, "type", required=True)
+    if kind == "box":
+        _, objs = _props(ctx, node, {})
+        _no_objects(ctx, objs)
+        return "box", GAUSSIAN_STDDEV
+    if kind == "gaussian":
+        props, objs = _props(ctx, node, {"stddev": "float"})
+        _no_objects(ctx, objs)
+        stddev = props.get("stddev", GAUSSIAN_STDDEV)
+        if not (np.isfinite(stddev) and stddev > 0):
+            raise ctx.err(node, f"stddev must be > 0 (pixels), got {stddev}")
+        return "gaussian", stddev
+    raise ctx.err(node, f"unsupported reconstruction filter (supported: {', '.join(RFILTERS)})")
 
 
 def load_xml(path, **params) -> Scene:
@@ -601,13 +668,18 @@ def load_xml_with_settings(path, **params) -> tuple[Scene, RenderSettings]:
             if name is None or "value" not in c.attrs:
                 raise ctx.err(c, "<default> needs name and value")
             ctx.params.setdefault(name, c.attrs["value"])
-    # An override must name a parameter of the file: a <default> or a $name it references.
+    # An override must name a parameter of the file: a <default> or a $name it references;
+    # width, height and spp also resize a file that has no such parameter (_SIZE_OVERRIDES).
     known = set(ctx.params) | set(re.findall(r"\$([A-Za-z_]\w*)", path.read_text(errors="replace")))
+    params = dict(params)
+    for name in sorted(set(_SIZE_OVERRIDES) & set(params) - known):
+        ctx.size[name] = _positive_int(path, name, params.pop(name))
     unknown = sorted(set(params) - known)
     if unknown:
         raise ValueError(
             f"{path.name}: unknown parameter override {', '.join(map(repr, unknown))}; this scene"
-            f" has {', '.join(sorted(known)) or 'no parameters'}"
+            f" has {', '.join(sorted(known)) or 'no parameters'} (and width, height and spp"
+            " always set the film size and the sample count)"
         )
     ctx.params.update({k: str(v) for k, v in params.items()})
     b = SceneBuilder()
@@ -644,10 +716,13 @@ def load_xml_with_settings(path, **params) -> tuple[Scene, RenderSettings]:
             if sensors > 1:
                 raise ctx.err(c, "only one sensor is supported")
             _sensor(ctx, b, c)
+        elif c.tag == "integrator" and ctx.attr(c, "type") == "path":
+            integrators += 1
+            ctx.settings = ctx.settings._replace(mis=_path_integrator(ctx, c))
         elif c.tag == "integrator":
             integrators += 1
             if ctx.attr(c, "type") != "direct":
-                raise ctx.err(c, "unsupported integrator (only direct)")
+                raise ctx.err(c, "unsupported integrator (direct, or path with max_depth 2)")
             props, objs = _props(
                 ctx,
                 c,
@@ -675,11 +750,14 @@ def load_xml_with_settings(path, **params) -> tuple[Scene, RenderSettings]:
             raise ctx.err(c, "unsupported element")
     if integrators == 0:
         raise SceneFormatError(
-            f'{path}: the scene needs <integrator type="direct"> (Mitsuba\'s'
-            " default integrator is the path tracer)"
+            f'{path}: the scene needs <integrator type="direct"> or <integrator type="path"> with'
+            ' <integer name="max_depth" value="2"/> (Mitsuba\'s default integrator is the path'
+            " tracer with max_depth -1, unlimited; this renderer computes direct illumination)"
         )
     if sensors == 0:
         raise SceneFormatError(f"{path}: the scene has no <sensor>")
+    if "spp" in ctx.size:
+        ctx.settings = ctx.settings._replace(spp=ctx.size["spp"])
     try:
         return b.build(), ctx.settings
     except ValueError as exc:

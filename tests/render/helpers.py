@@ -1,12 +1,12 @@
 """Small scenes and references shared by the renderer tests."""
 
-from pathlib import Path
 
 import numpy as np
 
 import anisosample.render as R
+from anisosample import scenes
 
-SCENES = Path(__file__).resolve().parents[2] / "experiments" / "scenes"
+SCENES = scenes.FOLDER  # the shipped scenes (anisosample/scenes/)
 
 
 def plane_under_light(height=1.98, half=0.25, radiance=10.0, albedo=0.5, occluder=None):

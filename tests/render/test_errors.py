@@ -82,10 +82,22 @@ def test_undefined_parameter_and_defaults(tmp_path):
     assert R.load_xml(_write(tmp_path, text), fov=30).width == 4
 
 
-def test_gaussian_film_is_refused(tmp_path):
+def test_film_filters_mitsuba_default_gaussian_and_unsupported(tmp_path):
+    """No <rfilter>: Mitsuba's default, the gaussian with stddev 0.5; others are refused."""
     text = MINIMAL.format(body=LIGHT).replace('<rfilter type="box"/>', "")
-    with pytest.raises(R.SceneFormatError, match="box"):
-        R.load_xml(_write(tmp_path, text))
+    cam = R.load_xml(_write(tmp_path, text)).camera
+    assert (cam.rfilter, cam.rfilter_stddev) == ("gaussian", 0.5)
+    assert R.load_xml(_write(tmp_path, MINIMAL.format(body=LIGHT))).camera.rfilter == "box"
+    wide = MINIMAL.format(body=LIGHT).replace(
+        '<rfilter type="box"/>',
+        '<rfilter type="gaussian"><float name="stddev" value="0.8"/></rfilter>')
+    assert R.load_xml(_write(tmp_path, wide)).camera.rfilter_stddev == 0.8
+    tent = MINIMAL.format(body=LIGHT).replace('type="box"', 'type="tent"')
+    with pytest.raises(R.SceneFormatError, match=r"<rfilter type=\"tent\">: .*box, gaussian"):
+        R.load_xml(_write(tmp_path, tent))
+    bad = wide.replace('value="0.8"', 'value="-1"')
+    with pytest.raises(R.SceneFormatError, match="stddev must be > 0"):
+        R.load_xml(_write(tmp_path, bad))
 
 
 def test_negative_spp_and_bad_options():
