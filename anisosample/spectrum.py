@@ -919,7 +919,9 @@ def save_spectrum_image(path, grid, *, n: int, vmax: float = 2.0, overwrite: boo
     centre. The EXR is data: the grid itself, ``values[i, j] = P_S(j - r, i - r)`` (DESIGN's
     grid convention, no flip: ``io.read_exr`` / ``io.load_grid`` give back ``grid``, and an EXR
     viewer shows ``v_y`` growing downwards), with ``n``, ``radius`` and that layout in its
-    metadata (``io.read_exr(path, metadata=True)``).
+    metadata (``io.read_exr(path, metadata=True)``). The PNG is one pixel per frequency, without
+    axes; :func:`anisosample.plot.save_spectrum_figure` draws the figure a person reads (frequency
+    axes, colour bar, linear or log scale, optional clip, marked directions).
     """
     from . import io
 
