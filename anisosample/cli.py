@@ -80,7 +80,6 @@ def _add_format_option(p):
                         "'utk-bin' its binary format (.bin)")
 
 
-
 def _add_no_build(p):
     """``--no-build``: the one rule for aligned sets no table holds (tables.lookup's
     ``build_missing``) -- built on demand into the user cache with progress by default."""
@@ -157,7 +156,8 @@ def _run_points(args):
         raise ValueError(f"--output must end in {', '.join(_POINT_OUTPUTS)}, got {out.name}")
     if out.suffix.lower() == ".png" and args.format is not None:
         raise ValueError("--format applies to point files, not to the .png picture")
-    io._point_format(out, args.format)  # a --format the suffix does not take: before the work
+    if out.suffix.lower() != ".png":
+        io._point_format(out, args.format)  # a --format the suffix does not take: refused now
     if out.exists() and not args.force:
         raise FileExistsError(f"{out} exists; pass --force to replace it")
     if args.base != "pmj02bn" and args.sampler != "sheared":
@@ -300,7 +300,11 @@ def _add_synthesize(sub):
     p.add_argument("--c", type=_finite_float, default=None, help="weight of the SW term (W Eq. 10)")
     p.add_argument("--learning-rate", type=_finite_float, default=None,
                    help="Adam step in units of 1/sqrt(n) (recipe default)")
-    p.add_argument("-o", "--output", required=True, help="output .npz (points + metadata)")
+    p.add_argument("-o", "--output", required=True,
+                   help="output .npz (points + metadata), or any point file: .npy, .txt, "
+                        ".csv, .dat / .bin (UTK text / binary; metadata kept as io.save_points "
+                        "keeps it)")
+    _add_format_option(p)
     p.add_argument("--checkpoint", default=None,
                    help="checkpoint .npz (default: OUTPUT.ckpt.npz); an interrupted run resumes")
     p.add_argument("--force", action="store_true", help="overwrite an existing output")
@@ -309,11 +313,10 @@ def _add_synthesize(sub):
 def _run_synthesize(args):
     import jax
 
-    from . import synthesis
+    from . import io, synthesis
 
     out = Path(args.output)
-    if out.suffix != ".npz":
-        raise ValueError(f"--output must end in .npz, got {out.name}")
+    fmt = io._point_format(out, args.format)  # a suffix or --format no point file takes: refused
     if out.exists() and not args.force:
         raise FileExistsError(f"{out} exists; pass --force to replace it")
     ckpt = args.checkpoint or str(out.with_suffix(".ckpt.npz"))
@@ -322,7 +325,10 @@ def _run_synthesize(args):
         steps=args.steps, c=args.c, learning_rate=args.learning_rate, checkpoint=ckpt,
     )
     info = dict(result.info, seed=args.seed)
-    synthesis.save_result(out, result.points, info, overwrite=args.force)
+    if fmt == "npz":
+        synthesis.save_result(out, result.points, info, overwrite=args.force)
+    else:  # a point file for other tools (UTK): the points, and the record where it fits
+        io.save_points(out, result.points, info, format=fmt, overwrite=args.force)
     print(f"wrote {args.n} points optimized for {args.directions} deg to {out}"
           f" (loss {info['history'][0]:.3g} -> {info['final_loss']:.3g})")
 
@@ -443,6 +449,25 @@ def _add_tables(sub):
                    help="with --distributed: this process's id in 0..num_processes-1")
     i = tsub.add_parser("info", help="describe and verify a table directory")
     i.add_argument("path", help="table directory (holds table.json)")
+    e = tsub.add_parser("export", help="write a table's sets to one point file (UTK text or "
+                                       "binary, .npz, ...) for other tools")
+    e.add_argument("--n", type=int, required=True, help="points per set")
+    e.add_argument("--directions", type=int, choices=[3, 4], default=3,
+                   help="3 (axes + 1 direction) or 4 (axes + 2)")
+    e.add_argument("--sets", default=None,
+                   help="the sets' extra directions, e.g. 30,45,120 or 10:20,0:45 (any integer "
+                        "degrees, reduced by symmetry as lookups do; missing sets are built on "
+                        "demand unless --no-build); default: every canonical set the table "
+                        "holds")
+    e.add_argument("--table", default=None,
+                   help="table directory or folder of tables (default: the search path)")
+    e.add_argument("--no-build", action="store_true",
+                   help="with --sets: refuse sets no table holds instead of building them")
+    e.add_argument("-o", "--output", required=True,
+                   help="output point file: .dat or .txt with --format utk (UTK text, sets "
+                        "separated by '#'), .bin (UTK binary), .npz, .npy or .txt")
+    _add_format_option(e)
+    e.add_argument("--force", action="store_true", help="overwrite an existing output")
 
 
 def _parse_sets(text):
@@ -458,6 +483,8 @@ def _parse_sets(text):
 def _run_tables(args):
     from . import tables
 
+    if args.tables_command == "export":
+        return _run_tables_export(args)
     if args.tables_command == "info":
         tab = tables.open_table(args.path)
         sets = tables.canonical_sets(tab.kind)
@@ -501,6 +528,54 @@ def _run_tables(args):
     print(f"table {summary['path']}: built {len(summary['built'])} set(s) on "
           f"{len(summary['devices'])} device(s), kept {len(summary['skipped'])} finished one(s);"
           f" complete={summary['complete']}")
+
+
+def _run_tables_export(args):
+    """``tables export``: the requested sets (``--sets``, looked up as ``tables.lookup`` does)
+    or every canonical set a table holds, in table order, to one point file with a record of
+    each set's directions."""
+    import numpy as np
+
+    from . import io, tables
+
+    out = Path(args.output)
+    fmt = io._point_format(out, args.format)
+    if out.exists() and not args.force:
+        raise FileExistsError(f"{out} exists; pass --force to replace it")
+    if args.sets is not None:
+        extras = _parse_sets(args.sets)
+        if not extras or any(len(e) != args.directions - 2 for e in extras):
+            raise ValueError(f"--sets must give {args.directions - 2} extra direction(s) per "
+                             f"set for a {args.directions}-direction table, got {args.sets!r}")
+        sets = [tables.lookup([*tables.AXES_DEG, *e], args.n, kind=args.directions,
+                              table=args.table, build_missing=False if args.no_build else (
+                                  True if args.table is not None else None))
+                for e in extras]
+        dirs = [[*tables.AXES_DEG, *e] for e in extras]
+        where = args.table or "the table search path"
+    else:
+        if args.no_build:
+            raise ValueError("--no-build applies to --sets (without it, only the sets a table "
+                             "holds are written)")
+        path = tables.find_table(args.directions, args.n, root=args.table)
+        if path is None:
+            raise FileNotFoundError(
+                f"no {args.directions}-direction table for n={args.n} in "
+                f"{args.table or 'the table search path'}; build it with "
+                f"`{tables.build_command(args.directions, args.n)}` or name sets with --sets")
+        tab = tables.open_table(path)
+        held = [e for e in tables.canonical_sets(tab.kind) if tab.has(e)]
+        if not held:
+            raise ValueError(f"table {path} holds no sets yet")
+        sets = [tab.load(e) for e in held]
+        dirs = [list(tables.set_directions(e)) for e in held]
+        where = str(path)
+    meta = {"what": f"aligned sets of the {args.directions}-direction table for n={args.n}",
+            "n": args.n, "kind": args.directions, "directions_deg": dirs}
+    io.save_points(out, [np.asarray(s) for s in sets], meta, format=fmt, overwrite=args.force)
+    print(f"wrote {len(sets)} set(s) of {args.n} points from {where} to {out} "
+          f"({'; '.join(','.join(str(d) for d in ds) for ds in dirs[:4])}"
+          f"{' ...' if len(dirs) > 4 else ''})")
 
 
 _AFFINITY_ENV = "ANISOSAMPLE_WORKER_CPUS"
@@ -614,7 +689,6 @@ def _add_variance(sub):
                         "the fitted slopes and their intervals); repeat for both (default: "
                         "print the table only)")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
-
 
 
 _DEFAULT_VARIANCE_SAMPLERS = ("random", "jittered", "sobol-owen", "pmj02bn")

@@ -1017,8 +1017,8 @@ cli("synthesize-steps-zero", "synthesize -n 64 --directions 0,90 --steps 0 -o {o
     r"steps must be >= 1")
 cli("synthesize-c-nan", "synthesize -n 64 --directions 0,90 --c nan -o {o}/o.npz",
     r"argument --c: expected a finite number")
-cli("synthesize-wrong-suffix", "synthesize -n 64 --directions 0,90 -o {o}/o.npy",
-    r"--output must end in \.npz")
+cli("synthesize-wrong-suffix", "synthesize -n 64 --directions 0,90 -o {o}/o.bmp",
+    r"points file name must end in \.npy or \.npz")
 cli("synthesize-recipe-unknown", "synthesize -n 64 --directions 0,90 --recipe x -o {o}/o.npz",
     r"argument --recipe: invalid choice")
 cli("synthesize-36-directions-at-64",
@@ -1069,8 +1069,10 @@ cli("variance-n-text", "variance --integrand edges:30 --n 64,x -o {o}/v.json",
     r"argument --n: expected comma-separated integers")
 cli("variance-n-zero", "variance --integrand edges:30 --n 0,64 -o {o}/v.json",
     r"(ns|n) must be >= 1")
-cli("variance-one-size", "variance --integrand edges:30 --n 64 -o {o}/v.json",
-    r"ns must hold at least 2 sizes")
+cli("variance-output-suffix", "variance --integrand edges:30 --n 64 -o {o}/v.txt",
+    r"--output must end in \.json or \.png, got v\.txt")
+cli("variance-points-missing-size", "variance --integrand edges:30 --points {d}/pts.txt "
+    "--n 64,128", r"--points pts\.txt holds sets of n = \[64\], none of n = \[128\]")
 cli("variance-realizations-one", "variance --integrand edges:30 --realizations 1 -o {o}/v.json",
     r"realizations must be >= 2")
 cli("variance-sampler-unknown", "variance --integrand edges:30 --sampler halton -o {o}/v.json",
