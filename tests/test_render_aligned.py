@@ -167,7 +167,12 @@ def test_blocks_with_a_known_shadow_edge_get_its_direction():
 
 def test_point_sets_follow_the_blocks(scene, est):
     key = jax.random.key(3)
-    d, v = aligned.strongest_directions(est)
+    # each block's strongest valid direction: the first slot that passed the confidence test
+    # (issue 27: a block whose slot 0 failed and slot 1 passed has a direction)
+    slots, ok = np.asarray(est.estimate.directions_deg), np.asarray(est.estimate.valid)
+    v = ok.any(-1)
+    d = np.array([[next((x for x, y in zip(slots[a, b], ok[a, b], strict=True) if y), -1.0)
+                   for b in range(ok.shape[1])] for a in range(ok.shape[0])])
     al = aligned.block_sampler(scene, "aligned", estimate=est, k=1, gate=False)
     sets, pix = al.point_sets(key, SPP)
     pmj = samplers.get("pmj02bn")(key, SPP)
