@@ -57,6 +57,7 @@ import numpy as np
 
 from . import _table_store as _t
 from . import io as _io
+from . import prefix as _prefix
 from ._validate import check_int
 from .progress import progress as _progress
 
@@ -150,8 +151,8 @@ def warm_points(n: int, extra, fingerprint: str, prefix: str = "none") -> np.nda
             tab = _t.open_table(path, n=n, kind=3)
             if tab.settings["fingerprint"] == fingerprint:
                 c = _t.canonicalize((int(extra[0]),), kind=3)
-                return _t.restore_prefix(_t.transform_points(tab.load(c.extra), c.transform),
-                                         prefix)
+                return _prefix.restore_prefix(
+                    _t.transform_points(tab.load(c.extra), c.transform), prefix)
     raise FileNotFoundError(f"the 3-direction table for n={n} this table is warm-started from "
                             f"(fingerprint {fingerprint[:12]}...) is not on the search path")
 
@@ -369,7 +370,7 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
     synth = {k: v for k, v in synthesis_options.items() if v is not None}
     if batch > 1:
         synth["batch"] = batch
-    prefix = _t.check_table_prefix(synth.get("prefix"))
+    prefix = _prefix.check_table_prefix(synth.get("prefix"))
     out = Path(out) if out is not None else _t.cache_table_path(kind, n, prefix)
     existing = _existing_synthesis(out, kind)  # an existing table keeps its own choices
     if warm_start is None:

@@ -174,17 +174,6 @@ def transform_points(points: np.ndarray, transform: str) -> np.ndarray:
     return np.stack(out, axis=-1).astype(np.float32)
 
 
-def restore_prefix(points: np.ndarray, prefix: str) -> np.ndarray:
-    """A transformed set of a table with a (symmetric) ``prefix``: its first ``m`` points are
-    the prefix's points in another order; put them back in the prefix's order, so every set a
-    table serves starts with the prefix bit for bit (:func:`anisosample.prefix.align_prefix`)."""
-    if prefix == "none":
-        return points
-    from . import prefix as _prefix
-
-    return _prefix.align_prefix(points, _prefix.prefix_points(prefix))
-
-
 def table_prefix(table: Table) -> str:
     """The prefix the sets of ``table`` start with (``"none"`` for tables without one)."""
     return table.settings["synthesis"].get("prefix", "none")
@@ -240,20 +229,6 @@ def table_name(kind: int, n: int, prefix: str = "none") -> str:
     return f"d{kind}_n{n}" + ("" if prefix == "none" else f"_{prefix}")
 
 
-def check_table_prefix(prefix) -> str:
-    """A prefix a table can hold: ``"none"`` or a symmetric ``"dihedral-<m>"`` (a table serves
-    most directions by mirroring, swapping or rotating a canonical set, which keeps only a prefix
-    that the square's symmetries map onto itself: :mod:`anisosample.prefix`)."""
-    from . import prefix as _prefix
-
-    spec = _prefix.check_prefix("prefix", "none" if prefix is None else prefix)
-    if spec != "none" and not spec.startswith("dihedral-"):
-        raise ValueError(f"prefix {spec!r} cannot be held by a table: its symmetry reduction "
-                         "mirrors, swaps and rotates sets, which keeps only a symmetric prefix; "
-                         f"use 'dihedral-<m>' (e.g. {_prefix.DEFAULT_PREFIX!r}) or 'none'")
-    return spec
-
-
 def find_table(kind: int, n: int, *, root=None, prefix: str = "none") -> Path | None:
     """The directory of the ``kind``-direction table for ``n`` points (and ``prefix``), or
     ``None``.
@@ -262,7 +237,7 @@ def find_table(kind: int, n: int, *, root=None, prefix: str = "none") -> Path | 
     search path :func:`table_dirs`.
     """
     kind, n = check_kind(kind), check_int("n", n, minimum=2)
-    name = table_name(kind, n, check_table_prefix(prefix))
+    name = table_name(kind, n, prefix)
     roots = [Path(root)] if root is not None else table_dirs()
     for r in roots:
         if (r / "table.json").exists():

@@ -157,7 +157,7 @@ def _run_points(args):
     if out.suffix.lower() == ".png" and args.format is not None:
         raise ValueError("--format applies to point files, not to the .png picture")
     if out.suffix.lower() != ".png":
-        io._point_format(out, args.format)  # a --format the suffix does not take: refused now
+        io.point_format(out, args.format)  # a --format the suffix does not take: refused now
     if out.exists() and not args.force:
         raise FileExistsError(f"{out} exists; pass --force to replace it")
     if args.base != "pmj02bn" and args.sampler != "sheared":
@@ -316,7 +316,7 @@ def _run_synthesize(args):
     from . import io, synthesis
 
     out = Path(args.output)
-    fmt = io._point_format(out, args.format)  # a suffix or --format no point file takes: refused
+    fmt = io.point_format(out, args.format)  # a suffix or --format no point file takes: refused
     if out.exists() and not args.force:
         raise FileExistsError(f"{out} exists; pass --force to replace it")
     ckpt = args.checkpoint or str(out.with_suffix(".ckpt.npz"))
@@ -539,7 +539,7 @@ def _run_tables_export(args):
     from . import io, tables
 
     out = Path(args.output)
-    fmt = io._point_format(out, args.format)
+    fmt = io.point_format(out, args.format)
     if out.exists() and not args.force:
         raise FileExistsError(f"{out} exists; pass --force to replace it")
     if args.sets is not None:

@@ -266,7 +266,7 @@ _SUFFIX_FORMAT = {".npy": "npy", ".npz": "npz", ".txt": "txt", ".csv": "csv", ".
                   ".bin": "utk-bin"}
 
 
-def _point_format(path: Path, format: str | None) -> str:
+def point_format(path: Path, format: str | None) -> str:
     """The format of a point file: ``format`` (checked against the suffix) or the suffix's."""
     suffix = path.suffix.lower()
     if format is None:
@@ -410,7 +410,7 @@ def load_point_sets(path, *, format: str | None = None, metadata: bool = False):
     them, the line (text) or the set and point (binary, stacks).
     """
     path = Path(path)
-    fmt = _point_format(path, format)
+    fmt = point_format(path, format)
     path = _existing(path)
     meta: dict = {}
     where = f"points in {path}"
@@ -498,7 +498,7 @@ def save_points(path, points, metadata: Mapping | None = None, *, format: str | 
     with ``overwrite=True``.
     """
     path = Path(path)
-    fmt = _point_format(path, format)
+    fmt = point_format(path, format)
     sets = _as_point_sets(points)
     sizes = {len(s) for s in sets}
     record = _to_jsonable(dict(metadata)) if metadata else None

@@ -40,7 +40,7 @@ from ._validate import check_int, check_points
 
 __all__ = ["KINDS", "DEFAULT_PREFIX", "PMJ_KEY", "check_prefix", "prefix_size", "prefix_points",
            "explicit_prefix_name", "is_symmetric", "dihedral_points", "place_prefix",
-           "align_prefix"]
+           "align_prefix", "check_table_prefix", "restore_prefix"]
 
 KINDS = ("pmj02bn", "dihedral")
 """The named prefix kinds."""
@@ -245,3 +245,27 @@ def align_prefix(points, prefix_pts) -> np.ndarray:
                          "symmetry keeps only a symmetric prefix (dihedral-<m>)") from None
     pts[:m] = pts[:m][order]
     return pts
+
+
+# --- prefixes in tables -------------------------------------------------------------------------
+
+
+def check_table_prefix(prefix) -> str:
+    """A prefix a table can hold: ``None``/``"none"`` or a symmetric ``"dihedral-<m>"`` (a table
+    serves most directions by mirroring, swapping or rotating a canonical set, which keeps only a
+    prefix that the square's symmetries map onto itself)."""
+    spec = check_prefix("prefix", "none" if prefix is None else prefix)
+    if spec != "none" and not spec.startswith("dihedral-"):
+        raise ValueError(f"prefix {spec!r} cannot be held by a table: its symmetry reduction "
+                         "mirrors, swaps and rotates sets, which keeps only a symmetric prefix; "
+                         f"use 'dihedral-<m>' (e.g. {DEFAULT_PREFIX!r}) or 'none'")
+    return spec
+
+
+def restore_prefix(points: np.ndarray, prefix: str) -> np.ndarray:
+    """A transformed set of a table with a (symmetric) ``prefix``: its first ``m`` points are
+    the prefix's points in another order; put them back in the prefix's order, so every set a
+    table serves starts with the prefix bit for bit (:func:`align_prefix`)."""
+    if prefix == "none":
+        return points
+    return align_prefix(points, prefix_points(prefix))

@@ -79,12 +79,10 @@ from ._table_store import cache_dir as cache_dir
 from ._table_store import cache_table_path as cache_table_path
 from ._table_store import canonical_sets as canonical_sets
 from ._table_store import canonicalize as canonicalize
-from ._table_store import check_table_prefix as check_table_prefix
 from ._table_store import find_table as find_table
 from ._table_store import open_table as open_table
 from ._table_store import points_checksum as points_checksum
 from ._table_store import read_set as read_set
-from ._table_store import restore_prefix as restore_prefix
 from ._table_store import set_directions as set_directions
 from ._table_store import set_name as set_name
 from ._table_store import settings_fingerprint as settings_fingerprint
@@ -94,6 +92,7 @@ from ._table_store import table_name as table_name
 from ._table_store import table_prefix as table_prefix
 from ._table_store import transform_points as transform_points
 from ._validate import check_int
+from .prefix import check_table_prefix, restore_prefix
 
 __all__ = [
     "AXES_DEG",
@@ -133,7 +132,7 @@ def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
     describes) or a symmetric ``"dihedral-<m>"`` (e.g. :data:`anisosample.prefix.DEFAULT_PREFIX`):
     the set comes from the table ``d{kind}_n{n}_{prefix}`` and its first ``m`` points are the
     prefix bit for bit, whatever the directions (the symmetry's reordering of the prefix is
-    undone, :func:`anisosample._table_store.restore_prefix`).
+    undone, :func:`anisosample.prefix.restore_prefix`).
 
     Every set on demand: a set no table on the search path holds is synthesized at once (one
     set, with a progress bar) into the user cache's table for ``(kind, n)``
