@@ -103,7 +103,7 @@ def _resolved(synthesis: dict) -> dict:
     resolved = {**_synthesis.recipe_defaults(recipe.name), "recipe": recipe.name, **synthesis}
     base = _synthesis.Recipe(name=recipe.name).record()
     for k, v in recipe.record().items():
-        if k not in resolved and v != base[k]:
+        if k not in resolved and v != base.get(k):
             resolved[k] = v
     # The frequency design's formulas (wedge length, width, weights' offsets, ...) evaluated at a
     # probe size: a change of the design changes the fingerprint, so a table of the old design
@@ -122,12 +122,13 @@ WARM_LEARNING_RATE = 0.2
 """Learning rate of a warm-started set (in units of the point spacing; cold: 0.5)."""
 
 
-def warm_source(n: int, *, exclude=None, prefix: str = "none") -> _t.Table | None:
+def warm_source(n: int, *, exclude=None, prefix: str = "none",
+                sequence_from: int = 0) -> _t.Table | None:
     """The complete 3-direction table for ``n`` (and ``prefix``) on the search path (the shipped
     tables first after ``$ANISOSAMPLE_TABLES``), the fixed source a 4-direction set is
     warm-started from."""
     for root in _t.table_dirs():
-        path = root / _t.table_name(3, n, prefix)
+        path = root / _t.table_name(3, n, prefix, sequence_from)
         if exclude is not None and path == Path(exclude):
             continue
         if (path / "table.json").exists():
@@ -140,13 +141,14 @@ def warm_source(n: int, *, exclude=None, prefix: str = "none") -> _t.Table | Non
     return None
 
 
-def warm_points(n: int, extra, fingerprint: str, prefix: str = "none") -> np.ndarray:
+def warm_points(n: int, extra, fingerprint: str, prefix: str = "none",
+                sequence_from: int = 0) -> np.ndarray:
     """The warm start of the 4-direction set ``extra = (a, b)``: the set of the 3-direction
     table ``fingerprint`` for ``a`` (dark along 0, 90 and ``a``), turned by the symmetry that
     maps its canonical set to ``a`` (its prefix put back in the prefix's order). Deterministic:
     it depends on the source table only."""
     for root in _t.table_dirs():
-        path = root / _t.table_name(3, n, prefix)
+        path = root / _t.table_name(3, n, prefix, sequence_from)
         if (path / "table.json").exists():
             tab = _t.open_table(path, n=n, kind=3)
             if tab.settings["fingerprint"] == fingerprint:
@@ -178,7 +180,8 @@ def _build_one(table: _t.Table, index: int, extra, device, checkpoint_every: int
     opts.pop("batch", None)
     warm = opts.pop("warm_start", None)
     init = None if warm is None else warm_points(table.n, extra, warm["fingerprint"],
-                                                 _t.table_prefix(table))
+                                                 _t.table_prefix(table),
+                                                 _t.table_sequence_from(table))
     ckdir = table.path / ".ckpt"
     ckdir.mkdir(exist_ok=True)
     ckpt = ckdir / f"{_t.set_name(extra)}.npz"
@@ -212,7 +215,8 @@ def _build_group(table: _t.Table, indices, group, devices, checkpoint_every: int
     opts.pop("batch", None)
     warm = opts.pop("warm_start", None)
     init = None if warm is None else np.stack([warm_points(table.n, e, warm["fingerprint"],
-                                                           _t.table_prefix(table))
+                                                           _t.table_prefix(table),
+                                                           _t.table_sequence_from(table))
                                                for e in group])
     ckpt = None
     if len(devices) == 1:
@@ -371,7 +375,8 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
     if batch > 1:
         synth["batch"] = batch
     prefix = _prefix.check_table_prefix(synth.get("prefix"))
-    out = Path(out) if out is not None else _t.cache_table_path(kind, n, prefix)
+    seq = check_int("sequence_from", synth.get("sequence_from", 0), minimum=0)
+    out = Path(out) if out is not None else _t.cache_table_path(kind, n, prefix, seq)
     existing = _existing_synthesis(out, kind)  # an existing table keeps its own choices
     if warm_start is None:
         warm_start = kind == 4 if existing is None else "warm_start" in existing
@@ -382,9 +387,10 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
             synth["nufft_precision"] = FOUR_DIRECTION_PRECISION
         elif "nufft_precision" in existing:  # a table from before the option has none
             synth["nufft_precision"] = existing["nufft_precision"]
-    src = warm_source(n, exclude=out, prefix=prefix) if warm_start and kind == 4 else None
+    src = (warm_source(n, exclude=out, prefix=prefix, sequence_from=seq)
+           if warm_start and kind == 4 else None)
     if src is not None:
-        synth["warm_start"] = {"table": _t.table_name(3, n, prefix),
+        synth["warm_start"] = {"table": _t.table_name(3, n, prefix, seq),
                                "fingerprint": src.settings["fingerprint"]}
         synth.setdefault("steps", WARM_STEPS)
         synth.setdefault("learning_rate", WARM_LEARNING_RATE)

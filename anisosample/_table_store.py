@@ -179,6 +179,11 @@ def table_prefix(table: Table) -> str:
     return table.settings["synthesis"].get("prefix", "none")
 
 
+def table_sequence_from(table: Table) -> int:
+    """The smallest nested prefix of a table of sequences (0: a table of sets)."""
+    return int(table.settings["synthesis"].get("sequence_from", 0))
+
+
 def apply_symmetry(points, transform: str) -> jax.Array:
     """Apply one of :data:`TRANSFORMS` to a point set (float32, stays in ``[0, 1)^2``).
 
@@ -206,10 +211,10 @@ def cache_dir() -> Path:
     return Path(base) / "anisosample" / "tables"
 
 
-def cache_table_path(kind: int, n: int, prefix: str = "none") -> Path:
+def cache_table_path(kind: int, n: int, prefix: str = "none", sequence_from: int = 0) -> Path:
     """Where the user cache keeps the ``kind``-direction table for ``n`` points (the default
     ``out`` of a build and the target of on-demand lookups)."""
-    return cache_dir() / table_name(kind, n, prefix)
+    return cache_dir() / table_name(kind, n, prefix, sequence_from)
 
 
 def shipped_dir() -> Path:
@@ -223,13 +228,16 @@ def table_dirs() -> list[Path]:
     return [Path(p) for p in env.split(os.pathsep) if p] + [shipped_dir(), cache_dir()]
 
 
-def table_name(kind: int, n: int, prefix: str = "none") -> str:
-    """``d{kind}_n{n}``, or ``d{kind}_n{n}_{prefix}`` for sets with a fixed prefix
-    (:mod:`anisosample.prefix`, e.g. ``d3_n4096_dihedral-32``)."""
-    return f"d{kind}_n{n}" + ("" if prefix == "none" else f"_{prefix}")
+def table_name(kind: int, n: int, prefix: str = "none", sequence_from: int = 0) -> str:
+    """``d{kind}_n{n}``; ``_seq{sequence_from}`` added for a table of progressive sequences
+    (:func:`anisosample.synthesis.synthesize_sequence`) and ``_{prefix}`` for sets with a fixed
+    prefix (:mod:`anisosample.prefix`): e.g. ``d3_n4096_seq256_dihedral-32``."""
+    return (f"d{kind}_n{n}" + (f"_seq{sequence_from}" if sequence_from else "")
+            + ("" if prefix == "none" else f"_{prefix}"))
 
 
-def find_table(kind: int, n: int, *, root=None, prefix: str = "none") -> Path | None:
+def find_table(kind: int, n: int, *, root=None, prefix: str = "none",
+               sequence_from: int = 0) -> Path | None:
     """The directory of the ``kind``-direction table for ``n`` points (and ``prefix``), or
     ``None``.
 
@@ -237,7 +245,7 @@ def find_table(kind: int, n: int, *, root=None, prefix: str = "none") -> Path | 
     search path :func:`table_dirs`.
     """
     kind, n = check_kind(kind), check_int("n", n, minimum=2)
-    name = table_name(kind, n, prefix)
+    name = table_name(kind, n, prefix, sequence_from)
     roots = [Path(root)] if root is not None else table_dirs()
     for r in roots:
         if (r / "table.json").exists():

@@ -425,6 +425,12 @@ def _add_tables(sub):
                    help="only these canonical sets, e.g. 0,30,45 or 10:20;0:45 (default: all)")
     b.add_argument("--recipe", default=None, choices=["rate", "paper"])
     b.add_argument("--steps", type=int, default=None, help="optimizer steps (recipe default)")
+    b.add_argument("--prefix", default=None,
+                   help="fixed isotropic first points of every set (W Sec. 7): dihedral-<m>, "
+                        "e.g. dihedral-32 (anisosample.prefix); default none")
+    b.add_argument("--sequence-from", type=int, default=None,
+                   help="build progressive sequences whose every power-of-two prefix from this "
+                        "size up is aligned (synthesize_sequence), e.g. 256; default: sets")
     b.add_argument("--checkpoint-every", type=int, default=25,
                    help="synthesis checkpoint interval in steps")
     b.add_argument("--batch", type=int, default=1,
@@ -520,7 +526,9 @@ def _run_tables(args):
             jax.distributed.initialize(args.coordinator, args.num_processes, args.process_id)
         else:
             jax.distributed.initialize()
-    opts = {k: v for k, v in (("recipe", args.recipe), ("steps", args.steps)) if v is not None}
+    opts = {k: v for k, v in (("recipe", args.recipe), ("steps", args.steps),
+                              ("prefix", args.prefix), ("sequence_from", args.sequence_from))
+            if v is not None}
     summary = tables.build(args.n, args.directions, out=args.out, seed=args.seed,
                            sets=_parse_sets(args.sets), checkpoint_every=args.checkpoint_every,
                            batch=args.batch, warm_start=args.warm_start,
@@ -588,7 +596,8 @@ def _worker_argv(args, pid: int, port: int) -> list[str]:
             "--batch", str(args.batch), "--distributed", "--coordinator", f"127.0.0.1:{port}",
             "--num-processes", str(args.processes), "--process-id", str(pid)]
     for flag, value in (("--out", args.out), ("--sets", args.sets), ("--recipe", args.recipe),
-                        ("--steps", args.steps)):
+                        ("--steps", args.steps), ("--prefix", args.prefix),
+                        ("--sequence-from", args.sequence_from)):
         if value is not None:
             argv += [flag, str(value)]
     if args.warm_start is not None:
@@ -615,7 +624,8 @@ def _run_local_processes(args):
                          "go with --distributed, --coordinator, --num-processes or --process-id")
     from . import synthesis, tables
 
-    out = Path(args.out) if args.out else tables.cache_table_path(args.directions, args.n)
+    out = Path(args.out) if args.out else tables.cache_table_path(
+        args.directions, args.n, args.prefix or "none", args.sequence_from or 0)
     if (out / "table.json").exists():  # a damaged or foreign table: one message, not P
         tables.open_table(out, n=args.n, kind=args.directions)
     cores = synthesis.usable_cpus()

@@ -155,4 +155,36 @@ def aligned_sampler(*, integrand=None, values=None, directions_deg=None, k: int 
                           _tables.canonicalize(extra))
 
 
+def aligned_sequence_sampler(*, length: int = 4096, sequence_from: int = 256,
+                             **options) -> AlignedSampler:
+    """The progressive aligned sampler (W Sec. 7): ``sampler(key, n)`` is the first ``n`` points
+    of the aligned sequence of ``length`` points (:func:`anisosample.synthesis.
+    synthesize_sequence`: every power-of-two prefix from ``sequence_from`` up is an aligned set)
+    for the directions, with one toroidal shift per key; a renderer may stop at any ``n`` and
+    the points it took stay part of the larger estimate. Directions, estimation, fallback,
+    ``table``, ``build_missing`` and the lookup's options (``prefix``, ...) as in
+    :func:`aligned_sampler`; ``n`` must lie in ``[1, length]``."""
+    length = check_int("length", length, minimum=2)
+    sequence_from = check_int("sequence_from", sequence_from, minimum=2)
+    if sequence_from > length:
+        raise ValueError(f"sequence_from must be at most length={length}, got {sequence_from}")
+    base = aligned_sampler(**options, sequence_from=sequence_from)
+    if not base.directions_deg:
+        return base
+    set_fn = base.fn
+
+    def fn(key, n):
+        n = check_int("n", n, minimum=1)
+        if n > length:
+            raise ValueError(f"n must be at most the sequence length {length}, got {n}; make the "
+                             "sampler with a larger length=")
+        seq = set_fn(None, length)
+        pts = seq[:n]
+        return pts if key is None else _samplers.toroidal_shift(key, pts)
+
+    return AlignedSampler(f"aligned-sequence{list(base.directions_deg)}", fn, False, False,
+                          base.directions_deg, base.estimated_deg, base.canonical)
+
+
 _samplers.register("aligned", aligned_sampler)
+_samplers.register("aligned-sequence", aligned_sequence_sampler)

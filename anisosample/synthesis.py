@@ -78,10 +78,15 @@ from ._validate import (
 from .progress import progress as _progress
 
 __all__ = ["RECIPES", "BOUNDARIES", "Recipe", "make_recipe", "recipe_defaults",
-           "SynthesisResult", "synthesize", "synthesize_batch", "adam_update", "save_result",
+           "SynthesisResult", "synthesize", "synthesize_batch", "synthesize_sequence",
+           "sequence_levels", "SEQUENCE_WEIGHTS", "adam_update", "save_result",
            "load_result", "load_or_synthesize", "max_directions", "usable_cpus", "usable_cores"]
 
 RECIPES = ("rate", "paper")
+SEQUENCE_WEIGHTS = ("equal", "size")
+"""Weights of the nested prefixes' losses in a sequence (:func:`synthesize_sequence`):
+``"equal"`` (each prefix's normalized loss counts once) or ``"size"`` (prefix ``n_k`` weighs
+``n_k / N``: the full sequence first)."""
 BOUNDARIES = ("wrap", "clip")
 
 _DEFAULTS = {
@@ -93,7 +98,7 @@ _DEFAULTS = {
 _POSITIVE = ("learning_rate", "final_lr_fraction", "b1", "b2", "adam_eps", "nufft_eps")
 OPTIONS = ("steps", "learning_rate", "final_lr_fraction", "b1", "b2", "adam_eps", "c",
            "spectrum_weight", "boundary", "design", "frequency_options", "init", "method",
-           "nufft_eps", "nufft_precision", "prefix")
+           "nufft_eps", "nufft_precision", "prefix", "sequence_from", "sequence_weights")
 """Every synthesis option a :class:`Recipe` holds (besides the recipe's name)."""
 
 
@@ -123,6 +128,9 @@ class Recipe(eqx.Module):
     choice) are the spectrum engine's (:mod:`anisosample.spectrum`). ``prefix`` (W Sec. 7;
     :mod:`anisosample.prefix`): ``"none"``, ``"dihedral-<m>"`` or ``"pmj02bn-<m>"``: the set's
     first ``m`` points are that fixed isotropic prefix, bit for bit, and only the others move.
+    ``sequence_from`` (0: a set; a power of two: a progressive sequence, W Sec. 7; see
+    :func:`synthesize_sequence`) and ``sequence_weights`` (:data:`SEQUENCE_WEIGHTS`) make every
+    nested power-of-two prefix from ``sequence_from`` up an aligned set.
     """
 
     name: str = eqx.field(static=True, default="rate")
@@ -142,6 +150,8 @@ class Recipe(eqx.Module):
     nufft_eps: float = eqx.field(static=True, default=1e-7)
     nufft_precision: str = eqx.field(static=True, default="double")
     prefix: str = eqx.field(static=True, default="none")
+    sequence_from: int = eqx.field(static=True, default=0)
+    sequence_weights: str = eqx.field(static=True, default="equal")
 
     def __check_init__(self):
         from . import samplers
@@ -161,14 +171,23 @@ class Recipe(eqx.Module):
         check_choice("method", self.method, _spectrum.METHODS)
         check_choice("nufft_precision", self.nufft_precision, _spectrum.PRECISIONS)
         _prefix.check_prefix("prefix", self.prefix)
+        check_int("sequence_from", self.sequence_from, minimum=0)
+        if self.sequence_from and (self.sequence_from < 2
+                                   or self.sequence_from & (self.sequence_from - 1)):
+            raise ValueError("sequence_from must be 0 (a set) or a power of two >= 2 (the "
+                             f"smallest nested prefix of a sequence), got {self.sequence_from}")
+        check_choice("sequence_weights", self.sequence_weights, SEQUENCE_WEIGHTS)
 
     def record(self) -> dict:
         """The JSON-able record of every option (stored with results, fingerprinted by tables).
-        ``prefix`` appears only when there is one, so the records (and table fingerprints) of
-        sets without a prefix are what they were before the option existed."""
+        ``prefix`` and ``sequence_*`` appear only when set, so the records (and table
+        fingerprints) of plain sets are what they were before the options existed."""
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
-        if out["prefix"] == "none":
-            del out["prefix"]
+        for name, default in (("prefix", "none"), ("sequence_from", 0)):
+            if out[name] == default:
+                del out[name]
+        if not self.sequence_from:
+            del out["sequence_weights"]
         out["recipe"] = out.pop("name")
         out["frequency_options"] = dict(self.frequency_options)
         return _io.to_jsonable(out)
@@ -190,6 +209,8 @@ def make_recipe(recipe: str | Recipe = "rate", **options) -> Recipe:
         raise TypeError(f"unexpected synthesis option(s) {unknown}; the options are "
                         f"{', '.join(OPTIONS)}")
     given = {k: v for k, v in options.items() if v is not None}
+    if given.get("sequence_from") and "init" not in given and not isinstance(recipe, Recipe):
+        given["init"] = "pmj02bn"  # a sequence starts progressive: every power-of-two head
     if "method" in given:
         given["method"] = _spectrum.check_method(given["method"])
     if isinstance(recipe, Recipe):
@@ -282,24 +303,60 @@ class _Objective(eqx.Module):
     terms: tuple
     sw: tuple | None
     c: float = eqx.field(static=True)
+    heads: tuple = ()  # (n_k, term) of a sequence's nested prefixes x[:n_k], n_k < n
+
+
+def sequence_levels(n: int, sequence_from: int) -> list[int]:
+    """The nested prefix sizes a sequence of ``n`` points is optimized for: every power of two
+    from ``sequence_from`` below ``n``, and ``n`` (``[n]`` for a set, ``sequence_from = 0``)."""
+    if not sequence_from:
+        return [n]
+    out, k = [], sequence_from
+    while k < n:
+        out.append(k)
+        k *= 2
+    return [*out, n]
+
+
+def _level_weight(recipe: Recipe, nk: int, n: int) -> float:
+    return 1.0 if recipe.sequence_weights == "equal" else nk / n
 
 
 def _objective(fset, directions_deg, recipe: Recipe, n: int) -> _Objective:
+    """One set's loss as data; a sequence (``recipe.sequence_from``) adds the loss of every
+    nested prefix (:func:`sequence_levels`) on its own frequency design, weighted by
+    ``recipe.sequence_weights``: ``L = sum_k w_k L_{n_k}(x[:n_k])``."""
     a, c = recipe.spectrum_weight, recipe.c
-    terms = ()
+    terms, heads = (), ()
+    levels = sequence_levels(n, recipe.sequence_from)
     with jax.enable_x64(True):  # the loop runs in float64
         if a > 0:
             make = (_losses.linear_spectrum_loss_terms if recipe.name == "rate"
                     else _losses.spectrum_loss_terms)
-            terms = make(fset, n, scale=a, method=recipe.method, eps=recipe.nufft_eps,
-                         precision=recipe.nufft_precision)
+
+            def level_terms(fs, nk):
+                return make(fs, nk, scale=a * _level_weight(recipe, nk, n),
+                            method=recipe.method, eps=recipe.nufft_eps,
+                            precision=recipe.nufft_precision)
+
+            terms = level_terms(fset, n)
+            heads = tuple((nk, t) for nk in levels[:-1]
+                          for t in level_terms(_freq.design(nk, directions_deg, recipe.design,
+                                                            **dict(recipe.frequency_options)),
+                                               nk))
         sw = _losses.sliced_wasserstein_targets(directions_deg, n) if c > 0 else None
-    return _Objective(terms, sw, float(c))
+    return _Objective(terms, sw, float(c), heads)
 
 
 # One compiled function per spectrum term shape (shared by every set, single or batched), one
 # for the SW term and one for the Adam step: a set of an already-seen size compiles nothing.
 _term_value_and_grad = jax.jit(jax.value_and_grad(_spectrum.term_value))
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _head_value_and_grad(nk, x, term):
+    """A nested prefix's term: its value on ``x[:nk]`` and the gradient on all of ``x``."""
+    return jax.value_and_grad(lambda y: _spectrum.term_value(y[:nk], term))(x)
 
 
 @functools.partial(jax.jit, static_argnums=0)
@@ -311,8 +368,10 @@ def _sw_value_and_grad(c, x, d, tgt):
 def _adam_step(hyper, x, m, v, t, vals, grads):
     """Sum the terms' values and gradients (in their order), take one Adam step at the decayed
     learning rate, wrap or clip: ``(x, m, v, t + 1, loss before the step)``. The first ``fixed``
-    points (a prefix, W Sec. 7) get no gradient and no step: they stay as they are, bit for bit."""
-    lr0, decay, b1, b2, eps, wrap, fixed = hyper
+    points (a prefix, W Sec. 7) get no gradient and no step: they stay as they are, bit for bit.
+    In a sequence (``seq_from > 0``) point ``i`` steps in units of the spacing of the first
+    nested prefix that holds it: ``lr / sqrt(n_k)`` instead of ``lr / sqrt(n)``."""
+    lr0, decay, b1, b2, eps, wrap, fixed, seq_from = hyper
     val = functools.reduce(jnp.add, vals)
     g = functools.reduce(jnp.add, grads)
     if fixed:
@@ -320,6 +379,11 @@ def _adam_step(hyper, x, m, v, t, vals, grads):
         g = jnp.where(free, g, 0.0)
     lr = lr0 * decay ** t.astype(jnp.float64)
     dx, (m, v) = adam_update(g, (m, v), (t + 1).astype(x.dtype), lr=lr, b1=b1, b2=b2, eps=eps)
+    if seq_from:
+        n = x.shape[0]
+        i = jnp.arange(1, n + 1, dtype=jnp.float64)
+        entry = jnp.clip(2.0 ** jnp.ceil(jnp.log2(i)), seq_from, n)  # first level holding i
+        dx = dx * jnp.sqrt(n / entry)[:, None]
     if fixed:
         dx = jnp.where(free, dx, 0.0)
     x = x + dx
@@ -330,6 +394,7 @@ def _adam_step(hyper, x, m, v, t, vals, grads):
 def _jobs(obj: _Objective, x) -> list:
     """The independent pieces of one set's loss and gradient: one per spectrum term (and SW)."""
     jobs = [(_term_value_and_grad, (x, term)) for term in obj.terms]
+    jobs += [(functools.partial(_head_value_and_grad, nk), (x, term)) for nk, term in obj.heads]
     if obj.sw is not None:
         jobs.append((functools.partial(_sw_value_and_grad, obj.c), (x, *obj.sw)))
     return jobs
@@ -393,7 +458,7 @@ def _hyper(recipe: Recipe, n: int) -> tuple:
     lr0 = recipe.learning_rate / math.sqrt(n)
     decay = recipe.final_lr_fraction ** (1.0 / max(recipe.steps - 1, 1))
     return (lr0, decay, recipe.b1, recipe.b2, recipe.adam_eps, recipe.boundary == "wrap",
-            _prefix.prefix_size(recipe.prefix))
+            _prefix.prefix_size(recipe.prefix), recipe.sequence_from)
 
 
 def _resolve_prefix(prefix, options: dict):
@@ -419,10 +484,14 @@ def _check_prefix_fits(rec: Recipe, n: int) -> None:
 
 
 def _start_with_prefix(x0: np.ndarray, rec: Recipe, explicit) -> np.ndarray:
-    if _prefix.prefix_size(rec.prefix) == 0:
+    m = _prefix.prefix_size(rec.prefix)
+    if m == 0:
         return x0
     pts = explicit if explicit is not None else _prefix.prefix_points(rec.prefix)
-    return _prefix.place_prefix(x0, pts)
+    # a sequence: the prefix displaces points of the smallest nested prefix that holds it, so
+    # every nested prefix keeps its share of the initial (progressive) set
+    h = next(k for k in sequence_levels(len(x0), rec.sequence_from) if k >= m)
+    return np.concatenate([_prefix.place_prefix(x0[:h], pts), x0[h:]])
 
 
 def _run_chunk(objectives, state, hyper, chunk: int, last: bool):
@@ -635,6 +704,34 @@ def synthesize(key, n: int, directions_deg, *, recipe: str | Recipe = "rate",
     result = SynthesisResult(jnp.asarray(_to_float32_unit(x[0])), hist[0], float(final[0]),
                              rec, n, tuple(directions_deg), meta["key"], fset.params, len(fset))
     return (result.points, result.info) if return_info else result
+
+
+def synthesize_sequence(key, n: int = 4096, directions_deg=(0.0, 90.0, 45.0), *,
+                        prefix=None, sequence_from: int = 256,
+                        sequence_weights: str | None = None, **options) -> SynthesisResult:
+    """A progressive aligned sequence (W Sec. 7: "generate points in a sampling sequence to
+    allow for progressive rendering"): ``result.points`` is one ``(n, 2)`` sequence whose every
+    power-of-two prefix of at least ``sequence_from`` points (and the whole) is an aligned set
+    for ``directions_deg``.
+
+    The loss is the sum over the nested prefixes ``n_k`` (:func:`sequence_levels`) of the
+    recipe's loss of ``x[:n_k]`` on ``n_k``'s own frequency design, each normalized so that
+    white noise scores 1 and weighted by ``sequence_weights`` (``"equal"``, the default: every
+    prefix is a set a renderer may stop at, so each counts once; ``"size"``: ``n_k / n``).
+    Point ``i`` steps in units of the spacing of the first prefix that holds it, so early
+    points move on their own scale. The initial sequence is progressive (a sequence's recipe
+    takes ``init="pmj02bn"`` unless told otherwise: every power-of-two head is stratified). It runs in the one loop of :func:`synthesize`
+    (checkpoints, resume, progress, same key same bits) and takes its options; ``prefix`` as
+    there (placed among the first nested prefix that holds it).
+    """
+    if sequence_weights is not None:
+        options["sequence_weights"] = sequence_weights
+    n = check_int("n", n, minimum=2)
+    sequence_from = check_int("sequence_from", sequence_from, minimum=2)
+    if sequence_from > n:
+        raise ValueError(f"sequence_from must be at most n={n}, got {sequence_from}")
+    return synthesize(key, n, directions_deg, prefix=prefix, sequence_from=sequence_from,
+                      **options)
 
 
 def synthesize_batch(key, n: int, direction_sets, *, recipe: str | Recipe = "rate",

@@ -90,6 +90,7 @@ from ._table_store import shipped_dir as shipped_dir
 from ._table_store import table_dirs as table_dirs
 from ._table_store import table_name as table_name
 from ._table_store import table_prefix as table_prefix
+from ._table_store import table_sequence_from as table_sequence_from
 from ._table_store import transform_points as transform_points
 from ._validate import check_int
 from .prefix import check_table_prefix, restore_prefix
@@ -120,7 +121,8 @@ __all__ = [
 
 def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
            build_missing: bool | None = None, show_progress: bool = True,
-           prefix: str | None = None, **build_options) -> jax.Array:
+           prefix: str | None = None, sequence_from: int = 0,
+           **build_options) -> jax.Array:
     """The aligned set of ``n`` points for integer ``directions_deg`` (W Sec. 5.4).
 
     Reduces the request by symmetry (:func:`canonicalize`), loads the canonical set from the
@@ -133,6 +135,12 @@ def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
     the set comes from the table ``d{kind}_n{n}_{prefix}`` and its first ``m`` points are the
     prefix bit for bit, whatever the directions (the symmetry's reordering of the prefix is
     undone, :func:`anisosample.prefix.restore_prefix`).
+
+    ``sequence_from`` (0: a set): the progressive sequence of ``n`` points whose every nested
+    power-of-two prefix from ``sequence_from`` up is aligned
+    (:func:`anisosample.synthesis.synthesize_sequence`), from the table
+    ``d{kind}_n{n}_seq{sequence_from}``; the symmetry keeps the order of the points, so every
+    nested prefix of the served sequence is aligned for the requested directions.
 
     Every set on demand: a set no table on the search path holds is synthesized at once (one
     set, with a progress bar) into the user cache's table for ``(kind, n)``
@@ -158,29 +166,36 @@ def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
     prefix = check_table_prefix(prefix)
     if prefix != "none":
         build_options["prefix"] = prefix
-    path = find_table(canon.kind, n, root=table, prefix=prefix)
+    sequence_from = check_int("sequence_from", sequence_from, minimum=0)
+    if sequence_from:
+        build_options["sequence_from"] = sequence_from
+    path = find_table(canon.kind, n, root=table, prefix=prefix, sequence_from=sequence_from)
     if path is None or not (path / f"{canon.name}.npz").exists():
         explicit = table is not None and build_missing is None
         if build_missing is False or explicit:
             where = table if table is not None else os.pathsep.join(map(str, table_dirs()))
             into = None if table is None else (
-                path if path is not None else Path(table) / table_name(canon.kind, n, prefix))
+                path if path is not None
+                else Path(table) / table_name(canon.kind, n, prefix, sequence_from))
+            command = build_command(canon.kind, n, [canon.extra], out=into, prefix=prefix,
+                                    sequence_from=sequence_from)
             raise FileNotFoundError(
                 f"no {canon.kind}-direction table for n={n} with set {canon.name} in {where}; "
-                f"build it with "
-                f"`{build_command(canon.kind, n, [canon.extra], out=into, prefix=prefix)}` "
+                f"build it with `{command}` "
                 + ("(or pass build_missing=True to build it there on demand)" if explicit else
                    "(or build on demand: the default, refused by build_missing=False / "
                    "--no-build)")
             )
         if table is not None:
-            out = path if path is not None else Path(table) / table_name(canon.kind, n, prefix)
+            out = (path if path is not None
+                   else Path(table) / table_name(canon.kind, n, prefix, sequence_from))
         elif path is not None and path.parent != shipped_dir():
             out = path  # a table on the search path (the cache, $ANISOSAMPLE_TABLES) lacks it
         else:
-            out = cache_table_path(canon.kind, n, prefix)
-        if (Path(out) / "table.json").exists():
-            build_options.pop("prefix", None)  # an existing table is finished as it was made
+            out = cache_table_path(canon.kind, n, prefix, sequence_from)
+        if (Path(out) / "table.json").exists():  # an existing table is finished as it was made
+            build_options.pop("prefix", None)
+            build_options.pop("sequence_from", None)
         _table_build.build_set(n, canon.kind, canon.extra, out=out,
                                show_progress=show_progress, **build_options)
         path = out
@@ -188,13 +203,14 @@ def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
     st = set_file.stat()
     pts, held = _load_verified(str(path), n, canon.kind, canon.extra, st.st_mtime_ns,
                                st.st_size, (Path(path) / "table.json").stat().st_mtime_ns)
-    if held != prefix:
-        raise ValueError(f"table {path} holds sets with prefix {held!r}, not the requested "
-                         f"{prefix!r}")
+    if held != (prefix, sequence_from):
+        raise ValueError(f"table {path} holds sets with (prefix, sequence_from) {held}, not "
+                         f"the requested {(prefix, sequence_from)}")
     return jnp.asarray(restore_prefix(transform_points(pts, canon.transform), prefix))
 
 
-def build_command(kind: int, n: int, sets=None, *, out=None, prefix: str = "none") -> str:
+def build_command(kind: int, n: int, sets=None, *, out=None, prefix: str = "none",
+                  sequence_from: int = 0) -> str:
     """The ``anisosample tables build`` command that builds the canonical ``sets`` (extra
     direction tuples, default: the whole table) of the ``kind``-direction table for ``n`` into
     ``out`` (default: the user cache, where :func:`lookup` finds them) -- with the settings an
@@ -202,6 +218,8 @@ def build_command(kind: int, n: int, sets=None, *, out=None, prefix: str = "none
     cmd = f"anisosample tables build --n {n} --directions {kind}"
     if sets:
         cmd += " --sets " + ",".join(":".join(str(int(a)) for a in e) for e in sets)
+    if sequence_from:
+        cmd += f" --sequence-from {sequence_from}"
     if prefix != "none":
         cmd += f" --prefix {prefix}"
     if out is not None:
@@ -232,7 +250,7 @@ def _load_verified(path: str, n: int, kind: int, extra, mtime_ns: int, size: int
     tab = open_table(path, n=n, kind=kind)
     pts = tab.load(extra)
     pts.setflags(write=False)
-    return pts, table_prefix(tab)
+    return pts, (table_prefix(tab), table_sequence_from(tab))
 
 
 def build(n: int, kind: int = 3, **options):

@@ -171,3 +171,60 @@ def test_tables_refuse_an_asymmetric_prefix(cache):
         tables.build(64, 3, prefix="pmj02bn-16", sets=[(30,)], show_progress=False)
     assert tables.build_command(3, 64, [(30,)], prefix="dihedral-16").endswith(
         "--sets 30 --prefix dihedral-16")
+
+
+# --- progressive sequences (issue 22 item 2) ---------------------------------------------------
+
+
+def test_sequence_levels():
+    assert synthesis.sequence_levels(4096, 256) == [256, 512, 1024, 2048, 4096]
+    assert synthesis.sequence_levels(1000, 256) == [256, 512, 1000]
+    assert synthesis.sequence_levels(64, 0) == [64]
+    with pytest.raises(ValueError, match="sequence_from"):
+        synthesis.make_recipe(sequence_from=48)
+    with pytest.raises(ValueError, match="sequence_weights"):
+        synthesis.make_recipe(sequence_from=16, sequence_weights="heavy")
+    assert "sequence_from" not in synthesis.make_recipe().record()
+    rec = synthesis.make_recipe(sequence_from=16).record()
+    assert rec["sequence_from"] == 16 and rec["sequence_weights"] == "equal"
+
+
+def test_sequence_objective_sums_the_nested_prefixes_losses():
+    """The sequence's loss is sum_k L_{n_k}(x[:n_k]) (equal weights): each nested prefix scored
+    by the plain set loss of its size, computed independently here."""
+    from anisosample import frequencies, losses
+
+    x = np.asarray(asp.samplers.get("pmj02bn")(jax.random.key(4), 64), np.float64)
+    dirs = (0.0, 90.0, 30.0)
+    rec = synthesis.make_recipe(sequence_from=16, method="direct")
+    obj = synthesis._objective(frequencies.design(64, dirs, "rate"), dirs, rec, 64)
+    with jax.enable_x64(True):
+        values, _ = synthesis._evaluate([obj], [jax.numpy.asarray(x)])[0]
+        total = float(sum(values))
+        want = sum(float(losses.linear_spectrum_loss(x[:nk], frequencies.design(nk, dirs, "rate"),
+                                                     method="direct"))
+                   for nk in (16, 32, 64))
+    np.testing.assert_allclose(total, want, rtol=1e-9)
+
+
+def test_sequence_with_prefix_resumes_to_the_same_bits(getkey, tmp_path):
+    key = getkey()
+    opts = dict(steps=12, method="direct", show_progress=False, checkpoint_every=4,
+                prefix="dihedral-8", sequence_from=32)
+    full = synthesis.synthesize_sequence(key, 128, (0, 90, 30), **opts)
+    pts = np.asarray(full.points)
+    assert pts.shape == (128, 2)
+    assert pts[:8].tobytes() == P.dihedral_points(8).tobytes()
+    ck = tmp_path / "seq.ckpt.npz"
+
+    def kill(step, _):
+        if step >= 8:
+            raise _Killed
+
+    with pytest.raises(_Killed):
+        synthesis.synthesize_sequence(key, 128, (0, 90, 30), checkpoint=ck, callback=kill,
+                                      **opts)
+    resumed = synthesis.synthesize_sequence(key, 128, (0, 90, 30), checkpoint=ck, **opts)
+    assert np.asarray(resumed.points).tobytes() == pts.tobytes()
+    with pytest.raises(ValueError, match="sequence_from"):
+        synthesis.synthesize_sequence(key, 128, (0, 90, 30), sequence_from=256)
