@@ -33,7 +33,7 @@ from .spectrum import power_spectrum_rotated as power_spectrum_rotated
 from .spectrum import spectrum_terms, terms_value
 
 
-def _as_set(freqs) -> FrequencySet:
+def as_frequency_set(freqs) -> FrequencySet:
     if isinstance(freqs, FrequencySet):
         return freqs
     f = np.asarray(freqs)
@@ -83,7 +83,7 @@ def linear_spectrum_loss_terms(freqs, n, weights=None, *, scale=1.0, method="aut
     (:func:`anisosample.spectrum.spectrum_terms`; evaluate with ``terms_value(points, terms)``),
     times ``scale``: what synthesis iterates on (one compilation for every set whose boxes
     have the same shapes)."""
-    fset = _as_set(freqs)
+    fset = as_frequency_set(freqs)
     w = _weights(fset, weights)
     return spectrum_terms(fset, n, weights=w, scale=scale * n / float(np.sum(w)),
                           method=method, eps=eps, dtype=dtype, precision=precision)
@@ -92,7 +92,7 @@ def linear_spectrum_loss_terms(freqs, n, weights=None, *, scale=1.0, method="aut
 def spectrum_loss_terms(freqs, n, target=0.0, weights=None, *, scale=1.0, method="auto",
                         eps=None, dtype=jnp.float64, precision="double"):
     """:func:`spectrum_loss` for ``n`` points as data (see :func:`linear_spectrum_loss_terms`)."""
-    fset = _as_set(freqs)
+    fset = as_frequency_set(freqs)
     w = _weights(fset, weights)
     # a target computed under jit or grad stays traced (it becomes the terms' data)
     tgt = (target if isinstance(target, jax.core.Tracer)

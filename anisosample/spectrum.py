@@ -78,6 +78,7 @@ __all__ = [
     "finufft_opts",
     "memory_bytes",
     "power_spectrum",
+    "power_spectrum_autodiff",
     "power_spectrum_grid",
     "grouped_power_spectrum",
     "power_spectrum_rotated",
@@ -727,6 +728,21 @@ def _principal_angle(freqs: np.ndarray) -> float:
     _, vecs = np.linalg.eigh(f.T @ f)
     a = vecs[:, -1]
     return math.degrees(math.atan2(a[1], a[0])) % 180.0
+
+
+def power_spectrum_autodiff(points, freqs) -> jax.Array:
+    """``P_S(v) = |(1/n) sum_j exp(-2 pi i v . x_j)|^2`` (W Eq. 4) by the direct sum with plain
+    autodiff (no custom VJP): differentiable to any order, in the points and in the (float)
+    frequencies, under ``jit``, ``vmap`` and ``lax.scan`` -- what
+    :func:`anisosample.optimizer.minimize` differentiates through. ``O(n m)`` memory; for large
+    sets use :func:`power_spectrum`. Traced inputs are not checked."""
+    if not isinstance(points, jax.core.Tracer):
+        check_points("points", points)
+    x = jnp.asarray(points)
+    v = jnp.asarray(freqs, x.dtype)
+    ph = (2.0 * jnp.pi) * (x @ v.T)
+    c, s = jnp.mean(jnp.cos(ph), 0), jnp.mean(jnp.sin(ph), 0)
+    return c * c + s * s
 
 
 def power_spectrum(points, freqs, *, method: str = "auto", eps=None):

@@ -7,7 +7,9 @@ frozen :class:`Recipe`, one loop (:func:`_iterate`) serving a single set and a b
 (:func:`synthesize_batch`), and one result type, :class:`SynthesisResult`.
 
 Two recipes (``RECIPES``), both minimising a loss of the point positions with Adam (Kingma & Ba;
-a small pure-function implementation, :func:`adam_update`), initialised from a stratified set:
+a small pure-function implementation, :func:`anisosample.optimizer.adam_step`; the loop as an
+objective, an optimizer and a differentiable ``lax.scan`` runtime: :mod:`anisosample.optimizer`),
+initialised from a stratified set:
 
 ``"rate"`` (default; the design that reaches the rate, issue 4 finding c)
     :func:`~anisosample.losses.linear_spectrum_loss` on the ``"rate"`` frequency design
@@ -64,6 +66,7 @@ import numpy as np
 from . import frequencies as _freq
 from . import io as _io
 from . import losses as _losses
+from . import optimizer as _optimizer
 from . import prefix as _prefix
 from . import spectrum as _spectrum
 from ._validate import (
@@ -75,6 +78,7 @@ from ._validate import (
     check_points,
     check_positive_float,
 )
+from .optimizer import adam_update as adam_update  # kept here for old callers
 from .progress import progress as _progress
 
 __all__ = ["RECIPES", "BOUNDARIES", "Recipe", "make_recipe", "recipe_defaults",
@@ -284,16 +288,6 @@ class SynthesisResult:
         }
 
 
-def adam_update(grad, state, step, *, lr, b1, b2, eps):
-    """One Adam step (Kingma & Ba 2015, Alg. 1) on an array; ``state = (m, v)``, ``step >= 1``."""
-    m, v = state
-    m = b1 * m + (1 - b1) * grad
-    v = b2 * v + (1 - b2) * grad * grad
-    mhat = m / (1 - b1**step)
-    vhat = v / (1 - b2**step)
-    return -lr * mhat / (jnp.sqrt(vhat) + eps), (m, v)
-
-
 class _Objective(eqx.Module):
     """One set's loss ``a L_spec + c L_SW`` (W Eq. 10; ``a = 0`` or ``c = 0`` drops a term, as in
     W Fig. 3) as data: the spectrum terms (:func:`anisosample.spectrum.spectrum_terms`, scaled
@@ -366,29 +360,15 @@ def _sw_value_and_grad(c, x, d, tgt):
 
 @functools.partial(jax.jit, static_argnums=0)
 def _adam_step(hyper, x, m, v, t, vals, grads):
-    """Sum the terms' values and gradients (in their order), take one Adam step at the decayed
-    learning rate, wrap or clip: ``(x, m, v, t + 1, loss before the step)``. The first ``fixed``
-    points (a prefix, W Sec. 7) get no gradient and no step: they stay as they are, bit for bit.
-    In a sequence (``seq_from > 0``) point ``i`` steps in units of the spacing of the first
-    nested prefix that holds it: ``lr / sqrt(n_k)`` instead of ``lr / sqrt(n)``."""
+    """Sum the terms' values and gradients (in their order) and take one step
+    (:func:`anisosample.optimizer.adam_step`: Adam at the decayed learning rate, a prefix held
+    still, a sequence's per-point scale, wrap or clip): ``(x, m, v, t + 1, loss before it)``."""
     lr0, decay, b1, b2, eps, wrap, fixed, seq_from = hyper
     val = functools.reduce(jnp.add, vals)
     g = functools.reduce(jnp.add, grads)
-    if fixed:
-        free = (jnp.arange(x.shape[0]) >= fixed)[:, None]
-        g = jnp.where(free, g, 0.0)
-    lr = lr0 * decay ** t.astype(jnp.float64)
-    dx, (m, v) = adam_update(g, (m, v), (t + 1).astype(x.dtype), lr=lr, b1=b1, b2=b2, eps=eps)
-    if seq_from:
-        n = x.shape[0]
-        i = jnp.arange(1, n + 1, dtype=jnp.float64)
-        entry = jnp.clip(2.0 ** jnp.ceil(jnp.log2(i)), seq_from, n)  # first level holding i
-        dx = dx * jnp.sqrt(n / entry)[:, None]
-    if fixed:
-        dx = jnp.where(free, dx, 0.0)
-    x = x + dx
-    x = x - jnp.floor(x) if wrap else jnp.clip(x, 0.0, 1.0 - 2.0**-53)
-    return x, m, v, t + 1, val
+    x, m, v, t = _optimizer.adam_step(x, g, m, v, t, lr0=lr0, decay=decay, b1=b1, b2=b2,
+                                      eps=eps, wrap=wrap, fixed=fixed, sequence_from=seq_from)
+    return x, m, v, t, val
 
 
 def _jobs(obj: _Objective, x) -> list:
@@ -455,10 +435,9 @@ def _evaluate(objectives, xs) -> list:
 
 
 def _hyper(recipe: Recipe, n: int) -> tuple:
-    lr0 = recipe.learning_rate / math.sqrt(n)
-    decay = recipe.final_lr_fraction ** (1.0 / max(recipe.steps - 1, 1))
-    return (lr0, decay, recipe.b1, recipe.b2, recipe.adam_eps, recipe.boundary == "wrap",
-            _prefix.prefix_size(recipe.prefix), recipe.sequence_from)
+    opt = _optimizer.Adam.from_recipe(recipe, n)
+    return (*opt.schedule(), opt.b1, opt.b2, opt.eps, opt.boundary == "wrap", opt.fixed,
+            opt.sequence_from)
 
 
 def _resolve_prefix(prefix, options: dict):
@@ -720,9 +699,10 @@ def synthesize_sequence(key, n: int = 4096, directions_deg=(0.0, 90.0, 45.0), *,
     prefix is a set a renderer may stop at, so each counts once; ``"size"``: ``n_k / n``).
     Point ``i`` steps in units of the spacing of the first prefix that holds it, so early
     points move on their own scale. The initial sequence is progressive (a sequence's recipe
-    takes ``init="pmj02bn"`` unless told otherwise: every power-of-two head is stratified). It runs in the one loop of :func:`synthesize`
-    (checkpoints, resume, progress, same key same bits) and takes its options; ``prefix`` as
-    there (placed among the first nested prefix that holds it).
+    takes ``init="pmj02bn"`` unless told otherwise: every power-of-two head is stratified).
+    It runs in the one loop of :func:`synthesize` (checkpoints, resume, progress, same key same
+    bits) and takes its options; ``prefix`` as there (placed among the first nested prefix that
+    holds it).
     """
     if sequence_weights is not None:
         options["sequence_weights"] = sequence_weights

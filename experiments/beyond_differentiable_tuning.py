@@ -50,6 +50,7 @@ from __future__ import annotations
 import re
 import time
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -282,24 +283,17 @@ def run(settings, out, fresh):
 # --- part 2: a synthesis design scalar (W Sec. 4) -----------------------------------------------
 
 
-def _power(x, v):
-    """``P_S(v) = |(1/n) sum_j exp(-2 pi i v . x_j)|^2`` (W Eq. 4) by the direct sum, plain
-    autodiff (no custom VJP), so that it can be differentiated twice."""
-    ph = (2.0 * jnp.pi) * (x @ v.T)
-    c, s = jnp.mean(jnp.cos(ph), 0), jnp.mean(jnp.sin(ph), 0)
-    return c * c + s * s
-
-
 def _relaxed_design(n, theta, max_factor):
-    """The "rate" design for directions 0/90/``theta`` (``frequencies.design``) with the wedge
-    along ``theta`` grown to ``max_factor`` times its length; returns the frequencies, their
-    weights, ``t = |v . d_theta|`` and whether each frequency is only in that long wedge."""
+    """The "rate" design for directions 0/90/``theta`` (aligned-only weights) with the wedge
+    along ``theta`` grown to ``max_factor`` times its length, from the library's
+    ``frequencies.design``: the 0/90 wedges and the disk, and the long ``theta`` wedge alone;
+    returns the union, its edge weights, ``t = |v . d_theta|`` and whether each frequency is
+    only in the long wedge."""
     from anisosample import frequencies as F
 
-    length = n**0.8
-    fixed = [F.wedge(t, length, 1.5, 2.0) for t in (0.0, 90.0)] + [F.disk(np.sqrt(n))]
-    fixed = F.canonical_half(np.concatenate(fixed))
-    long = F.canonical_half(F.wedge(theta, max_factor * length, 1.5, 2.0))
+    fixed = F.design(n, (0.0, 90.0), "rate", offsets_deg=()).freqs
+    long = F.design(n, (theta,), "rate", length=max_factor * n**0.8, disk_radius=0.0,
+                    offsets_deg=()).freqs
     v = F.canonical_half(np.concatenate([fixed, long]))
     in_fixed = {tuple(r) for r in fixed.tolist()}
     only_long = np.array([tuple(r) not in in_fixed for r in v.tolist()])
@@ -318,8 +312,10 @@ def _eval_set(n, theta, radius, length):
 
 
 def synthesis_gradient(settings):
-    """d(predicted variance)/d(band length) by unrolled Adam vs central finite differences."""
-    from anisosample.synthesis import adam_update
+    """d(predicted variance)/d(band length) by unrolled Adam vs central finite differences:
+    the library's objective (``optimizer.objective`` on the relaxed design), the rate recipe's
+    Adam (``optimizer.Adam.from_recipe``) and the ``lax.scan`` runtime (``optimizer.minimize``)."""
+    from anisosample import optimizer as O
 
     n, steps, theta, tau = settings["n"], settings["steps"], settings["theta"], settings["tau"]
     v, w, t, only_long = _relaxed_design(n, theta, settings["max_factor"])
@@ -337,40 +333,18 @@ def synthesis_gradient(settings):
         "eval_frequencies": int(v_eval.shape[0]),
     }
     with jax.enable_x64(True):
-        vj, wj, tj = (jnp.asarray(a, jnp.float64) for a in (v, w, t))
+        wj, tj = (jnp.asarray(a, jnp.float64) for a in (w, t))
         lj = jnp.asarray(only_long)
         vej, pfj = jnp.asarray(v_eval), jnp.asarray(pf)
-        lr0 = 0.5 / np.sqrt(n)  # the "rate" recipe's Adam: lr 0.5/sqrt(n) decaying to 1%
-        decay = 0.01 ** (1.0 / max(steps - 1, 1))
+        base = O.objective(n, (0.0, 90.0, theta), freqs=v.astype(np.int64), weights=w)
+        adam = O.Adam.from_recipe("rate", n, steps=steps)
 
         def synth(length, x0):
             mask = jnp.where(lj, jax.nn.sigmoid((length - tj) / tau), 1.0)
-            ww = wj * mask
-
-            def loss(x):
-                return n * jnp.sum(ww * _power(x, vj)) / jnp.sum(ww)
-
-            def one(state, k):
-                x, m, s = state
-                g = jax.grad(loss)(x)
-                dx, (m, s) = adam_update(
-                    g,
-                    (m, s),
-                    (k + 1).astype(x.dtype),
-                    lr=lr0 * decay**k,
-                    b1=0.9,
-                    b2=0.9,
-                    eps=1e-30,
-                )
-                x = x + dx
-                return (x - jnp.floor(x), m, s), None
-
-            z = jnp.zeros_like(x0)
-            (x, _, _), _ = jax.lax.scan(one, (x0, z, z), jnp.arange(steps))
-            return x
+            return O.minimize(eqx.tree_at(lambda o: o.weights, base, wj * mask), adam, x0)
 
         def predicted(length, x0):
-            return jnp.sum(pfj * _power(synth(length, x0), vej))
+            return jnp.sum(pfj * asp.spectrum.power_spectrum_autodiff(synth(length, x0), vej))
 
         value_and_grad = jax.jit(jax.value_and_grad(predicted))
         value = jax.jit(predicted)
@@ -402,7 +376,8 @@ def synthesis_gradient(settings):
         out["library_total_seed0"] = float(lib["total"])
         # The no-warp reference: the initial jittered sets' predicted variance.
         x_init = jnp.asarray(asp.samplers.get("jittered")(jax.random.key(1000), n), jnp.float64)
-        out["jittered_variance"] = float(jnp.sum(pfj * _power(x_init, vej)))
+        out["jittered_variance"] = float(jnp.sum(pfj * asp.spectrum.power_spectrum_autodiff(
+            x_init, vej)))
     var = np.array([r["variance"] for r in rows])
     grads = np.array([r["gradient"] for r in rows])
     out["seeds"] = rows

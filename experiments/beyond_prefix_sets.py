@@ -1,0 +1,145 @@
+"""Aligned sets with a fixed isotropic prefix (W Sec. 7; issue 22 item 1): what the prefix costs.
+
+W's Sec. 7 proposes sets whose first 16-64 points are fixed and isotropic, so that the samples a
+renderer spends on estimating the directions are reused in the final estimate. We synthesize
+3-direction sets (0, 90 and an extra direction drawn at random, not chosen in advance) with no
+prefix, with the symmetric ``dihedral-<m>`` prefixes (m = 16, 32, 64; the kind tables can hold)
+and, for comparison, the first 32 points of pmj02bn; for n = 256..4096 we measure
+
+* the variance of the half-plane integrand whose edge is perpendicular to the extra direction
+  (``integrands.edges([a])``), over toroidal shifts, its slope over n, and the ratio at the
+  largest n to the set without a prefix;
+* the mean ``n P_S`` within one unit of every requested line, ``0 < |v| <= 32``, for n >= 1024
+  (white noise = 1);
+* the prefixes alone as estimators (the estimation samples a renderer would reuse): variance of
+  edges at several angles with m points, the dihedral prefix against the pmj02bn head.
+
+Targets (issue 22): first m points equal to the prefix bit for bit, edge slope <= -1.70, variance
+at 4096 within 1.2x of the set without a prefix, band energy <= 0.1 of white.
+"""
+
+from __future__ import annotations
+
+import time
+
+import common
+import jax
+import numpy as np
+
+import anisosample as asp
+from anisosample import frequencies, plot, prefix
+
+NAME = "beyond_prefix_sets"
+PREFIXES = ("none", "dihedral-16", "dihedral-32", "dihedral-64", "pmj02bn-32")
+
+
+def band_energy(points, direction_deg: float, n: int, radius: float = 32.0) -> float:
+    """Mean ``n P_S`` within one unit of the line at spectral angle ``direction_deg``."""
+    v = frequencies.wedge(float(direction_deg), radius, 1.0)
+    return float(np.mean(np.asarray(asp.spectrum.power_spectrum(points, v)))) * n
+
+
+def shifted(points):
+    def sampler(key, _n):
+        return asp.samplers.toroidal_shift(key, points)
+
+    return sampler
+
+
+def main(argv=None):
+    args = common.parser(NAME, __doc__).parse_args(argv)
+    started = time.time()
+    out = args.out
+    small = args.scale == "small"
+    ns = [256, 512, 1024, 2048, 4096]
+    realizations = 512 if small else 4096
+    n_dirs = 3 if small else 8
+    rng = np.random.default_rng(args.seed)
+    extra = [int(a) for a in rng.choice([a for a in range(5, 176) if abs(a - 90) >= 5], n_dirs,
+                                        replace=False)]
+    key = jax.random.key(args.seed)
+    rows = {}
+    for a in extra:
+        dirs = (0.0, 90.0, float(a))
+        f = asp.integrands.edges([float(a)])
+        for spec in PREFIXES:
+            label = f"{a}/{spec}"
+            var, bands = [], {}
+            for n in ns:
+                kw = {} if spec == "none" else {"prefix": spec}
+                r = asp.synthesis.load_or_synthesize(
+                    out / "sets" / f"a{a}_{spec}_n{n}.npz", jax.random.fold_in(key, 1000 * a + n),
+                    n, dirs, show_progress=False, **kw)
+                pts = np.asarray(r.points)
+                if spec != "none":
+                    m = prefix.prefix_size(spec)
+                    assert pts[:m].tobytes() == prefix.prefix_points(spec).tobytes(), label
+                var.append(asp.variance.estimator_variance(
+                    f, shifted(pts), n, jax.random.fold_in(key, n), realizations, f.integral))
+                if n >= 1024:
+                    bands[n] = [band_energy(pts, d, n) for d in dirs]
+            fit = asp.variance.fit_slope(ns, var)
+            rows[label] = {"extra_deg": a, "prefix": spec, "variance": var, "slope": fit.slope,
+                           "slope_ci": [fit.ci_low, fit.ci_high],
+                           "band_energy_max": {str(n): max(b) for n, b in bands.items()}}
+            print(f"extra {a:3d} deg, prefix {spec:12s}: slope {fit.slope:+.2f}, variance at "
+                  f"{ns[-1]} {var[-1]:.3e}, max band n P_S "
+                  f"{max(max(b) for b in bands.values()):.3f}", flush=True)
+        for spec in PREFIXES:
+            base = rows[f"{a}/none"]["variance"][-1]
+            rows[f"{a}/{spec}"]["ratio_to_none"] = rows[f"{a}/{spec}"]["variance"][-1] / base
+
+    # the prefixes as estimators on their own: m points, edges at several angles
+    angles = [float(t) for t in np.linspace(3.0, 177.0, 12)]
+    estimators = {}
+    for m in (16, 32, 64):
+        for spec in (f"dihedral-{m}", f"pmj02bn-{m}"):
+            pts = prefix.prefix_points(spec)
+            v = [asp.variance.estimator_variance(asp.integrands.edges([t]), shifted(pts), m,
+                                                 jax.random.fold_in(key, 7), realizations,
+                                                 asp.integrands.edges([t]).integral)
+                 for t in angles]
+            estimators[spec] = {"mean_variance": float(np.mean(v)), "variance": v}
+        fresh = [asp.variance.estimator_variance(asp.integrands.edges([t]), "pmj02bn", m,
+                                                 jax.random.fold_in(key, 7), realizations,
+                                                 asp.integrands.edges([t]).integral)
+                 for t in angles]
+        estimators[f"pmj02bn fresh {m}"] = {"mean_variance": float(np.mean(fresh)),
+                                            "variance": fresh}
+    for label, e in estimators.items():
+        print(f"prefix as estimator, {label:18s}: mean edge variance {e['mean_variance']:.3e}")
+
+    summary = {}
+    for spec in PREFIXES:
+        sel = [r for r in rows.values() if r["prefix"] == spec]
+        summary[spec] = {
+            "slope_median": float(np.median([r["slope"] for r in sel])),
+            "slope_worst": float(max(r["slope"] for r in sel)),
+            "ratio_to_none_median": float(np.median([r["ratio_to_none"] for r in sel])),
+            "ratio_to_none_worst": float(max(r["ratio_to_none"] for r in sel)),
+            "band_energy_worst": float(max(max(r["band_energy_max"].values()) for r in sel)),
+        }
+        s = summary[spec]
+        print(f"{spec:12s}: slope median {s['slope_median']:+.2f} (worst {s['slope_worst']:+.2f}),"
+              f" variance / none at {ns[-1]} median {s['ratio_to_none_median']:.2f} (worst "
+              f"{s['ratio_to_none_worst']:.2f}), worst band n P_S {s['band_energy_worst']:.3f}")
+
+    fig, axes = plot.new_figure(1, 1, size=4.0)
+    ax = axes[0, 0]
+    for spec in PREFIXES:
+        v = np.exp(np.mean([np.log(r["variance"]) for r in rows.values() if r["prefix"] == spec],
+                           axis=0))
+        ax.loglog(ns, v, marker="o", ms=3, label=f"{spec} ({summary[spec]['slope_median']:+.2f})")
+    ax.set_xlabel("n")
+    ax.set_ylabel("edge variance (geometric mean over directions)")
+    ax.legend(fontsize=7)
+    png = plot.save_figure(fig, out / NAME)[0]
+    js = common.write_record(out, NAME, {"ns": ns, "realizations": realizations,
+                                         "extra_deg": extra, "rows": rows, "summary": summary,
+                                         "prefix_estimators": estimators},
+                             vars(args) | {"out": str(out)}, started)
+    print(f"\nfigure:  {png}\nnumbers: {js}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,133 @@
+"""Progressive aligned sequences (W Sec. 7; issue 22 item 2): what nesting costs each prefix.
+
+One N = 4096 sequence per design and extra direction (0, 90 and a direction drawn at random):
+every power-of-two prefix from 256 points up should be an aligned set. Designs
+(``synthesis.SEQUENCE_WEIGHTS``): ``equal`` (every nested prefix's normalized loss counts once,
+the default), ``size`` (prefix n_k weighs n_k / N), and ``equal`` with the default fixed prefix
+(``prefix.DEFAULT_PREFIX``). Per prefix size n we measure the variance of the half-plane whose
+edge is perpendicular to the extra direction (toroidal shifts) against standalone aligned sets of
+the same n (three keys: their median is the reference, their spread is reported) and against
+pmj02bn; the slope over the prefixes; the mean ``n P_S`` within one unit of every requested line,
+``0 < |v| <= 32``, for n >= 1024 (white noise = 1).
+
+Targets (issue 22): each prefix within 1.25x of a standalone set, slope <= -1.70, variance at
+4096 <= 0.6x pmj02bn's, band energy <= 0.1.
+"""
+
+from __future__ import annotations
+
+import time
+
+import common
+import jax
+import numpy as np
+
+import anisosample as asp
+from anisosample import frequencies, plot, prefix, synthesis
+
+NAME = "beyond_sequences"
+DESIGNS = {"equal": {}, "size": {"sequence_weights": "size"},
+           f"equal + {prefix.DEFAULT_PREFIX}": {"prefix": prefix.DEFAULT_PREFIX}}
+KEYS = (1, 2, 3)
+
+
+def band_energy(points, direction_deg: float, n: int, radius: float = 32.0) -> float:
+    """Mean ``n P_S`` within one unit of the line at spectral angle ``direction_deg``."""
+    v = frequencies.wedge(float(direction_deg), radius, 1.0)
+    return float(np.mean(np.asarray(asp.spectrum.power_spectrum(points, v)))) * n
+
+
+def main(argv=None):
+    args = common.parser(NAME, __doc__).parse_args(argv)
+    started = time.time()
+    out = args.out
+    small = args.scale == "small"
+    length, start = 4096, 256
+    ns = synthesis.sequence_levels(length, start)
+    realizations = 512 if small else 4096
+    rng = np.random.default_rng(args.seed + 1)
+    extra = [int(a) for a in rng.choice([a for a in range(5, 176) if abs(a - 90) >= 5],
+                                        2 if small else 6, replace=False)]
+    key = jax.random.key(args.seed)
+    vkey = jax.random.fold_in(key, 99)
+
+    def edge_variance(f, pts, n):
+        def sampler(k, _n):
+            return asp.samplers.toroidal_shift(k, pts)
+        return asp.variance.estimator_variance(f, sampler, n, vkey, realizations, f.integral)
+
+    records = {}
+    for a in extra:
+        dirs = (0.0, 90.0, float(a))
+        f = asp.integrands.edges([float(a)])
+        standalone = {n: [edge_variance(f, np.asarray(asp.synthesis.load_or_synthesize(
+            out / "sets" / f"a{a}_set_n{n}_k{k}.npz", jax.random.key(k), n, dirs,
+            show_progress=False).points), n) for k in KEYS] for n in ns}
+        pmj = {n: asp.variance.estimator_variance(f, "pmj02bn", n, vkey, realizations, f.integral)
+               for n in ns}
+        for label, opts in DESIGNS.items():
+            t0 = time.time()
+            seq = np.asarray(asp.synthesis.load_or_synthesize(
+                out / "sets" / f"a{a}_seq_{label.replace(' ', '').replace('+', '_')}.npz",
+                jax.random.key(0), length, dirs, sequence_from=start, show_progress=False,
+                **opts).points)
+            sec = time.time() - t0
+            var = [edge_variance(f, seq[:n], n) for n in ns]
+            ratio = [v / float(np.median(standalone[n])) for v, n in zip(var, ns, strict=True)]
+            bands = {str(n): max(band_energy(seq[:n], d, n) for d in dirs)
+                     for n in ns if n >= 1024}
+            fit = asp.variance.fit_slope(ns, var)
+            records[f"{a}/{label}"] = {
+                "extra_deg": a, "design": label, "variance": var, "ratio_to_set": ratio,
+                "ratio_to_pmj02bn": [v / pmj[n] for v, n in zip(var, ns, strict=True)],
+                "slope": fit.slope, "slope_ci": [fit.ci_low, fit.ci_high],
+                "band_energy_max": bands, "seconds": sec,
+                "standalone_variance": {str(n): standalone[n] for n in ns},
+                "pmj02bn_variance": {str(n): pmj[n] for n in ns}}
+            print(f"extra {a:3d} deg, {label:18s}: ratio to set per prefix "
+                  f"{' '.join(f'{r:.2f}' for r in ratio)}, slope {fit.slope:+.2f}, at {length}: "
+                  f"{var[-1] / pmj[length]:.2f}x pmj02bn, worst band n P_S "
+                  f"{max(bands.values()):.3f} ({sec:.0f} s)", flush=True)
+        spread = [max(v) / min(v) for v in standalone.values()]
+        print(f"extra {a:3d} deg: standalone sets over keys {KEYS}: max/min variance "
+              f"{' '.join(f'{s:.2f}' for s in spread)}", flush=True)
+
+    summary = {}
+    for label in DESIGNS:
+        sel = [r for r in records.values() if r["design"] == label]
+        summary[label] = {
+            "ratio_to_set_worst_per_prefix": [float(max(r["ratio_to_set"][i] for r in sel))
+                                              for i in range(len(ns))],
+            "ratio_to_set_median_per_prefix": [float(np.median([r["ratio_to_set"][i]
+                                                                for r in sel]))
+                                               for i in range(len(ns))],
+            "slope_worst": float(max(r["slope"] for r in sel)),
+            "ratio_to_pmj02bn_at_N_worst": float(max(r["ratio_to_pmj02bn"][-1] for r in sel)),
+            "band_energy_worst": float(max(max(r["band_energy_max"].values()) for r in sel)),
+        }
+        s = summary[label]
+        print(f"{label:18s}: ratio to set, worst per prefix "
+              f"{' '.join(f'{x:.2f}' for x in s['ratio_to_set_worst_per_prefix'])}; worst slope "
+              f"{s['slope_worst']:+.2f}; worst at {length} {s['ratio_to_pmj02bn_at_N_worst']:.2f}x"
+              f" pmj02bn; worst band {s['band_energy_worst']:.3f}")
+
+    fig, axes = plot.new_figure(1, 1, size=4.0)
+    ax = axes[0, 0]
+    for label in DESIGNS:
+        r = np.exp(np.mean([np.log(x["ratio_to_set"]) for x in records.values()
+                            if x["design"] == label], axis=0))
+        ax.semilogx(ns, r, marker="o", ms=3, label=label)
+    ax.axhline(1.25, color="k", lw=0.6, ls="--")
+    ax.set_xlabel("prefix size n")
+    ax.set_ylabel("variance / standalone aligned set (geometric mean)")
+    ax.legend(fontsize=7)
+    png = plot.save_figure(fig, out / NAME)[0]
+    js = common.write_record(out, NAME, {"ns": ns, "length": length, "realizations":
+                                         realizations, "extra_deg": extra, "keys": list(KEYS),
+                                         "records": records, "summary": summary},
+                             vars(args) | {"out": str(out)}, started)
+    print(f"\nfigure:  {png}\nnumbers: {js}")
+
+
+if __name__ == "__main__":
+    main()
