@@ -160,6 +160,18 @@ def spectrum_panel(
     return im
 
 
+def _figure_path(path, overwrite: bool, what: str = "figure file name") -> tuple[Path, str]:
+    """``(path, format)`` of a figure about to be written: a ``.png``, ``.pdf`` or ``.svg``
+    name, and no existing file unless ``overwrite``."""
+    path = Path(path)
+    fmt = path.suffix.lower().lstrip(".")
+    if fmt not in ("png", "pdf", "svg"):
+        raise ValueError(f"{what} must end in .png, .pdf or .svg, got {path.name}")
+    if path.exists() and not overwrite:
+        raise FileExistsError(f"{path} exists; pass overwrite=True (CLI: --force) to replace it")
+    return path, fmt
+
+
 def save_spectrum_figure(path, grid, *, n: int, scale: str = "linear",
                          clip: float | None = 2.0, directions_deg: Sequence[float] = (),
                          title: str | None = None, size: float = 4.0,
@@ -167,12 +179,7 @@ def save_spectrum_figure(path, grid, *, n: int, scale: str = "linear",
     """Draw a centred spectrum grid (:func:`spectrum_panel`: axes, colour bar, marked
     directions) into one PNG, PDF or SVG figure at ``path``; refuses to replace an existing file
     unless ``overwrite``. ``anisosample spectrum PTS -o s.png`` writes this picture."""
-    path = Path(path)
-    fmt = path.suffix.lower().lstrip(".")
-    if fmt not in ("png", "pdf", "svg"):
-        raise ValueError(f"figure file name must end in .png, .pdf or .svg, got {path.name}")
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} exists; pass overwrite=True (CLI: --force) to replace it")
+    path, fmt = _figure_path(path, overwrite)
     spectrum_image(grid, n=n, scale=scale, clip=clip)  # bad input before a figure is opened
     fig, axes = new_figure(size=size)
     try:
@@ -267,12 +274,7 @@ def save_points_figure(path, points, *, title: str | None = None, size: float = 
                        overwrite: bool = False) -> Path:
     """Draw a point set (:func:`points_panel`) into one PNG or PDF/SVG figure at ``path``;
     refuses to replace an existing file unless ``overwrite``."""
-    path = Path(path)
-    fmt = path.suffix.lower().lstrip(".")
-    if fmt not in ("png", "pdf", "svg"):
-        raise ValueError(f"figure file name must end in .png, .pdf or .svg, got {path.name}")
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} exists; pass overwrite=True (CLI: --force) to replace it")
+    path, fmt = _figure_path(path, overwrite)
     fig, axes = new_figure(size=size)
     points_panel(axes[0, 0], points, title=title)
     (out,) = save_figure(fig, path, formats=(fmt,), overwrite=overwrite)
@@ -445,12 +447,7 @@ def save_direction_map(path, estimate, *, block: int | None = None,
     ``block`` (its ``samples_per_block``) and ``shape`` (the grid's ``(h, w)``) and is shown
     with row 0 (the smallest y) at the bottom. ``origin`` overrides that choice.
     """
-    path = Path(path)
-    fmt = path.suffix.lower().lstrip(".")
-    if fmt not in ("png", "pdf", "svg"):
-        raise ValueError(f"the direction map must end in .png, .pdf or .svg, got {path.name}")
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} exists; pass overwrite=True (CLI: --force) to replace it")
+    path, fmt = _figure_path(path, overwrite, what="the direction map")
     d, v, block, shape, origin = _map_arrays(estimate, block, shape, origin)
     d, v = np.asarray(d), np.asarray(v, dtype=bool)
     if d.ndim == 2:
