@@ -154,7 +154,7 @@ def warm_points(n: int, extra, fingerprint: str, prefix: str = "none",
             if tab.settings["fingerprint"] == fingerprint:
                 c = _t.canonicalize((int(extra[0]),), kind=3)
                 return _prefix.restore_prefix(
-                    _t.transform_points(tab.load(c.extra), c.transform), prefix)
+                    _t.transform_points(tab.load(c.extra), c.transform), prefix, c.transform)
     raise FileNotFoundError(f"the 3-direction table for n={n} this table is warm-started from "
                             f"(fingerprint {fingerprint[:12]}...) is not on the search path")
 

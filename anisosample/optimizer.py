@@ -111,17 +111,22 @@ class SynthesisObjective(eqx.Module):
         return out
 
 
-def objective(n: int, directions_deg, recipe="rate", *, freqs=None, weights=None,
-              **options) -> SynthesisObjective:
-    """The :class:`SynthesisObjective` of a :class:`~anisosample.synthesis.Recipe` (a name or a
-    Recipe, with ``options`` applied as in :func:`~anisosample.synthesis.make_recipe`) for ``n``
-    points and ``directions_deg``: the recipe's frequency design, weights, ``spectrum_weight``
-    and ``c``. ``freqs`` / ``weights`` replace the design's (``freqs`` as ``(m, 2)`` integers or
-    a :class:`~anisosample.frequencies.FrequencySet`; ``weights`` may be a traced array)."""
-    from .synthesis import make_recipe
+def _check_recipe(recipe):
+    if not all(hasattr(recipe, a) for a in ("design", "learning_rate", "spectrum_weight")):
+        raise TypeError("recipe must be a synthesis Recipe (anisosample.synthesis.make_recipe("
+                        f"'rate', ...)), got {type(recipe).__name__}")
+    return recipe
 
+
+def objective(n: int, directions_deg, recipe, *, freqs=None,
+              weights=None) -> SynthesisObjective:
+    """The :class:`SynthesisObjective` of a :class:`~anisosample.synthesis.Recipe` (make one
+    with :func:`~anisosample.synthesis.make_recipe`) for ``n`` points and ``directions_deg``:
+    the recipe's frequency design, weights, ``spectrum_weight`` and ``c``. ``freqs`` /
+    ``weights`` replace the design's (``freqs`` as ``(m, 2)`` integers or a
+    :class:`~anisosample.frequencies.FrequencySet`; ``weights`` may be a traced array)."""
     n = check_int("n", n, minimum=2)
-    rec = make_recipe(recipe, **options)
+    rec = _check_recipe(recipe)
     if freqs is None:
         fset = _freq.design(n, directions_deg, rec.design, **dict(rec.frequency_options))
     else:
@@ -178,12 +183,9 @@ class Adam(eqx.Module):
         check_int("fixed", self.fixed, minimum=0)
 
     @classmethod
-    def from_recipe(cls, recipe, n: int, **options) -> Adam:
-        """The optimizer a :class:`~anisosample.synthesis.Recipe` (or its name, with
-        ``options``) runs for ``n`` points."""
-        from .synthesis import make_recipe
-
-        rec = make_recipe(recipe, **options)
+    def from_recipe(cls, recipe, n: int) -> Adam:
+        """The optimizer a :class:`~anisosample.synthesis.Recipe` runs for ``n`` points."""
+        rec = _check_recipe(recipe)
         return cls(rec.learning_rate, rec.final_lr_fraction, n, rec.steps, rec.b1, rec.b2,
                    rec.adam_eps, rec.boundary, _prefix.prefix_size(rec.prefix),
                    rec.sequence_from)

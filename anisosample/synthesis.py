@@ -190,6 +190,8 @@ class Recipe(eqx.Module):
         for name, default in (("prefix", "none"), ("sequence_from", 0)):
             if out[name] == default:
                 del out[name]
+        if self.prefix != "none":  # the points behind the name, not only the name
+            out["prefix_sha256"] = _prefix.prefix_checksum(self.prefix)
         if not self.sequence_from:
             del out["sequence_weights"]
         out["recipe"] = out.pop("name")

@@ -133,8 +133,8 @@ def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
     ``prefix`` (W Sec. 7; :mod:`anisosample.prefix`): ``None``/``"none"`` (the tables W
     describes) or a symmetric ``"dihedral-<m>"`` (e.g. :data:`anisosample.prefix.DEFAULT_PREFIX`):
     the set comes from the table ``d{kind}_n{n}_{prefix}`` and its first ``m`` points are the
-    prefix bit for bit, whatever the directions (the symmetry's reordering of the prefix is
-    undone, :func:`anisosample.prefix.restore_prefix`).
+    prefix bit for bit, whatever the directions (the symmetry's shift and reordering of the
+    prefix are undone, :func:`anisosample.prefix.restore_prefix`).
 
     ``sequence_from`` (0: a set): the progressive sequence of ``n`` points whose every nested
     power-of-two prefix from ``sequence_from`` up is aligned
@@ -206,7 +206,8 @@ def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
     if held != (prefix, sequence_from):
         raise ValueError(f"table {path} holds sets with (prefix, sequence_from) {held}, not "
                          f"the requested {(prefix, sequence_from)}")
-    return jnp.asarray(restore_prefix(transform_points(pts, canon.transform), prefix))
+    return jnp.asarray(restore_prefix(transform_points(pts, canon.transform), prefix,
+                                      canon.transform))
 
 
 def build_command(kind: int, n: int, sets=None, *, out=None, prefix: str = "none",

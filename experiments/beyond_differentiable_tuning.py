@@ -336,8 +336,9 @@ def synthesis_gradient(settings):
         wj, tj = (jnp.asarray(a, jnp.float64) for a in (w, t))
         lj = jnp.asarray(only_long)
         vej, pfj = jnp.asarray(v_eval), jnp.asarray(pf)
-        base = O.objective(n, (0.0, 90.0, theta), freqs=v.astype(np.int64), weights=w)
-        adam = O.Adam.from_recipe("rate", n, steps=steps)
+        rate = asp.synthesis.make_recipe("rate", steps=steps)
+        base = O.objective(n, (0.0, 90.0, theta), rate, freqs=v.astype(np.int64), weights=w)
+        adam = O.Adam.from_recipe(rate, n)
 
         def synth(length, x0):
             mask = jnp.where(lj, jax.nn.sigmoid((length - tj) / tau), 1.0)

@@ -10,6 +10,7 @@ import pytest
 import anisosample as asp
 from anisosample import frequencies, losses
 from anisosample import optimizer as O
+from anisosample.synthesis import make_recipe
 
 DIRS = (0.0, 90.0, 30.0)
 
@@ -22,11 +23,11 @@ def test_objective_is_the_recipes_loss():
     n = 64
     with jax.enable_x64(True):
         x = jnp.asarray(_x0(n))
-        rate = O.objective(n, DIRS)(x)
+        rate = O.objective(n, DIRS, make_recipe())(x)
         want = losses.linear_spectrum_loss(x, frequencies.design(n, DIRS, "rate"),
                                            method="direct")
         np.testing.assert_allclose(float(rate), float(want), rtol=1e-12)
-        paper = O.objective(n, DIRS, "paper")(x)
+        paper = O.objective(n, DIRS, make_recipe("paper"))(x)
         want = losses.combined_loss(x, frequencies.design(n, DIRS, "paper"), DIRS, c=100.0,
                                     method="direct")
         np.testing.assert_allclose(float(paper), float(want), rtol=1e-12)
@@ -48,12 +49,13 @@ def test_scan_takes_the_production_loops_steps():
     n = 64
     r = asp.synthesize(jax.random.key(1), n, DIRS, steps=10, method="direct",
                        show_progress=False)
-    x = O.minimize(O.objective(n, DIRS), O.Adam.from_recipe("rate", n, steps=10), _x0(n))
+    x = O.minimize(O.objective(n, DIRS, make_recipe()),
+                   O.Adam.from_recipe(make_recipe(steps=10), n), _x0(n))
     np.testing.assert_allclose(np.asarray(x, np.float32), np.asarray(r.points), atol=1e-6)
     # a prefix is held still by both
-    opt = O.Adam.from_recipe("rate", n, steps=5, prefix="dihedral-8")
+    opt = O.Adam.from_recipe(make_recipe(steps=5, prefix="dihedral-8"), n)
     x0 = asp.prefix.place_prefix(_x0(n), asp.prefix.dihedral_points(8))
-    x = O.minimize(O.objective(n, DIRS), opt, x0)
+    x = O.minimize(O.objective(n, DIRS, make_recipe()), opt, x0)
     np.testing.assert_array_equal(np.asarray(x)[:8], x0[:8])
 
 
@@ -63,7 +65,7 @@ def test_gradient_through_the_scan_agrees_with_finite_differences():
     recipe's 1e-30 the first step is lr * sign(gradient), whose derivative is zero almost
     everywhere and whose finite differences jump wherever a component changes sign."""
     n, h = 32, 1e-5
-    obj = O.objective(n, DIRS)
+    obj = O.objective(n, DIRS, make_recipe())
     x0 = _x0(n)
     with jax.enable_x64(True):
         def of_lr(lr):
@@ -83,7 +85,7 @@ def test_gradient_through_the_scan_agrees_with_finite_differences():
 
 def test_scan_vmaps_over_initial_sets():
     n = 32
-    obj, opt = O.objective(n, DIRS), O.Adam.from_recipe("rate", n, steps=4)
+    obj, opt = O.objective(n, DIRS, make_recipe()), O.Adam.from_recipe(make_recipe(steps=4), n)
     x0 = np.stack([_x0(n, 1), _x0(n, 2)])
     xs = jax.vmap(lambda x: O.minimize(obj, opt, x))(jnp.asarray(x0))
     for i in range(2):
@@ -97,6 +99,9 @@ def test_bad_input():
     with pytest.raises(ValueError, match="steps"):
         O.Adam(0.5, 0.01, 64, 0)
     with pytest.raises(ValueError, match="x0"):
-        O.minimize(O.objective(16, DIRS), O.Adam(0.5, 0.01, 16, 2), np.full((16, 2), 1.5))
+        O.minimize(O.objective(16, DIRS, make_recipe()), O.Adam(0.5, 0.01, 16, 2),
+                   np.full((16, 2), 1.5))
     with pytest.raises(ValueError, match="weights"):
-        O.objective(16, DIRS, weights=np.ones(3))
+        O.objective(16, DIRS, make_recipe(), weights=np.ones(3))
+    with pytest.raises(TypeError, match="recipe"):
+        O.objective(16, DIRS, "rate")
