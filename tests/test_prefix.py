@@ -254,3 +254,24 @@ def test_sequence_with_prefix_resumes_to_the_same_bits(getkey, tmp_path):
     assert np.asarray(resumed.points).tobytes() == pts.tobytes()
     with pytest.raises(ValueError, match="sequence_from"):
         synthesis.synthesize_sequence(key, 128, (0, 90, 30), sequence_from=256)
+
+
+def test_aligned_sequence_sampler_serves_nested_prefixes_of_one_sequence(cache):
+    """samplers.get('aligned-sequence'): the first n points of one table sequence (3 and 4
+    directions, with a prefix), one toroidal shift per key; n past the length refused."""
+    opts = dict(length=64, sequence_from=16, steps=5, method="direct", show_progress=False,
+                prefix="dihedral-8")
+    for dirs in ([150], [30, 100]):
+        s = asp.samplers.get("aligned-sequence", directions_deg=dirs, **opts)
+        full = np.asarray(s.fn(None, 64))
+        assert np.asarray(s.fn(None, 32)).tobytes() == full[:32].tobytes()
+        assert full[:8].tobytes() == P.dihedral_points(8).tobytes()
+        key = jax.random.key(3)
+        np.testing.assert_array_equal(np.asarray(s(key, 40)),
+                                      np.asarray(asp.samplers.toroidal_shift(key, full[:40])))
+        with pytest.raises(ValueError, match="length"):
+            s(key, 65)
+    names = sorted(p.name for p in cache.iterdir())
+    assert names == ["d3_n64_seq16_dihedral-8", "d4_n64_seq16_dihedral-8"]
+    tab = tables.open_table(cache / names[0])
+    assert tables.table_sequence_from(tab) == 16
