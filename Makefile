@@ -16,7 +16,7 @@ JOBS   ?= 2
         w-fig7 w-fig8 w-fig9 w-fig10 w-fig12 \
         h-shading-points \
         h-fig2 h-table4 h-table5 beyond-warped-aligned \
-        beyond-differentiable-tuning
+        beyond-differentiable-tuning beyond-prefix-sets beyond-sequences
 
 help:
 	@echo "make demo      set up .venv and run the headline experiment at small scale"
@@ -72,7 +72,7 @@ figures: demo-record w-directions-accuracy w-fig5-baselines \
          w-fig7 w-fig8 w-fig9 w-fig10 w-fig12 \
          h-shading-points \
          h-fig2 h-table4 h-table5 beyond-warped-aligned \
-         beyond-differentiable-tuning
+         beyond-differentiable-tuning beyond-prefix-sets beyond-sequences
 	$(PY) docs/fill_numbers.py --write
 	@echo "figures done; docs/reproduction.md now quotes these results (make docs also refreshes docs/api.md)"
 
@@ -94,6 +94,13 @@ beyond-warped-aligned: $(VENV)/.installed
 
 beyond-differentiable-tuning: $(VENV)/.installed
 	$(PY) experiments/beyond_differentiable_tuning.py --scale $(SCALE)
+
+# W Sec. 7: aligned sets with a fixed isotropic prefix, and progressive aligned sequences.
+beyond-prefix-sets: $(VENV)/.installed
+	$(PY) experiments/beyond_prefix_sets.py --scale $(SCALE)
+
+beyond-sequences: $(VENV)/.installed
+	$(PY) experiments/beyond_sequences.py --scale $(SCALE)
 
 w-fig3: $(VENV)/.installed
 	$(PY) experiments/w_fig3.py --scale $(SCALE)
