@@ -459,6 +459,41 @@ api("synthesize-directions-repeated", lambda d: A().synthesize(key(), 64, [0, 90
     ValueError, r"directions_deg must not repeat", owner=S)
 api("synthesize-36-directions-at-64", lambda d: A().synthesize(key(), 64, list(range(0, 180, 5))),
     ValueError, r"(directions|too many).*(n|points)", owner=S)
+api("synthesize-prefix-unknown", lambda d: A().synthesize(key(), 64, [0, 90], prefix="sobol-8"),
+    ValueError, r"prefix must be 'none', 'dihedral-<m>'", owner=S)
+api("synthesize-prefix-dihedral-12", lambda d: A().synthesize(key(), 64, [0, 90],
+    prefix="dihedral-12"), ValueError, r"prefix must be .*multiple of 8", owner=S)
+api("synthesize-prefix-over-n-4", lambda d: A().synthesize(key(), 64, [0, 90],
+    prefix="dihedral-24"), ValueError, r"prefix has 24 points, more than n/4", owner=S)
+api("synthesize-prefix-nan-points", lambda d: A().synthesize(key(), 64, [0, 90],
+    prefix=np.full((4, 2), NAN)), ValueError, r"prefix contains NaN", owner=S)
+api("synthesize-prefix-int", lambda d: A().synthesize(key(), 64, [0, 90], prefix=np.ones(3)),
+    ValueError, r"prefix must have shape \(n, 2\)", owner=S)
+api("synthesize-sequence-from-48", lambda d: A().synthesis.synthesize_sequence(key(), 256,
+    [0, 90, 30], sequence_from=48), ValueError, r"sequence_from must be 0 .* power of two",
+    owner=S)
+api("synthesize-sequence-from-over-n", lambda d: A().synthesis.synthesize_sequence(key(), 64,
+    [0, 90, 30], sequence_from=128), ValueError, r"sequence_from must be at most n=64", owner=S)
+api("synthesize-sequence-weights", lambda d: A().synthesis.synthesize_sequence(key(), 64,
+    [0, 90, 30], sequence_from=16, sequence_weights="heavy"), ValueError,
+    r"sequence_weights must be one of", owner=S)
+api("tables-prefix-asymmetric", lambda d: A().tables.lookup([0, 90, 30], 256,
+    prefix="pmj02bn-32"), ValueError, r"prefix 'pmj02bn-32' cannot be held by a table",
+    owner="tables")
+api("sampler-aligned-sequence-n-over-length", lambda d: A().samplers.get("aligned-sequence",
+    directions_deg=[30], length=64, sequence_from=16)(key(), 65), ValueError,
+    r"n must be at most the sequence length 64", owner="selection")
+api("sampler-aligned-sequence-from-over-length", lambda d: A().samplers.get("aligned-sequence",
+    directions_deg=[30], length=64, sequence_from=128), ValueError,
+    r"sequence_from must be at most length=64", owner="selection")
+api("optimizer-recipe-name", lambda d: A().optimizer.objective(64, [0, 90, 30], "rate"),
+    TypeError, r"recipe must be a synthesis Recipe", owner="optimizer")
+api("optimizer-adam-boundary", lambda d: A().optimizer.Adam(0.5, 0.01, 64, 10,
+    boundary="reflect"), ValueError, r"boundary must be one of", owner="optimizer")
+api("optimizer-x0-outside", lambda d: A().optimizer.minimize(
+    A().optimizer.objective(16, [0, 90], A().synthesis.make_recipe()),
+    A().optimizer.Adam(0.5, 0.01, 16, 2), np.full((16, 2), 1.5)), ValueError,
+    r"x0 must lie in \[0, 1\)\^2", owner="optimizer")
 api("synthesize-steps-zero", lambda d: A().synthesize(key(), 64, [0, 90], steps=0), ValueError,
     r"steps must be >= 1", owner=S)
 api("synthesize-steps-negative", lambda d: A().synthesize(key(), 64, [0, 90], steps=-5),
@@ -1021,6 +1056,10 @@ cli("synthesize-wrong-suffix", "synthesize -n 64 --directions 0,90 -o {o}/o.bmp"
     r"points file name must end in \.npy or \.npz")
 cli("synthesize-recipe-unknown", "synthesize -n 64 --directions 0,90 --recipe x -o {o}/o.npz",
     r"argument --recipe: invalid choice")
+cli("tables-build-prefix-asymmetric", "tables build --n 64 --prefix pmj02bn-16 --sets 30",
+    r"prefix 'pmj02bn-16' cannot be held by a table")
+cli("tables-build-sequence-from-48", "tables build --n 64 --sequence-from 48 --sets 30",
+    r"sequence_from must be 0 .* power of two")
 cli("synthesize-36-directions-at-64",
     "synthesize -n 64 --directions " + ",".join(str(a) for a in range(0, 180, 5))
     + " -o {o}/o.npz", r"(directions|too many).*(n|points)")
