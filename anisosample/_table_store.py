@@ -231,7 +231,7 @@ def table_dirs() -> list[Path]:
 def table_name(kind: int, n: int, prefix: str = "none", sequence_from: int = 0) -> str:
     """``d{kind}_n{n}``; ``_seq{sequence_from}`` added for a table of progressive sequences
     (:func:`anisosample.synthesis.synthesize_sequence`) and ``_{prefix}`` for sets with a fixed
-    prefix (:mod:`anisosample.prefix`): e.g. ``d3_n4096_seq256_dihedral-32``."""
+    prefix (:mod:`anisosample.prefix`): e.g. ``d3_n4096_seq256_dihedral-64``."""
     return (f"d{kind}_n{n}" + (f"_seq{sequence_from}" if sequence_from else "")
             + ("" if prefix == "none" else f"_{prefix}"))
 

@@ -427,7 +427,7 @@ def _add_tables(sub):
     b.add_argument("--steps", type=int, default=None, help="optimizer steps (recipe default)")
     b.add_argument("--prefix", default=None,
                    help="fixed isotropic first points of every set (W Sec. 7): dihedral-<m>, "
-                        "e.g. dihedral-32 (anisosample.prefix); default none")
+                        "e.g. dihedral-64 (anisosample.prefix); default none")
     b.add_argument("--sequence-from", type=int, default=None,
                    help="build progressive sequences whose every power-of-two prefix from this "
                         "size up is aligned (synthesize_sequence), e.g. 256; default: sets")
