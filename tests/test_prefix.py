@@ -275,3 +275,31 @@ def test_aligned_sequence_sampler_serves_nested_prefixes_of_one_sequence(cache):
     assert names == ["d3_n64_seq16_dihedral-8", "d4_n64_seq16_dihedral-8"]
     tab = tables.open_table(cache / names[0])
     assert tables.table_sequence_from(tab) == 16
+
+
+_SEQUENCE_SCRIPT = """
+import hashlib, jax, numpy as np
+from anisosample import synthesis
+r = synthesis.synthesize_sequence(jax.random.key(5), 512, (0, 90, 30), sequence_from=128,
+                                  prefix="dihedral-16", steps=30, method="nufft1",
+                                  show_progress=False)
+print(hashlib.sha256(np.asarray(r.points).tobytes()).hexdigest())
+"""
+
+
+def test_sequence_with_prefix_same_key_same_bits_in_another_process():
+    """A sequence with a prefix on the NUFFT path: a fresh process on one OpenMP thread gives
+    the bytes this process gives."""
+    import hashlib
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, OMP_NUM_THREADS="1", ANISOSAMPLE_PROGRESS="0")
+    out = subprocess.run([sys.executable, "-c", _SEQUENCE_SCRIPT], env=env, check=True,
+                         capture_output=True, text=True, timeout=300)
+    here = synthesis.synthesize_sequence(jax.random.key(5), 512, (0, 90, 30), sequence_from=128,
+                                         prefix="dihedral-16", steps=30, method="nufft1",
+                                         show_progress=False)
+    assert out.stdout.strip().splitlines()[-1] == hashlib.sha256(
+        np.asarray(here.points).tobytes()).hexdigest()
