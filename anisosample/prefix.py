@@ -63,7 +63,7 @@ estimator on its own (mean edge variance 0.65x the first 64 points of pmj02bn's)
 direction estimation 64 samples, about what W's estimation spends per pixel (W Fig. 10: 47-50).
 Sets of ``n >= 256`` points can take it (``m <= n / 4``)."""
 _EXPLICIT = "points"
-_GRID = 2.0**-16  # dihedral coordinates are multiples of this: 1 - t is exact in float32
+_GRID = 2.0**-16  # dihedral coordinates are multiples of this: 1 - t, t + 1/2 exact
 
 
 def check_prefix(name: str, prefix) -> str:
@@ -243,9 +243,13 @@ def _check_dihedral_size(m) -> int:
 
 @functools.lru_cache(maxsize=16)
 def _dihedral(m: int) -> np.ndarray:
-    shipped = np.load(_SHIPPED) if _SHIPPED.exists() else {}
-    name = f"m{m}"
-    pts = np.asarray(shipped[name], np.float32) if name in shipped else design_dihedral(m)
+    pts = None
+    if _SHIPPED.exists():
+        with np.load(_SHIPPED) as shipped:
+            if f"m{m}" in shipped.files:
+                pts = np.asarray(shipped[f"m{m}"], np.float32)
+    if pts is None:
+        pts = design_dihedral(m)
     pts.setflags(write=False)
     return pts
 
