@@ -87,6 +87,12 @@ __all__ = ["RECIPES", "BOUNDARIES", "Recipe", "make_recipe", "recipe_defaults",
            "load_result", "load_or_synthesize", "max_directions", "usable_cpus", "usable_cores"]
 
 RECIPES = ("rate", "paper")
+SEQUENCE_STEPS = 600
+"""Optimizer steps of a sequence (:func:`synthesize_sequence`, sequence tables) unless given: the
+nested losses need more than a set's 200. Measured at N = 4096 (``experiments/beyond_sequences.py``
+sets as the reference, extra directions 81 and 96, one sequence each, 512 shifts): the mean ratio
+of a prefix's edge variance to a standalone set's fell from 1.32 at 200 steps to 1.21 at 600, and
+stayed there at 1200 (1.22); learning rates 0.3 / 0.5 / 1.0 at 600 steps: 1.28 / 1.21 / 1.18."""
 SEQUENCE_WEIGHTS = ("equal", "size")
 """Weights of the nested prefixes' losses in a sequence (:func:`synthesize_sequence`):
 ``"equal"`` (each prefix's normalized loss counts once) or ``"size"`` (prefix ``n_k`` weighs
@@ -689,7 +695,8 @@ def synthesize(key, n: int, directions_deg, *, recipe: str | Recipe = "rate",
 
 def synthesize_sequence(key, n: int = 4096, directions_deg=(0.0, 90.0, 45.0), *,
                         prefix=None, sequence_from: int = 256,
-                        sequence_weights: str | None = None, **options) -> SynthesisResult:
+                        sequence_weights: str | None = None, steps: int | None = None,
+                        **options) -> SynthesisResult:
     """A progressive aligned sequence (W Sec. 7: "generate points in a sampling sequence to
     allow for progressive rendering"): ``result.points`` is one ``(n, 2)`` sequence whose every
     power-of-two prefix of at least ``sequence_from`` points (and the whole) is an aligned set
@@ -703,11 +710,13 @@ def synthesize_sequence(key, n: int = 4096, directions_deg=(0.0, 90.0, 45.0), *,
     points move on their own scale. The initial sequence is progressive (a sequence's recipe
     takes ``init="pmj02bn"`` unless told otherwise: every power-of-two head is stratified).
     It runs in the one loop of :func:`synthesize` (checkpoints, resume, progress, same key same
-    bits) and takes its options; ``prefix`` as there (placed among the first nested prefix that
-    holds it).
+    bits) and takes its options (``steps``: :data:`SEQUENCE_STEPS` unless given; a recipe given
+    as a :class:`Recipe` keeps its own only if ``steps`` is passed); ``prefix`` as there (placed
+    among the first nested prefix that holds it).
     """
     if sequence_weights is not None:
         options["sequence_weights"] = sequence_weights
+    options["steps"] = SEQUENCE_STEPS if steps is None else steps
     n = check_int("n", n, minimum=2)
     sequence_from = check_int("sequence_from", sequence_from, minimum=2)
     if sequence_from > n:

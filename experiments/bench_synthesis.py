@@ -98,12 +98,13 @@ def main(argv=None):
         steps = len(result.history) - 1
         first = stamps[0] - t  # set-up, compilation and the first step
         per_step = (stamps[-1] - stamps[0]) / max(steps - 1, 1)
-        projected = first + (opts["steps"] - 1) * per_step
+        default_steps = synthesis.SEQUENCE_STEPS if args.sequence_from else opts["steps"]
+        projected = first + (default_steps - 1) * per_step
         print(f"n=2^{k} synthesize a {what} ({args.nufft_precision} precision): first step "
               "(set-up, "
               f"compilation) {first:.1f} s, then "
               f"{per_step:.3f} s per step (the terms on {os.cpu_count()} threads); projected "
-              f"at the recipe's {opts['steps']} steps: {projected:.0f} s", flush=True)
+              f"at the default {default_steps} steps: {projected:.0f} s", flush=True)
         grads = "" if grad_s is None else (
             f"gradient {grad_s['auto']:.3f} s (FINUFFT on its own threads, not deterministic: "
             f"{grad_s['auto threads']:.3f} s; type-3 NUFFT: {grad_s['nufft3']:.3f} s; first "

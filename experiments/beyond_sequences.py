@@ -69,8 +69,8 @@ def main(argv=None):
             t0 = time.time()
             seq = np.asarray(asp.synthesis.load_or_synthesize(
                 out / "sets" / f"a{a}_seq_{label.replace(' ', '').replace('+', '_')}.npz",
-                jax.random.key(0), length, dirs, sequence_from=start, show_progress=False,
-                **opts).points)
+                jax.random.key(0), length, dirs, sequence_from=start,
+                steps=synthesis.SEQUENCE_STEPS, show_progress=False, **opts).points)
             sec = time.time() - t0
             var = [edge_variance(f, seq[:n], n) for n in ns]
             ratio = [v / float(np.median(standalone[n])) for v, n in zip(var, ns, strict=True)]
