@@ -91,7 +91,7 @@ SEQUENCE_STEPS = 600
 """Optimizer steps of a sequence (:func:`synthesize_sequence`, sequence tables) unless given: the
 nested losses need more than a set's 200. Measured at N = 4096 (``experiments/beyond_sequences.py``
 sets as the reference, extra directions 81 and 96, one sequence each, 512 shifts): the mean ratio
-of a prefix's edge variance to a standalone set's fell from 1.32 at 200 steps to 1.21 at 600, and
+of a prefix's edge variance to a standalone set's fell from 1.31 at 200 steps to 1.21 at 600, and
 stayed there at 1200 (1.22); learning rates 0.3 / 0.5 / 1.0 at 600 steps: 1.28 / 1.21 / 1.18."""
 SEQUENCE_WEIGHTS = ("equal", "size")
 """Weights of the nested prefixes' losses in a sequence (:func:`synthesize_sequence`):
