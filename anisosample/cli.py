@@ -607,6 +607,18 @@ def _worker_argv(args, pid: int, port: int) -> list[str]:
     return argv
 
 
+def _die_with_parent():
+    """In a ``--processes`` worker, before it runs (Linux): the kernel sends it SIGKILL when the
+    parent dies (``prctl(PR_SET_PDEATHSIG)``), so a killed ``tables build`` leaves no workers."""
+    import ctypes
+    import signal
+
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL))  # 1: PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
 def _run_local_processes(args):
     """``tables build --processes P``: P workers of this command on this machine, joined by
     jax.distributed on a localhost coordinator (worker ``p`` builds the units ``i % P == p``,
@@ -641,7 +653,8 @@ def _run_local_processes(args):
             env = dict(os.environ)
             env[_AFFINITY_ENV] = ",".join(str(c) for c in cores[pid::args.processes])
             procs.append(subprocess.Popen(
-                [sys.executable, "-m", "anisosample", *_worker_argv(args, pid, port)], env=env))
+                [sys.executable, "-m", "anisosample", *_worker_argv(args, pid, port)], env=env,
+                preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None))
         codes = [None] * len(procs)
         while None in codes:  # a failed worker stops the others (they would wait for it)
             codes = [p.poll() for p in procs]
@@ -652,6 +665,11 @@ def _run_local_processes(args):
         for p in procs:
             if p.poll() is None:
                 p.terminate()
+        for p in procs:  # jax.distributed's preemption notice catches SIGTERM: then SIGKILL
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
         codes = [p.wait() for p in procs]
     bad = [(i, c) for i, c in enumerate(codes) if c and c > 0] or [
         (i, c) for i, c in enumerate(codes) if c]

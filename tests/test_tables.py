@@ -439,6 +439,55 @@ def test_build_over_two_processes_with_jax_distributed(tmp_path, kind):
         np.testing.assert_array_equal(a.load(e), b.load(e))
 
 
+def _children(pid: int) -> set[int]:
+    out = set()
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        text = (task / "children").read_text() if (task / "children").exists() else ""
+        out |= {int(c) for c in text.split()}
+    return out
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+@pytest.mark.parametrize("signal_name", ["SIGTERM", "SIGKILL"])
+def test_stopped_build_leaves_no_workers(tmp_path, signal_name):
+    """`tables build --processes 2` stopped while its workers synthesize: SIGTERM (the parent
+    stops them, SIGKILL where jax.distributed's preemption notice catches SIGTERM) or SIGKILL
+    of the parent itself (the kernel kills the workers: PR_SET_PDEATHSIG) leaves no worker."""
+    import signal
+    import time
+
+    if asp.synthesis.usable_cores() < 2:
+        pytest.skip("--processes 2 needs two usable cores")
+    cmd, env = _cli(["--n", "256", "--directions", "3", "--sets", "10,20,30,40",
+                     "--steps", "100000", "--out", str(tmp_path / "t"), "--processes", "2"])
+    parent = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.time() + 120
+        while len(_children(parent.pid)) < 2 and time.time() < deadline:
+            time.sleep(0.2)
+        workers = _children(parent.pid)
+        assert len(workers) == 2, "the workers did not start"
+        time.sleep(3)  # let them reach jax.distributed and the synthesis
+        parent.send_signal(getattr(signal, signal_name))
+        parent.wait(timeout=60)
+        deadline = time.time() + 30
+        while any(Path(f"/proc/{w}").exists() and "Z" not in _state(w) for w in workers) \
+                and time.time() < deadline:
+            time.sleep(0.2)
+        alive = [w for w in workers if Path(f"/proc/{w}").exists() and "Z" not in _state(w)]
+        assert not alive, f"workers {alive} outlived the stopped build ({signal_name})"
+    finally:
+        if parent.poll() is None:
+            parent.kill()
+
+
+def _state(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split(") ")[1].split()[0]
+    except (OSError, IndexError):
+        return "Z"
+
+
 def test_cli_tables_info_and_errors(tmp_path, capsys):
     from anisosample.cli import main
 
