@@ -36,6 +36,18 @@ from . import spectrum
 from ._validate import check_directions_deg, check_points, check_positive_float
 
 
+def band_energy(points, direction_deg: float, radius: float = 32.0) -> float:
+    """Mean ``n P_S(v)`` over the frequencies within one unit of the line at spectral angle
+    ``direction_deg``, ``0 < v . d <= radius`` (:func:`anisosample.frequencies.wedge`; white
+    noise: 1): how dark a set is along a requested direction."""
+    pts = check_points("points", points)
+    radius = check_positive_float("radius", radius)
+    v = _freq.wedge(float(direction_deg), radius, 1.0)
+    if v.shape[0] == 0:
+        raise ValueError(f"radius={radius} leaves no frequency on the line; use radius >= 1")
+    return float(np.mean(np.asarray(spectrum.power_spectrum(pts, v)))) * pts.shape[0]
+
+
 def _line_bands(theta, r_in, length, band):
     v = _freq.wedge(theta, length, band, 0.0).astype(np.int64)
     return v[np.hypot(v[:, 0], v[:, 1]) > r_in]

@@ -41,7 +41,7 @@ import jax
 import numpy as np
 
 import anisosample as asp
-from anisosample import _table_build, frequencies, spectrum, tables
+from anisosample import _table_build, tables
 
 _COMPILES = [0]
 
@@ -122,12 +122,6 @@ def _four_direction(args):
           f"4141-set table {len(canon) * per / cores / 3600:.2f} h")
 
 
-def _band_energy(pts, phi, n, radius=32.0):
-    """Mean ``n P_S`` within one unit of the line at spectral angle ``phi``, ``0 < |v| <= r``."""
-    v = frequencies.wedge(float(phi), radius, 1.0)
-    return float(np.mean(np.asarray(spectrum.power_spectrum(pts, v)))) * n
-
-
 def _compare_warm(args):
     """Warm (from the 3-direction table) vs cold (jittered) 4-direction sets at n = 256 and
     4096: the final loss, the band energy along every line and the variance of an edge at the
@@ -175,7 +169,8 @@ def _compare_warm(args):
                 v = asp.variance.estimator_variance(f, sampler, n, jax.random.key(2), 512,
                                                     f.integral)
                 var[(a, b, n, label)] = v
-                bands = [round(_band_energy(pts, d, n, min(32.0, n**0.5)), 4) for d in dirs]
+                bands = [round(asp.diagnostics.band_energy(pts, d, min(32.0, n**0.5)), 4)
+                         for d in dirs]
                 print(f"{dirs} n={n} {label}: {len(r.history) - 1} steps {sec:.1f} s, loss "
                       f"{r.final_loss:.5f}, band n P_S (|v| <= {min(32, int(n**0.5))}) {bands}, "
                       f"edge {a} deg variance {v:.3e} (load {os.getloadavg()[0]:.1f})",

@@ -27,16 +27,10 @@ import jax
 import numpy as np
 
 import anisosample as asp
-from anisosample import frequencies, plot, prefix
+from anisosample import diagnostics, plot, prefix
 
 NAME = "beyond_prefix_sets"
 PREFIXES = ("none", "dihedral-16", "dihedral-32", "dihedral-64", "pmj02bn-32")
-
-
-def band_energy(points, direction_deg: float, n: int, radius: float = 32.0) -> float:
-    """Mean ``n P_S`` within one unit of the line at spectral angle ``direction_deg``."""
-    v = frequencies.wedge(float(direction_deg), radius, 1.0)
-    return float(np.mean(np.asarray(asp.spectrum.power_spectrum(points, v)))) * n
 
 
 def shifted(points):
@@ -77,7 +71,7 @@ def main(argv=None):
                 var.append(asp.variance.estimator_variance(
                     f, shifted(pts), n, jax.random.fold_in(key, n), realizations, f.integral))
                 if n >= 1024:
-                    bands[n] = [band_energy(pts, d, n) for d in dirs]
+                    bands[n] = [diagnostics.band_energy(pts, d) for d in dirs]
             fit = asp.variance.fit_slope(ns, var)
             rows[label] = {"extra_deg": a, "prefix": spec, "variance": var, "slope": fit.slope,
                            "slope_ci": [fit.ci_low, fit.ci_high],

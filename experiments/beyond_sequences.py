@@ -23,18 +23,12 @@ import jax
 import numpy as np
 
 import anisosample as asp
-from anisosample import frequencies, plot, prefix, synthesis
+from anisosample import diagnostics, plot, prefix, synthesis
 
 NAME = "beyond_sequences"
 DESIGNS = {"equal": {}, "size": {"sequence_weights": "size"},
            f"equal + {prefix.DEFAULT_PREFIX}": {"prefix": prefix.DEFAULT_PREFIX}}
 KEYS = (1, 2, 3)
-
-
-def band_energy(points, direction_deg: float, n: int, radius: float = 32.0) -> float:
-    """Mean ``n P_S`` within one unit of the line at spectral angle ``direction_deg``."""
-    v = frequencies.wedge(float(direction_deg), radius, 1.0)
-    return float(np.mean(np.asarray(asp.spectrum.power_spectrum(points, v)))) * n
 
 
 def main(argv=None):
@@ -74,7 +68,7 @@ def main(argv=None):
             sec = time.time() - t0
             var = [edge_variance(f, seq[:n], n) for n in ns]
             ratio = [v / float(np.median(standalone[n])) for v, n in zip(var, ns, strict=True)]
-            bands = {str(n): max(band_energy(seq[:n], d, n) for d in dirs)
+            bands = {str(n): max(diagnostics.band_energy(seq[:n], d) for d in dirs)
                      for n in ns if n >= 1024}
             fit = asp.variance.fit_slope(ns, var)
             records[f"{a}/{label}"] = {
