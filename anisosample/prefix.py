@@ -262,24 +262,22 @@ def dihedral_points(m: int) -> np.ndarray:
     return _dihedral(_check_dihedral_size(m)).copy()
 
 
-def _min_distance(pts: np.ndarray) -> float:
-    d = np.abs(pts[:, None, :] - pts[None, :, :])
-    d = np.minimum(d, 1.0 - d)
-    r = np.sqrt((d**2).sum(-1))
-    np.fill_diagonal(r, np.inf)
-    return float(r.min())
+def _shift_back(points, transform: str) -> np.ndarray:
+    """``points`` (float32) moved by the :data:`TABLE_SHIFTS` shift of a table ``transform``,
+    mod 1 and kept below 1."""
+    points = np.asarray(points, np.float32)
+    shift = np.asarray(TABLE_SHIFTS[transform], np.float32)
+    if not np.any(shift):
+        return points
+    out = np.mod(points + shift, np.float32(1.0))
+    return np.minimum(out, np.float32(1.0) - np.float32(2.0**-24)).astype(np.float32)
 
 
 def _transform(points: np.ndarray, transform: str) -> np.ndarray:
     """A table transform followed by its :data:`TABLE_SHIFTS` shift (float32, in ``[0, 1)``)."""
     from ._table_store import transform_points
 
-    out = transform_points(np.asarray(points, np.float32), transform)
-    shift = np.asarray(TABLE_SHIFTS[transform], np.float32)
-    if np.any(shift):
-        out = np.mod(out + shift, np.float32(1.0)).astype(np.float32)
-        out = np.minimum(out, np.float32(1.0) - np.float32(2.0**-24))
-    return out
+    return _shift_back(transform_points(np.asarray(points, np.float32), transform), transform)
 
 
 def is_symmetric(points) -> bool:
@@ -353,8 +351,4 @@ def restore_prefix(points: np.ndarray, prefix: str, transform: str) -> np.ndarra
     (:func:`align_prefix`)."""
     if prefix == "none":
         return points
-    shift = np.asarray(TABLE_SHIFTS[transform], np.float32)
-    if np.any(shift):
-        points = np.mod(np.asarray(points, np.float32) + shift, np.float32(1.0))
-        points = np.minimum(points, np.float32(1.0) - np.float32(2.0**-24)).astype(np.float32)
-    return align_prefix(points, prefix_points(prefix))
+    return align_prefix(_shift_back(points, transform), prefix_points(prefix))
