@@ -92,7 +92,11 @@ SEQUENCE_STEPS = 600
 nested losses need more than a set's 200. Measured at N = 4096 (``experiments/beyond_sequences.py``
 sets as the reference, extra directions 81 and 96, one sequence each, 512 shifts): the mean ratio
 of a prefix's edge variance to a standalone set's fell from 1.31 at 200 steps to 1.21 at 600, and
-stayed there at 1200 (1.22); learning rates 0.3 / 0.5 / 1.0 at 600 steps: 1.28 / 1.21 / 1.18."""
+stayed there at 1200 (1.22); learning rates 0.3 / 0.5 / 1.0 at 600 steps: 1.28 / 1.21 / 1.18.
+Applied where a sequence is asked for (:func:`synthesize_sequence`, a new sequence table's
+settings), not by :func:`make_recipe`: ``steps`` is one of a named recipe's defaults, which table
+fingerprints record as such, so a recipe-level default would give a table built before it (the
+shipped ``d3_n4096_seq256``, 200 steps) sets of another step count under the same fingerprint."""
 SEQUENCE_WEIGHTS = ("equal", "size")
 """Weights of the nested prefixes' losses in a sequence (:func:`synthesize_sequence`):
 ``"equal"`` (each prefix's normalized loss counts once) or ``"size"`` (prefix ``n_k`` weighs
