@@ -789,6 +789,23 @@ api("warps-triangle-shape", lambda d: A().warps.SphericalTriangle(np.ones((2, 3)
 api("warps-triangle-origin-shape", lambda d: A().warps.SphericalTriangle(
     [[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]], [0.0, 0.0]), ValueError,
     r"origin must have shape \(3,\)", owner=W)
+api("warps-polygon-shape", lambda d: A().warps.ProjectedSphericalPolygon(np.ones((2, 3)),
+    np.zeros(3), [0.0, 0.0, 1.0]), ValueError, r"vertices must have shape \(k, 3\)", owner=W)
+api("warps-polygon-nan", lambda d: A().warps.ProjectedSphericalPolygon(
+    [[0.0, 0.0, 1.0], [NAN, 0.0, 1.0], [0.0, 1.0, 1.0]], np.zeros(3), [0.0, 0.0, 1.0]),
+    ValueError, r"vertices must be finite", owner=W)
+api("warps-polygon-collinear", lambda d: A().warps.ProjectedSphericalPolygon(
+    [[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [2.0, 0.0, 1.0]], np.zeros(3), [0.0, 0.0, 1.0]),
+    ValueError, r"non-zero area", owner=W)
+api("warps-polygon-not-planar", lambda d: A().warps.ProjectedSphericalPolygon(
+    [[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 1.0, 1.5], [0.0, 1.0, 1.0]], np.zeros(3),
+    [0.0, 0.0, 1.0]), ValueError, r"coplanar", owner=W)
+api("warps-polygon-not-convex", lambda d: A().warps.ProjectedSphericalPolygon(
+    [[0.0, 0.0, 1.0], [1.0, 1.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]], np.zeros(3),
+    [0.0, 0.0, 1.0]), ValueError, r"convex", owner=W)
+api("warps-polygon-zero-normal", lambda d: A().warps.ProjectedSphericalPolygon(
+    [[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]], np.zeros(3), np.zeros(3)),
+    ValueError, r"normal must be a non-zero vector", owner=W)
 api("warps-rectangle-zero-edge", lambda d: A().warps.SphericalRectangle(
     [0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 0.0]), ValueError,
     r"(edge|degenerate|area)", owner=W)
@@ -852,6 +869,11 @@ api("render-technique-unknown", lambda d: A().render.render(scene(d), key(), tec
     ValueError, r"technique must be one of", owner=G)
 api("render-light-warp-unknown", lambda d: A().render.render(scene(d), key(),
     light_warp="nosuch"), ValueError, r"light_warp.*(arvo2001|cosine-bilinear)", owner=G)
+api("render-light-warp-psa-on-a-patch", lambda d: A().render.render(
+    A().render.load_xml(SCENES / "patch_light.xml", width=4, height=4), key(), spp=1,
+    light_warp="projected-solid-angle"), ValueError,
+    r"projected-solid-angle.*applies to triangle and parallelogram lights only.*bilinear patch",
+    owner=G)
 api("render-sampler-unknown", lambda d: A().render.render(scene(d), key(), sampler="halton"),
     ValueError, r"halton", owner=G)
 api("render-dimension-unknown", lambda d: A().render.render(scene(d), key(), dimension="time"),

@@ -27,6 +27,10 @@ in the primitive's *base technique* (``technique``):
   lies below the receiver's horizon the cosine-weighted warp is not defined (clipping is not
   implemented); there the cosine is taken about the light plane's normal (every vertex is above
   that axis), which keeps the technique exact and unbiased but no longer cosine-proportional;
+* ``"projected-solid-angle"``: exact cosine-weighted sampling of the light's polygon clipped to
+  the receiver's horizon (Peters 2021, ``warps.ProjectedSphericalPolygon``) instead of the base,
+  triangle and parallelogram lights; with light sampling alone an unoccluded diffuse receiver
+  gets zero variance, also where the light dips below its horizon (``technique`` is ignored);
 * ``"patch-three-warp"``: H Sec. 4.2's chain (``warps.patch_three_warp``) instead of the base,
   bilinear-patch lights only;
 * a callable ``make(base, receiver) -> warp`` (your own chain): given the base warp of the
@@ -71,12 +75,15 @@ LIGHT_WARPS = (
     "product-biquadratic",
     "product-tabulated",
     "patch-three-warp",
+    "projected-solid-angle",
 )
 _FITTED = (LIGHT_PARALLELOGRAM, LIGHT_TRIANGLE, LIGHT_PATCH)
 APPLIES_TO = {
     "arvo2001": (LIGHT_TRIANGLE,),
     "patch-three-warp": (LIGHT_PATCH,),
-    **{name: _FITTED for name in LIGHT_WARPS[1:] if name not in ("arvo2001", "patch-three-warp")},
+    "projected-solid-angle": (LIGHT_TRIANGLE, LIGHT_PARALLELOGRAM),
+    **{name: _FITTED for name in LIGHT_WARPS[1:]
+       if name not in ("arvo2001", "patch-three-warp", "projected-solid-angle")},
 }
 
 
@@ -145,6 +152,15 @@ def base_warp(scene: Scene, kind: int, prim, origin, technique: str) -> W.Abstra
     raise ValueError(f"no warp chain for light kind {LIGHT_KIND_NAMES.get(kind, kind)!r}")
 
 
+def _polygon(scene: Scene, kind: int, prim) -> Array:
+    """The vertices of a triangle (3) or parallelogram (4) light primitive, in order."""
+    lights = scene.lights
+    p0, e1, e2 = lights.p0[prim], lights.e1[prim], lights.e2[prim]
+    if kind == LIGHT_PARALLELOGRAM:
+        return jnp.stack([p0, p0 + e1, p0 + e1 + e2, p0 + e2])
+    return jnp.stack([p0, p0 + e1, p0 + e2])
+
+
 def _patch(scene, prim, origin) -> SeenPatch:
     return SeenPatch(scene.patches.corners[jnp.maximum(scene.lights.patch[prim], 0)], origin)
 
@@ -184,6 +200,8 @@ def chain(
         nl = lights.normal[prim]
         axis = jnp.where(dot(p0 - rec.origin, nl) >= 0, nl, -nl)  # towards the light's plane
         return W.CosineSphericalTriangle(verts, rec.origin, jnp.where(above, nf, axis))
+    if light_warp == "projected-solid-angle":
+        return W.ProjectedSphericalPolygon(_polygon(scene, kind, prim), rec.origin, nf)
     if light_warp == "patch-three-warp":
         return W.patch_three_warp(_patch(scene, prim, rec.origin), rec.origin, nf)
     base = base_warp(scene, kind, prim, rec.origin, technique)

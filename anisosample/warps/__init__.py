@@ -34,6 +34,8 @@ from .planar import Biquadratic as Biquadratic
 from .planar import invert_linear_sample as invert_linear_sample
 from .planar import linear_pdf as linear_pdf
 from .planar import sample_linear as sample_linear
+from .polygon import ProjectedSphericalPolygon as ProjectedSphericalPolygon
+from .polygon import clip_to_horizon as clip_to_horizon
 from .spherical import SphericalRectangle as SphericalRectangle
 from .spherical import SphericalTriangle as SphericalTriangle
 from .tabulated import Tabulated as Tabulated

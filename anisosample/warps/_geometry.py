@@ -52,3 +52,14 @@ def is_concrete(*arrays) -> bool:
     """True when no argument is being traced (pass derived values too: inside ``jit`` values
     computed from constants are tracers, and value checks must then be skipped)."""
     return not any(isinstance(a, jax.core.Tracer) for a in arrays)
+
+
+def orthonormal_frame(n):
+    """Rows ``(s, t, n)`` of a right-handed orthonormal basis around unit ``n`` (Duff et al.
+    2017, *Building an Orthonormal Basis, Revisited*): ``frame @ w`` is ``w`` in the frame."""
+    sign = jnp.where(n[2] >= 0, 1.0, -1.0)
+    a = -1.0 / (sign + n[2])
+    b = n[0] * n[1] * a
+    s = jnp.stack([1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]])
+    t = jnp.stack([b, sign + n[1] * n[1] * a, -n[1]])
+    return jnp.stack([s, t, n])

@@ -46,18 +46,102 @@ def plane_under_triangle(width=16, height=16, albedo=0.5, radiance=4.0):
     return b.build()
 
 
+# A triangle light that pierces the floor (its lowest edge 0.4 below it), facing the floor in
+# front of it (normal -y, +z): floor points see it partly below their horizon, where the
+# projected-solid-angle warp must clip it.
+CROSSING = np.array([[-0.8, 0.5, -0.4], [0.8, 0.5, -0.4], [0.0, 0.8, 1.1]])
+
+
+def plane_under_light(kind="triangle", width=16, height=16, albedo=0.5, radiance=4.0):
+    """``plane_under_triangle`` with the light replaced: ``"parallelogram"`` (a sheared one
+    1 above the floor, facing down) or ``"crossing"`` (:data:`CROSSING`)."""
+    if kind == "triangle":
+        return plane_under_triangle(width, height, albedo, radiance)
+    b = R.SceneBuilder()
+    b.rectangle(np.diag([4.0, 4.0, 1.0, 1.0]), b.diffuse(albedo))
+    if kind == "parallelogram":
+        # [-1, 1]^2 -> corner (-0.6, -0.5, 1), edges (1.3, 0.2, 0) and (0.3, 1.1, 0), normal -z
+        m = np.array([[0.65, 0.15, 0, 0.1], [0.1, 0.55, 0, 0.15], [0, 0, -1, 1.0], [0, 0, 0, 1]])
+        b.rectangle(m, b.diffuse(0.0), radiance=radiance)
+    else:
+        b.triangles(CROSSING, [[0, 1, 2]], b.diffuse(0.0), radiance=radiance)
+    from anisosample.render.xml import _lookat
+
+    cam = _lookat(np.array([0.3, -2.0, 2.5]), np.array([0.0, 0.0, 0.0]), np.array([0, 0, 1.0]))
+    b.camera(cam, width=width, height=height, fov=40)
+    return b.build()
+
+
+def _light_polygon(scene):
+    L = scene.lights
+    p0, e1, e2 = (np.asarray(v[0], np.float64) for v in (L.p0, L.e1, L.e2))
+    if int(L.kind[0]) == 0:  # parallelogram
+        return np.stack([p0, p0 + e1, p0 + e1 + e2, p0 + e2])
+    return np.stack([p0, p0 + e1, p0 + e2])
+
+
+def _zero_variance(scene, light_warp, min_floor=0.6):
+    res = R.render(scene, jax.random.key(3), spp=4, realizations=16, pixel_center=True,
+                   technique="solid_angle", light_warp=light_warp, mis=False, progress=False)
+    lum = res.mean @ np.array([0.2126, 0.7152, 0.0722])
+    lit = lum > 0  # the lit floor and the light's front (emission, 4)
+    rel = res.variance[lit] / np.maximum(res.mean[lit] ** 2, 1e-30)
+    assert rel.max() <= 1e-6, rel.max()
+    floor = lit & (lum < 3.0)  # rho/pi L Phi <= 2 on the floor
+    assert floor.mean() > min_floor  # the lit floor fills much of the image
+    return floor
+
+
+@pytest.mark.parametrize("kind", ["triangle", "parallelogram", "crossing"])
+def test_projected_solid_angle_is_zero_variance_on_an_unoccluded_plane(kind):
+    """Peters 2021 is exact cosine-weighted sampling of the clipped polygon: every pixel's
+    relative variance <= 1e-6 (light sampling only), including a light partly below the
+    floor's horizon; and the value is rho/pi L_e Phi with Phi from Lambert's formula on the
+    polygon clipped in float64 NumPy at the ray origin (an independent clip)."""
+    scene = plane_under_light(kind)
+    floor = _zero_variance(scene, "projected-solid-angle", 0.3 if kind == "crossing" else 0.6)
+    verts = _light_polygon(scene)
+    rows, cols = np.nonzero(floor)
+    pick = np.linspace(0, len(rows) - 1, 5).astype(int)
+    for row, col in zip(rows[pick], cols[pick], strict=True):
+        f = R.pixel_integrand(scene, (int(col), int(row)), technique="solid_angle",
+                              light_warp="projected-solid-angle")
+        x = jax.random.uniform(jax.random.key(4), (256, 2), jnp.float32, 0.0, 1.0 - 2.0**-24)
+        v = np.asarray(f.rgb(x)[:, 0], np.float64)
+        assert v.min() > 0, "a light sample missed the light"
+        phi = _lambert_clipped(verts - _ray_origin(scene, f.film))
+        assert v.mean() == pytest.approx(0.5 / np.pi * 4.0 * phi, rel=2e-4), (row, col)
+    if kind == "crossing":  # some floor points do see the light cut by their horizon
+        o = _ray_origin(scene, [(cols[0] + 0.5) / 16, (rows[0] + 0.5) / 16])
+        assert np.any((verts - o)[:, 2] < 0)
+
+
+def _lambert_clipped(v):
+    """Lambert's projected solid angle of polygon ``v`` (relative to the point) about +z,
+    clipped to z >= 0 first (Sutherland-Hodgman), float64."""
+    out = []
+    for i in range(len(v)):
+        a, b = v[i], v[(i + 1) % len(v)]
+        if a[2] >= 0:
+            out.append(a)
+        if a[2] * b[2] < 0:
+            out.append(a + a[2] / (a[2] - b[2]) * (b - a))
+    w = np.asarray(out) / np.linalg.norm(out, axis=1, keepdims=True)
+    phi = 0.0
+    for i in range(len(w)):
+        a, b = w[i], w[(i + 1) % len(w)]
+        cr = np.cross(a, b)
+        if np.linalg.norm(cr) > 0:
+            phi += np.arctan2(np.linalg.norm(cr), a @ b) * cr[2] / np.linalg.norm(cr)
+    return abs(phi) / 2
+
+
 def test_arvo2001_is_zero_variance_on_an_unoccluded_plane():
     scene = plane_under_triangle()
     assert np.asarray(scene.lights.normal)[0, 2] < 0  # the light faces the floor
-    res = R.render(scene, jax.random.key(3), spp=4, realizations=16, pixel_center=True,
-                   technique="solid_angle", light_warp="arvo2001", mis=False, progress=False)
-    lum = res.mean @ np.array([0.2126, 0.7152, 0.0722])
-    floor = lum > 0
-    assert floor.mean() > 0.6  # the lit floor fills most of the image (the rest: the light's back)
     # Exact sampling: the 4-spp estimate of every pixel does not vary over realizations
     # (the spread over 16 realizations of 4 samples, each a constant: only float32 rounding).
-    rel = res.variance[floor] / np.maximum(res.mean[floor] ** 2, 1e-30)
-    assert rel.max() <= 1e-6, rel.max()
+    floor = _zero_variance(scene, "arvo2001")
     # And no light sample misses: every sample of a pixel is the same value (checked at the
     # pixel level on 1024 light samples, where a sample that missed would be 0).
     q = np.argwhere(floor)[:: max(1, floor.sum() // 6)][:6]
@@ -102,16 +186,19 @@ def test_arvo2001_value_is_lamberts_projected_solid_angle():
     assert value == pytest.approx(expected, rel=2e-4)
 
 
-def test_arvo2001_with_mis_has_the_closed_form_variance_of_the_bsdf_sample():
-    """With MIS (power heuristic, one light + one cosine-weighted BSDF sample) the Arvo 2001
-    light pdf cos/Phi and the BSDF pdf cos/pi have the constant ratio r = pi/Phi over the light:
-    the light term is constant and all of the variance is the BSDF sample's Bernoulli term,
-    ``(rho L)^2 (r - 1) / (r^2 (1 + r^2)^2)`` per sample. The renderer's per-pixel variance
-    matches it (pooled over the floor, within the sampling error of a variance estimate)."""
+@pytest.mark.parametrize("light_warp", ["arvo2001", "projected-solid-angle"])
+def test_exact_cosine_sampling_with_mis_has_the_closed_form_variance_of_the_bsdf_sample(
+        light_warp):
+    """With MIS (power heuristic, one light + one cosine-weighted BSDF sample) the exact
+    (Arvo 2001 or Peters 2021) light pdf cos/Phi and the BSDF pdf cos/pi have the constant
+    ratio r = pi/Phi over the light: the light term is constant and all of the variance is the
+    BSDF sample's Bernoulli term, ``(rho L)^2 (r - 1) / (r^2 (1 + r^2)^2)`` per sample. The
+    renderer's per-pixel variance matches it (pooled over the floor, within the sampling error
+    of a variance estimate)."""
     albedo, radiance, spp, reps = 0.5, 4.0, 16, 48
     scene = plane_under_triangle(albedo=albedo, radiance=radiance)
     res = R.render(scene, jax.random.key(11), spp=spp, realizations=reps, pixel_center=True,
-                   sampler="random", technique="solid_angle", light_warp="arvo2001", mis=True,
+                   sampler="random", technique="solid_angle", light_warp=light_warp, mis=True,
                    progress=False)
     red = res.mean[..., 0]
     floor = red > 0
@@ -174,6 +261,7 @@ _SLOW = pytest.mark.slow
         ("triangle_light", "solid_angle", "none"),
         ("triangle_light", "solid_angle", "arvo2001"),
         ("glossy", "solid_angle", "product-bilinear"),
+        ("glossy", "solid_angle", "projected-solid-angle"),
         pytest.param("triangle_light", "solid_angle", "cosine-biquadratic", marks=_SLOW),
         pytest.param("patch_light", "area", "patch-three-warp", marks=_SLOW),
         pytest.param("patch_light", "parametric", "product-biquadratic", marks=_SLOW),
@@ -214,7 +302,7 @@ def test_points_at_the_lights_edges_have_positive_light_pdf():
     hit = intersect(scene, o, d)
     origin = offset_origin(scene, hit.p, hit.n, -d)
     rec = Receiver(origin=origin, n=hit.n, wi=-d, material=hit.material)
-    for lw in ("none", "cosine-biquadratic", "arvo2001"):
+    for lw in ("none", "cosine-biquadratic", "arvo2001", "projected-solid-angle"):
         pdf = jax.vmap(lambda p, lw=lw: light_pdf(scene, 0, p, rec, "solid_angle", lw))(pts)
         assert np.all(np.asarray(pdf) > 0), (lw, int(np.sum(np.asarray(pdf) <= 0)))
     at_surface = W.SphericalTriangle(jnp.asarray(verts, jnp.float32), hit.p)
@@ -245,10 +333,12 @@ def _check_unbiased(scene_name, technique, light_warp, *, size, spp, realization
     assert se < 0.02 * abs(ref)  # the test has the power to see a 10% bias
 
 
-def test_light_warp_is_unbiased():
-    """The cheap default case; every scene and warp: the slow test below."""
-    _check_unbiased("triangle_light", "solid_angle", "cosine-bilinear", size=8, spp=16,
-                    realizations=6, ref_spp=128)
+@pytest.mark.parametrize(("scene_name", "light_warp"), [
+    ("triangle_light", "cosine-bilinear"), ("cornell", "projected-solid-angle")])
+def test_light_warp_is_unbiased(scene_name, light_warp):
+    """The cheap default cases; every scene and warp: the slow test below."""
+    _check_unbiased(scene_name, "solid_angle", light_warp, size=8, spp=16, realizations=6,
+                    ref_spp=128)
 
 
 AREA_SCENES = ("cornell", "attic", "blinds", "glossy", "plastic", "triangle_light", "patch_light")

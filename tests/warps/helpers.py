@@ -16,6 +16,10 @@ def _n(v):
 
 
 _GENERAL_TRI = np.stack([_n([0.3, 0.1, 1]), _n([-0.5, 0.6, 0.8]), _n([0.2, -0.7, 0.9])])
+# Projected-solid-angle cases of references/projected_solid_angle.md Sec. 6 (T3: crossing the
+# horizon, P: the parallelogram, seen from a tilted normal); tests/warps/test_polygon.py has more.
+_T3 = np.array([(1, -1, 0.8), (1, 1, 0.5), (1, 0.2, -0.7)], float)
+_P = np.array([(-0.5, -0.5, 1), (0.7, -0.4, 1), (1, 0.6, 1.2), (-0.2, 0.5, 1.2)], float)
 _V3 = np.array([[1, 2, 0.5], [3, 1, 2], [0.2, 4, 1]])
 _TABLE = np.abs(np.random.default_rng(0).normal(size=(8, 5)))
 _TABLE[2] = 0.0
@@ -52,6 +56,14 @@ SPHERICAL = [
     (
         "arvo2001-general",
         lambda: W.CosineSphericalTriangle(_GENERAL_TRI, np.zeros(3), _n([0.5, 0.2, 1.0])),
+    ),
+    (
+        "psa-triangle-horizon",
+        lambda: W.ProjectedSphericalPolygon(_T3, np.zeros(3), [0.0, 0.0, 1.0]),
+    ),
+    (
+        "psa-parallelogram-tilted",
+        lambda: W.ProjectedSphericalPolygon(_P, np.zeros(3), _n([-0.8, 0.2, 0.5])),
     ),
     (
         "rectangle-square",
