@@ -38,16 +38,31 @@ def sample_linear(u, a, b):
 
     Uses the rationalised root ``x = u (a + b) / (a + sqrt(lerp(u, a^2, b^2)))`` instead of H
     Table 3's ``h(u, a, b) = (a - sqrt(lerp(u, a^2, b^2))) / (a - b)``, which is 0/0 at ``a = b``
-    and loses ``eps / |a - b|`` relative accuracy near it. The denominator vanishes only where
-    ``x = u`` is the answer (``a = b = 0``, or ``a = 0`` at ``u = 0``); adding ``_TINY`` (1e-30)
-    to both ``a + b`` and the denominator gives exactly that without a branch (elsewhere the
-    denominator is ``>= a``, or ``sqrt(u) b`` when ``a = 0``: above 1e-10 for ``u >= 2^-24`` and
-    values ``>= 1e-6``, so the change is far below float32 rounding). Branch-free because it is
-    the whole cost of the bilinear warp (H Sec. 4.1; ``experiments/bench_warps.py``).
+    and loses ``eps / |a - b|`` relative accuracy near it (the failure Peters 2021 reports for
+    lights clipped at the horizon, where equal end values are common); the rationalised form is
+    continuous through ``a = b`` (``x = u`` there) and exact to float32 rounding on both sides
+    (``tests/warps/test_planar.py`` against a float64 bisection of the CDF).
+
+    The root is homogeneous of degree 0 in ``(a, b)``, so ``a`` and ``b`` are first divided by
+    ``max(a, b)``: the squares then neither flush to zero (values below ~1e-19, e.g. a GGX lobe's
+    tail in a product fit) nor overflow (above ~1e19), both of which made the unscaled form
+    return ``x`` far from its density (or NaN) while :func:`linear_pdf` stayed right; the triplet
+    is now the same for any scale of ``(a, b)`` in ``[1e-30, 1e30]`` (beyond, products of a value
+    and a float32 ``x`` in the pdf and CDF leave the normal range). After
+    scaling ``a + b >= 1`` and the denominator vanishes only where ``x = u`` is the answer
+    (``a = 0`` at ``u = 0``); adding ``_TINY`` (1e-30) to both ``a + b`` and the denominator
+    gives that without a branch (elsewhere the denominator is ``>= sqrt(u)``, so the change is far
+    below float32 rounding). ``a = b = 0`` gives ``x = u`` (the uniform density, as
+    :func:`linear_pdf` says). Branch-free because it is the whole cost of the bilinear warp (H
+    Sec. 4.1; ``experiments/bench_warps.py``).
     """
+    s = jax.lax.stop_gradient(jnp.maximum(a, b))  # x(a / c, b / c) = x(a, b) for any c > 0:
+    ok = s > 0  # a constant scale keeps derivatives exact and their s^2 out of float32's way
+    s = jnp.where(ok, s, 1.0)
+    a, b = a / s, b / s
     q = jnp.maximum(a * a + u * (b * b - a * a), 0.0)
     x = u * (a + b + _TINY) / (a + jnp.sqrt(q) + _TINY)
-    return jnp.minimum(x, _ONE_MINUS_EPS)
+    return jnp.minimum(jnp.where(ok, x, u), _ONE_MINUS_EPS)
 
 
 def linear_pdf(x, a, b):

@@ -30,7 +30,12 @@ PLANAR = [
     ("bilinear-equal", lambda: W.Bilinear(np.full((2, 2), 0.7))),
     ("bilinear-tiny", lambda: W.Bilinear([[1e-6, 1.0], [1.0, 1e-6]])),
     ("bilinear-near-equal", lambda: W.Bilinear([[1.0, 1.0 + 1e-6], [1.0, 1.0]])),
+    # Issue 24 item 2: some-zero weights and values whose squares leave float32's range.
+    ("bilinear-one-corner", lambda: W.Bilinear([[0.0, 0.0], [0.0, 3.0]])),
+    ("bilinear-scaled-1e-25", lambda: W.Bilinear(np.array([[1.0, 3.0], [2.0, 4.0]]) * 1e-25)),
+    ("bilinear-scaled-1e25", lambda: W.Bilinear(np.array([[1.0, 3.0], [2.0, 4.0]]) * 1e25)),
     ("biquadratic", lambda: W.Biquadratic(_V3)),
+    ("biquadratic-zero-row", lambda: W.Biquadratic([[0, 0, 0], [1, 2, 0.5], [3, 1, 2]])),
     ("biquadratic-tiny", lambda: W.Biquadratic([[1e-6, 1, 1e-6], [1, 1e-6, 1], [1e-6, 1, 2]])),
     ("biquadratic-equal", lambda: W.Biquadratic(np.ones((3, 3)))),
     ("tabulated", lambda: W.Tabulated(_TABLE)),

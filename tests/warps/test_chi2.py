@@ -18,6 +18,7 @@ N_TESTS = 3 * len(CASES)
 # The default run covers one warp of each kind (10^6 samples each); the slow run all of them.
 DEFAULT = {
     "bilinear-tiny",
+    "bilinear-scaled-1e-25",
     "biquadratic",
     "compose-bilinear-biquadratic",
     "triangle-general",
