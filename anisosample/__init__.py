@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING as _TYPE_CHECKING
 if _TYPE_CHECKING:  # the explicit re-exports, for type checkers and readers
     from . import diagnostics as diagnostics
     from . import directions as directions
+    from . import edges as edges
     from . import frequencies as frequencies
     from . import integrands as integrands
     from . import io as io
@@ -35,9 +36,9 @@ if _TYPE_CHECKING:  # the explicit re-exports, for type checkers and readers
     from .synthesis import synthesize as synthesize
 
 _SUBMODULES = (
-    "diagnostics", "directions", "frequencies", "integrands", "io", "losses", "plot", "progress",
-    "render", "samplers", "scenes", "selection", "spectrum", "synthesis", "tables", "testing",
-    "variance", "vmf", "warps",
+    "diagnostics", "directions", "edges", "frequencies", "integrands", "io", "losses", "plot",
+    "progress", "render", "samplers", "scenes", "selection", "spectrum", "synthesis", "tables",
+    "testing", "variance", "vmf", "warps",
 )
 _FUNCTIONS = {"synthesize": "synthesis"}  # name -> the module that defines it
 

@@ -632,6 +632,16 @@ api("directions-histogram-bin-zero", lambda d: A().directions.orientation_histog
 api("directions-histogram-nan", lambda d: A().directions.orientation_histogram(
     np.load(d / "nangrid.npy")), ValueError, r"values.*(NaN|finite)", owner=D)
 
+E = "edges"
+api("edges-unknown-option", lambda d: A().edges.edge_search(f_edge(), _points(64), stepz=3),
+    TypeError, r"unknown edge-search option", owner=E)
+api("edges-steps-zero", lambda d: A().edges.edge_search(f_edge(), _points(64), steps=0),
+    ValueError, r"steps must be >= 1", owner=E)
+api("edges-too-few-points", lambda d: A().edges.edge_search(f_edge(), _points(4)),
+    ValueError, r"points must hold at least", owner=E)
+api("edges-nan-values", lambda d: A().edges.edge_search(f_edge(), _points(64),
+    np.full(64, NAN, np.float32)), ValueError, r"values must be finite", owner=E)
+
 # --- vmf ---------------------------------------------------------------------------------------
 
 V = "vmf"
