@@ -8,10 +8,12 @@ Per-block aligned sampling (W Sec. 5.3-5.4, with a per-pixel gate):
 :mod:`anisosample.render.aligned` (the sampler), :mod:`anisosample.render.estimation` (the block
 estimate and the gate), ``render(scene, key, sampler="aligned")``. Light warps (H Sec. 4):
 ``render(scene, key, technique=..., light_warp=...)`` with a name of :data:`LIGHT_WARPS`
-(:mod:`anisosample.render.light_warps`).
+(:mod:`anisosample.render.light_warps`). Scenes with many planar primitives (meshes) are traced
+through a BVH (:mod:`anisosample.render.bvh`, built by :meth:`SceneBuilder.build`).
 """
 
 from . import aligned as aligned
+from . import bvh as bvh
 from . import estimation as estimation
 from . import light_warps as light_warps
 from . import mitsuba_compat as mitsuba_compat

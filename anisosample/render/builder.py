@@ -15,6 +15,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
+from . import bvh as _bvh
 from .patch import PatchRecord, build_patches, check_corners
 from .scene import (
     CONDUCTOR,
@@ -442,7 +443,13 @@ class SceneBuilder:
         )
 
     # build --------------------------------------------------------------------------------------
-    def build(self) -> Scene:
+    def build(self, *, bvh: bool | None = None) -> Scene:
+        """The :class:`Scene`. ``bvh``: give it a BVH over the planar primitives
+        (:mod:`anisosample.render.bvh`); ``None`` (default): when it has at least
+        :data:`~anisosample.render.bvh.THRESHOLD` of them (below that, testing every one is
+        faster)."""
+        if bvh is not None and not isinstance(bvh, (bool, np.bool_)):
+            raise TypeError(f"bvh must be True, False or None, got {bvh!r}")
         if self._camera is None:
             raise ValueError("the scene has no sensor (camera)")
         if not self._emitters:
@@ -541,8 +548,17 @@ class SceneBuilder:
         allp = np.concatenate([p.reshape(-1, 3) for p in pts])
         scale = float(np.max(np.abs(allp))) if allp.size else 1.0
 
+        rows = _plane_rows(p0, e1, e2, para)
+        if bvh is None:
+            bvh = len(self._tris) >= _bvh.THRESHOLD
+        accel = None
+        if bvh and self._tris:
+            corners = [p0, p0 + e1, p0 + e2, np.where(para[:, None], p0 + e1 + e2, p0)]
+            accel = _bvh.build_bvh(rows, np.minimum.reduce(corners), np.maximum.reduce(corners),
+                              float(np.max(np.abs(np.concatenate(corners)))))
         return Scene(
-            tri_soa=f32(_plane_rows(p0, e1, e2, para)),
+            bvh=accel,
+            tri_soa=f32(rows),
             tri_attr=f32([np.concatenate([t.normal, t.uv0, t.uv1, t.uv2]) for t in tris]),
             tri_ids=i32([(t.material, t.light) for t in tris]),
             sph_center=f32([s.center for s in sph]),
@@ -607,3 +623,25 @@ def _light_dict(kind, p0, e1, e2, n, area, radiance, texture, uv=((0, 0), (0, 0)
         "texture": int(texture),
         "uv": tuple(tuple(map(float, x)) for x in uv),
     }
+
+
+def sphere_mesh(center, radius: float, triangles: int) -> tuple[np.ndarray, np.ndarray]:
+    """A latitude-longitude triangulated sphere of about ``triangles`` faces: ``(vertices (v, 3),
+    faces (f, 3))`` for :meth:`SceneBuilder.triangles` (outward normals); ``2 m (r - 1)`` faces
+    for ``m = 2 r`` segments and ``r`` rings, ``r = max(2, round(sqrt(triangles / 4)))``."""
+    rings = max(2, int(round(np.sqrt(max(triangles, 1) / 4))))
+    segs = 2 * rings
+    theta = np.pi * np.arange(1, rings) / rings
+    phi = 2 * np.pi * np.arange(segs) / segs
+    st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
+    ring = np.stack([st * np.cos(phi), st * np.sin(phi), np.broadcast_to(ct, (rings - 1, segs))],
+                    -1).reshape(-1, 3)
+    v = np.concatenate([[[0, 0, 1.0]], ring, [[0, 0, -1.0]]]) * radius + np.asarray(center)
+    idx = 1 + np.arange((rings - 1) * segs).reshape(rings - 1, segs)
+    nxt = np.roll(idx, -1, axis=1)
+    top = np.stack([np.zeros(segs, np.int64), idx[0], nxt[0]], 1)
+    bottom = np.stack([np.full(segs, len(v) - 1), nxt[-1], idx[-1]], 1)
+    a, b, c, d = idx[:-1], nxt[:-1], idx[1:], nxt[1:]
+    quads = np.concatenate([np.stack([a, c, d], -1).reshape(-1, 3),
+                            np.stack([a, d, b], -1).reshape(-1, 3)])
+    return v, np.concatenate([top, quads, bottom])

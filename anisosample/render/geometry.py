@@ -4,7 +4,9 @@ Triangles use Moeller & Trumbore (1997); spheres the numerically careful quadrat
 pbrt-v4 / Ray Tracing Gems ch. 7 (the closest root from ``b' = d . (o - c)`` with the
 discriminant written as ``r^2 - |(o - c) - b' d|^2``); bilinear patches Reshetov (2019) as in
 :mod:`anisosample.render.patch`. The scenes this package ships hold tens of
-primitives, for which testing every primitive is faster under XLA than walking a hierarchy.
+primitives, for which testing every primitive is faster under XLA than walking a hierarchy;
+a scene with many planar primitives (meshes) carries a BVH (:mod:`anisosample.render.bvh`,
+``Scene.bvh``), which :func:`intersect` and :func:`occluded` then walk instead.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
 from ._vec import dot, norm
+from .bvh import any_hit, closest_hit, plane_test
 from .patch import closest_patch_hit, intersect_patches, patch_frame
 from .scene import Scene
 
@@ -34,22 +37,19 @@ class Hit(eqx.Module):
 
 
 def _triangle_t(scene: Scene, o, d):
-    """Distances to every planar primitive (inf where missed) and coordinates ``(b1, b2)``.
+    """Distances to every planar primitive (inf where missed) and coordinates ``(b1, b2)``."""
+    # Structure of arrays: every line of plane_test is a vectorised op over all primitives.
+    return plane_test(scene.tri_soa, o, d)
 
-    Triangles hit where ``b1, b2 >= 0, b1 + b2 <= 1``; parallelograms (row 12 = 1) where
-    ``0 <= b1, b2 <= 1``.
-    """
-    # Plane-based test on precomputed rows (builder._plane_rows), structure of arrays so that
-    # every line below is a vectorised op over all primitives.
-    r = scene.tri_soa
-    denom = d[0] * r[0] + d[1] * r[1] + d[2] * r[2]
-    ok = denom != 0
-    t = (r[3] - (o[0] * r[0] + o[1] * r[1] + o[2] * r[2])) / jnp.where(ok, denom, 1.0)
-    qx, qy, qz = o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]
-    b1 = qx * r[4] + qy * r[5] + qz * r[6] - r[7]
-    b2 = qx * r[8] + qy * r[9] + qz * r[10] - r[11]
-    hit = ok & (b1 >= 0) & (b2 >= 0) & (jnp.where(r[12] > 0, jnp.maximum(b1, b2), b1 + b2) <= 1)
-    return jnp.where(hit, t, _INF), b1, b2
+
+def _closest_planar(scene: Scene, o, d, tmin, tmax):
+    """``(t, index, b1, b2)`` of the nearest planar primitive (``t = inf``, index 0: none)."""
+    if scene.bvh is not None:
+        return closest_hit(scene.bvh, o, d, tmin, tmax)
+    tt, b1, b2 = _triangle_t(scene, o, d)
+    tt = jnp.where((tt > tmin) & (tt < tmax), tt, _INF)
+    it = jnp.argmin(tt)
+    return tt[it], it, b1[it], b2[it]
 
 
 def _sphere_t(scene: Scene, o, d):
@@ -76,13 +76,9 @@ def intersect(
     tmax: float | Array = jnp.inf,
 ) -> Hit:
     """Closest hit with ``tmin < t < tmax``; ``d`` must be a unit vector."""
-    tt, b1, b2 = _triangle_t(scene, o, d)
-    tt = jnp.where((tt > tmin) & (tt < tmax), tt, _INF)
-    it = jnp.argmin(tt)
-    t_tri = tt[it]
+    t_tri, it, w1, w2 = _closest_planar(scene, o, d, tmin, tmax)
     attr = scene.tri_attr[it]  # n, uv0, uv1, uv2: one gather
     ids = scene.tri_ids[it]  # material, light
-    w1, w2 = b1[it], b2[it]
     uv_tri = (1 - w1 - w2) * attr[3:5] + w1 * attr[5:7] + w2 * attr[7:9]
     if not scene.has_spheres:
         t, n, uv, material, light = t_tri, attr[0:3], uv_tri, ids[0], ids[1]
@@ -129,10 +125,13 @@ def occluded(
     v = target - o
     dist = norm(v)
     d = v / jnp.maximum(dist, 1e-30)
-    tt, _, _ = _triangle_t(scene, o, d)
     lo, hi = dist * eps, dist * (1 - eps)
     inside = lambda t: (t > lo) & (t < hi)
-    blocked = jnp.any(inside(tt))
+    if scene.bvh is not None:  # any hit, stopping at the first (render/bvh.py)
+        blocked = any_hit(scene.bvh, o, d, lo, hi)
+    else:
+        tt, _, _ = _triangle_t(scene, o, d)
+        blocked = jnp.any(inside(tt))
     if scene.has_patches:
         blocked = blocked | jnp.any(inside(intersect_patches(scene.patches.corners, o, d)[0]))
     if not scene.has_spheres:

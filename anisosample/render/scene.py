@@ -21,6 +21,7 @@ import equinox as eqx
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from .bvh import BVH
 from .patch import Patches
 
 # Material kinds.
@@ -136,6 +137,8 @@ class Scene(eqx.Module):
     camera: Camera
     scale: Float[Array, ""]  # scene extent, for ray offsets
     patches: Patches  # bilinear patches (render/patch.py)
+    # A BVH over the planar primitives (render/bvh.py), or None: every primitive is tested.
+    bvh: BVH | None = None
     has_spheres: bool = eqx.field(static=True, default=True)
     has_textures: bool = eqx.field(static=True, default=True)
     has_patches: bool = eqx.field(static=True, default=False)

@@ -1,0 +1,279 @@
+"""A bounding volume hierarchy over the planar primitives, built on the host, traversed in JAX.
+
+Build (:func:`build_bvh`, NumPy): top down with the binned surface area heuristic (Wald 2007,
+"On fast construction of SAH-based bounding volume hierarchies"; pbrt-v4 Sec. 7.3.2): each node's
+primitives are binned by centroid into :data:`BINS` bins along the longest axis of their centroid
+bounds, and the node is split at the bin boundary that minimises ``A_L N_L + A_R N_R`` (the SAH
+cost up to constants). Every node of one tree level is split at once, so each level is a few
+vectorised passes over the primitives (a million triangles build in seconds). Identical centroids
+fall back to an object-median split. A node of at most :data:`LEAF_SIZE` primitives is a leaf:
+traversal tests a leaf's :data:`LEAF_SIZE` slots as one vector, so a smaller leaf costs nothing
+less.
+
+Layout (binary tree, flattened): node ``i`` is a leaf when ``count[i] > 0`` (its primitives are
+``start[i] .. start[i] + count[i] - 1`` of the reordered rows), else an interior node whose
+children ``child[i]`` have their boxes stored in the parent (``box[i]``: one gather gives both).
+Boxes are padded by a small multiple of the scene scale so that the float32 slab test never
+culls a primitive that the primitive test would hit (the traversal's results equal brute force).
+
+Traversal (:func:`closest_hit`, :func:`any_hit`): a ``lax.while_loop`` over one ray (callers
+vmap), a current node and a fixed-size stack whose depth is the tree's (static): at an interior
+node the ray's slab test (Kay & Kajiya 1986) of both child boxes continues at the nearer hit child
+and pushes the farther; a leaf tests its primitives with the same plane test as the brute-force
+kernel (:func:`plane_test`) and pops. Closest hit keeps the nearest
+``t`` (ties to the lowest primitive index, as ``argmin`` over all primitives does); any hit stops
+at the first primitive inside the segment (shadow rays).
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float, Int
+
+BINS = 16  # SAH bins per node
+LEAF_SIZE = 8  # primitives per leaf slot block
+# Scenes with at least this many planar primitives get a BVH (SceneBuilder.build's default);
+# below it testing every primitive is faster (measured: experiments/bench_render.py --prims).
+THRESHOLD = 64
+_PAD = 2.0**-16  # box padding, relative to the largest coordinate magnitude
+
+
+class BVH(eqx.Module):
+    """A flattened binary BVH over a scene's planar primitives (see the module docstring)."""
+
+    box: Float[Array, "n 2 2 3"]  # interior nodes: [child, min/max, xyz] of both children
+    child: Int[Array, "n 2"]
+    start: Int[Array, " n"]  # leaves: first slot in ``rows``
+    count: Int[Array, " n"]  # leaves: primitive count (> 0); interior nodes: 0
+    rows: Float[Array, "p 13"]  # plane-test rows (builder._plane_rows) in leaf order, padded
+    prim: Int[Array, " p"]  # the scene's primitive index of each row
+    depth: int = eqx.field(static=True, default=1)  # stack size for traversal
+
+    @property
+    def num_nodes(self) -> int:
+        return int(self.count.shape[0])
+
+
+def _segments(starts: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Concatenated ranges ``start[k] .. start[k] + count[k] - 1`` and the segment of each."""
+    seg = np.repeat(np.arange(len(counts)), counts)
+    first = np.cumsum(counts) - counts
+    pos = np.arange(int(counts.sum())) - first[seg] + starts[seg]
+    return pos, seg
+
+
+def _area(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    e = np.maximum(hi - lo, 0.0)
+    return e[..., 0] * e[..., 1] + e[..., 1] * e[..., 2] + e[..., 2] * e[..., 0]
+
+
+def build_tree(lo: np.ndarray, hi: np.ndarray, leaf_size: int = LEAF_SIZE, bins: int = BINS):
+    """Binned-SAH tree over boxes ``lo, hi`` (``(p, 3)``): ``(order, bounds, start, count,
+    child, depth)`` with ``order`` the primitives in leaf order and ``bounds`` ``(n, 2, 3)``.
+
+    Node 0 is the root; a node is a leaf iff ``child[i, 0] < 0``.
+    """
+    lo = np.asarray(lo, np.float64)
+    hi = np.asarray(hi, np.float64)
+    p = lo.shape[0]
+    cent = 0.5 * (lo + hi)
+    order = np.arange(p)
+    n_start, n_count, n_bounds, n_child = [0], [p], [], []
+    active = np.array([0])  # nodes of the current level
+    depth = 0
+    while active.size:
+        depth += 1
+        starts = np.asarray(n_start)[active]
+        counts = np.asarray(n_count)[active]
+        pos, seg = _segments(starts, counts)
+        prims = order[pos]
+        offs = np.cumsum(counts) - counts
+        blo = np.minimum.reduceat(lo[prims], offs)
+        bhi = np.maximum.reduceat(hi[prims], offs)
+        n_bounds.append(np.stack([blo, bhi], 1))
+        n_child.append(np.full((len(active), 2), -1, np.int64))
+        split = counts > leaf_size
+        if not split.any():
+            break
+        # Split the nodes with more than leaf_size primitives; keep only their primitives.
+        keep = split[seg]
+        pos, seg, prims = pos[keep], seg[keep], prims[keep]
+        remap = np.cumsum(split) - 1
+        seg = remap[seg]
+        nodes = active[split]
+        starts, counts = starts[split], counts[split]
+        k = len(nodes)
+        offs = np.cumsum(counts) - counts
+        c = cent[prims]
+        clo = np.minimum.reduceat(c, offs)
+        chi = np.maximum.reduceat(c, offs)
+        ext = chi - clo
+        axis = np.argmax(ext, axis=1)
+        ca = c[np.arange(len(c)), axis[seg]]
+        lo_a, ex_a = clo[np.arange(k), axis], ext[np.arange(k), axis]
+        scale = np.where(ex_a > 0, bins / np.where(ex_a > 0, ex_a, 1.0), 0.0)
+        b = np.clip(((ca - lo_a[seg]) * scale[seg]).astype(np.int64), 0, bins - 1)
+        key = seg * bins + b
+        cnt = np.bincount(key, minlength=k * bins).reshape(k, bins)
+        bl = np.full((k * bins, 3), np.inf)
+        bh = np.full((k * bins, 3), -np.inf)
+        np.minimum.at(bl, key, lo[prims])
+        np.maximum.at(bh, key, hi[prims])
+        bl, bh = bl.reshape(k, bins, 3), bh.reshape(k, bins, 3)
+        # Prefix (left of boundary j+1) and suffix (right) sweeps over the bins.
+        ll = np.minimum.accumulate(bl, axis=1)[:, :-1]
+        lh = np.maximum.accumulate(bh, axis=1)[:, :-1]
+        rl = np.minimum.accumulate(bl[:, ::-1], axis=1)[:, ::-1][:, 1:]
+        rh = np.maximum.accumulate(bh[:, ::-1], axis=1)[:, ::-1][:, 1:]
+        nl = np.cumsum(cnt, axis=1)[:, :-1]
+        nr = counts[:, None] - nl
+        cost = np.where((nl > 0) & (nr > 0),
+                        _area(ll, lh) * nl + _area(rl, rh) * nr, np.inf)
+        best = np.argmin(cost, axis=1)
+        ok = np.isfinite(cost[np.arange(k), best])
+        # Stable partition inside each segment; nodes without a SAH split take the median.
+        rank = np.arange(len(seg)) - offs[seg]
+        left = np.where(ok[seg], b <= best[seg], rank < (counts // 2)[seg])
+        nleft = np.bincount(seg, weights=left, minlength=k).astype(np.int64)
+        cl = np.cumsum(left) - left
+        lrank = cl - cl[offs][seg]  # rank among the left ones of the segment
+        new = np.where(left, lrank, nleft[seg] + (rank - lrank))
+        order[starts[seg] + new] = prims
+        # Children.
+        base = len(n_start)
+        ids = base + np.arange(2 * k)
+        n_start.extend(np.stack([starts, starts + nleft], 1).reshape(-1).tolist())
+        n_count.extend(np.stack([nleft, counts - nleft], 1).reshape(-1).tolist())
+        level_child = n_child[-1]
+        level_child[np.flatnonzero(split)] = ids.reshape(k, 2)
+        active = ids
+    bounds = np.concatenate(n_bounds)
+    child = np.concatenate(n_child)
+    start = np.asarray(n_start, np.int64)
+    count = np.asarray(n_count, np.int64)
+    return order, bounds, start, count, child, depth
+
+
+def build_bvh(rows: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: float,
+              leaf_size: int = LEAF_SIZE) -> BVH:
+    """A :class:`BVH` over primitives with plane-test rows ``rows`` (``(13, p)``, the scene's
+    ``tri_soa``) and bounding boxes ``lo, hi`` (``(p, 3)``); ``scale`` is the largest coordinate
+    magnitude of the scene (box padding)."""
+    order, bounds, start, count, child, depth = build_tree(lo, hi, leaf_size)
+    pad = _PAD * max(float(scale), 1e-30)
+    bounds = bounds + np.array([-pad, pad])[None, :, None]
+    leaf = child[:, 0] < 0
+    box = np.zeros((len(count), 2, 2, 3))
+    box[~leaf] = bounds[child[~leaf]]
+    rows = np.asarray(rows, np.float64).T[order]
+    dummy = np.zeros((leaf_size, 13))
+    dummy[:, 7] = 1.0  # never a hit (as builder._plane_rows' degenerate rows)
+    return BVH(
+        box=jnp.asarray(box, jnp.float32),
+        child=jnp.asarray(np.where(leaf[:, None], 0, child), jnp.int32),
+        start=jnp.asarray(np.where(leaf, start, 0), jnp.int32),
+        count=jnp.asarray(np.where(leaf, count, 0), jnp.int32),
+        rows=jnp.asarray(np.concatenate([rows, dummy]), jnp.float32),
+        prim=jnp.asarray(np.concatenate([order, np.zeros(leaf_size, np.int64)]), jnp.int32),
+        depth=int(depth),
+    )
+
+
+def plane_test(r, o, d):
+    """Plane-based ray test against primitives with rows ``r`` (13 arrays, builder._plane_rows):
+    distances (inf where missed; no ``tmin``/``tmax`` yet) and coordinates ``(b1, b2)``.
+
+    Triangles hit where ``b1, b2 >= 0, b1 + b2 <= 1``; parallelograms (row 12 = 1) where
+    ``0 <= b1, b2 <= 1``. Brute force (:func:`anisosample.render.geometry.intersect`) and the
+    BVH's leaves both call this, so that they agree bit for bit.
+    """
+    denom = d[0] * r[0] + d[1] * r[1] + d[2] * r[2]
+    ok = denom != 0
+    t = (r[3] - (o[0] * r[0] + o[1] * r[1] + o[2] * r[2])) / jnp.where(ok, denom, 1.0)
+    qx, qy, qz = o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]
+    b1 = qx * r[4] + qy * r[5] + qz * r[6] - r[7]
+    b2 = qx * r[8] + qy * r[9] + qz * r[10] - r[11]
+    hit = ok & (b1 >= 0) & (b2 >= 0) & (jnp.where(r[12] > 0, jnp.maximum(b1, b2), b1 + b2) <= 1)
+    return jnp.where(hit, t, jnp.float32(jnp.inf)), b1, b2
+
+
+def _slab(box, o, inv_d, tmin, tmax):
+    """Entry distances into the two boxes ``box`` (``(2, 2, 3)``) and whether each is hit."""
+    t0 = (box[:, 0] - o[None]) * inv_d[None]
+    t1 = (box[:, 1] - o[None]) * inv_d[None]
+    tn = jnp.maximum(jnp.max(jnp.minimum(t0, t1), axis=-1), tmin)
+    tf = jnp.minimum(jnp.min(jnp.maximum(t0, t1), axis=-1), tmax)
+    return tn, tn <= tf
+
+
+def _inv_dir(d):
+    tiny = jnp.float32(1e-20)
+    return 1.0 / jnp.where(jnp.abs(d) > tiny, d, jnp.where(d >= 0, tiny, -tiny))
+
+
+def _traverse(bvh: BVH, o, d, tmin, tmax, any_hit: bool):
+    inv_d = _inv_dir(d)
+    lane = jnp.arange(LEAF_SIZE, dtype=jnp.int32)
+    big = jnp.int32(np.iinfo(np.int32).max)
+    inf = jnp.float32(jnp.inf)
+    tmin = jnp.asarray(tmin, jnp.float32)
+    tmax = jnp.asarray(tmax, jnp.float32)
+
+    def cond(s):
+        node, _, _, best_t, _, _, _ = s
+        go = node >= 0
+        if any_hit:
+            go = go & ~jnp.isfinite(best_t)
+        return go
+
+    def body(s):
+        node, sp, stack, best_t, best_p, b1s, b2s = s
+        cnt = bvh.count[node]
+        leaf = cnt > 0
+        # Leaf: the plane test on its LEAF_SIZE slots (the unused ones masked).
+        slot = bvh.start[node] + lane
+        r = bvh.rows[slot].T
+        t, b1, b2 = plane_test(r, o, d)
+        pid = bvh.prim[slot]
+        t = jnp.where(leaf & (lane < cnt) & (t > tmin) & (t < tmax), t, inf)
+        j = jnp.argmin(jnp.where(t == jnp.min(t), pid, big))
+        tj, pj = t[j], pid[j]
+        better = jnp.isfinite(tj) & ((tj < best_t) | ((tj == best_t) & (pj < best_p)))
+        best_t = jnp.where(better, tj, best_t)
+        best_p = jnp.where(better, pj, best_p)
+        b1s = jnp.where(better, b1[j], b1s)
+        b2s = jnp.where(better, b2[j], b2s)
+        # Interior: both children's boxes (culled beyond the nearest hit so far).
+        tn, hit = _slab(bvh.box[node], o, inv_d, tmin, jnp.minimum(tmax, best_t))
+        hit = hit & ~leaf
+        ch = bvh.child[node]
+        near_first = tn[0] <= tn[1]
+        near = jnp.where(near_first, ch[0], ch[1])
+        far = jnp.where(near_first, ch[1], ch[0])
+        both = hit[0] & hit[1]
+        one = jnp.where(hit[0], ch[0], ch[1])
+        top = stack[jnp.maximum(sp - 1, 0)]
+        popped = jnp.where(sp > 0, top, -1)
+        nxt = jnp.where(both, near, jnp.where(hit[0] | hit[1], one, popped))
+        stack = jnp.where(both, stack.at[sp].set(far), stack)
+        sp = jnp.where(both, sp + 1, jnp.where(hit[0] | hit[1], sp, jnp.maximum(sp - 1, 0)))
+        return nxt, sp, stack, best_t, best_p, b1s, b2s
+
+    init = (jnp.int32(0), jnp.int32(0), jnp.zeros(bvh.depth + 1, jnp.int32), inf,
+            big, jnp.float32(0), jnp.float32(0))
+    _, _, _, t, p, b1, b2 = jax.lax.while_loop(cond, body, init)
+    return t, jnp.where(jnp.isfinite(t), p, 0), b1, b2
+
+
+def closest_hit(bvh: BVH, o, d, tmin=0.0, tmax=jnp.inf):
+    """Nearest planar primitive with ``tmin < t < tmax`` along ``o + t d``: ``(t, prim, b1,
+    b2)`` with ``t = inf`` and ``prim = 0`` on a miss (as brute force's ``argmin``)."""
+    return _traverse(bvh, o, d, tmin, tmax, any_hit=False)
+
+
+def any_hit(bvh: BVH, o, d, tmin, tmax):
+    """Whether any planar primitive has ``tmin < t < tmax`` (stops at the first found)."""
+    return jnp.isfinite(_traverse(bvh, o, d, tmin, tmax, any_hit=True)[0])
