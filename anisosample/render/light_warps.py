@@ -18,7 +18,11 @@ in the primitive's *base technique* (``technique``):
 * ``"none"``: the base technique alone;
 * ``"cosine-bilinear"``, ``"cosine-biquadratic"``: a PSS warp fitted point-wise (H Eq. 9) to the
   receiver cosine ``max(n . w, 0)``, ``w`` the direction from the origin to the base's output
-  (H Sec. 4.1);
+  (H Sec. 4.1). Control points at or below the horizon are clamped to 0.01 of the largest value
+  (``warps.fit_pointwise``'s ``floor``; pbrt-v4 takes ``max(0.01, |cos|)``, which gives a corner
+  far below the horizon the weight of one above it), so the density stays positive wherever
+  the cosine might not vanish inside the cell; a light wholly below the horizon gets the
+  uniform warp (all values 0);
 * ``"product-bilinear"``, ``"product-biquadratic"``, ``"product-tabulated"``: fitted to the BSDF
   times that cosine (luminance of ``bsdf.eval_bsdf``), H Sec. 4.3; ``tabulated`` is the 32x32
   reference (``warps.fit_tabulated``);
@@ -229,9 +233,34 @@ def chain(
     return W.Compose(fitted, *later)
 
 
+MIN_SPHERICAL_SAMPLE_AREA = {"triangle": 2e-4, "rectangle": 1e-4}
+"""Below these solid angles (sr) a spherical triangle / rectangle is sampled by area instead
+(pbrt-v4 ``Triangle::MinSphericalSampleArea``, ``BilinearPatch::MinSphericalSampleArea``): a
+light that small contributes little, and float32 spherical sampling loses accuracy there (the
+rectangle's solid angle from its corner angles is off by 1.5e-4 relative at 3e-4 sr and 1.4e-3
+at 3.3e-5 sr; ``tests/render/test_light_robustness.py``)."""
+MAX_SPHERICAL_SAMPLE_AREA = {"triangle": 6.22}
+"""Above this solid angle (sr) a spherical triangle is sampled by area instead (pbrt-v4
+``Triangle::MaxSphericalSampleArea``: near a hemisphere BSDF sampling is the better strategy
+anyway, and the conversion to area density ``cos / d^2`` at grazing points has little
+precision). pbrt-v4 has no upper limit for rectangles, nor do we."""
+
+
 def solid_angle_valid(warp) -> Array | bool:
-    """Whether a solid-angle chain is usable (its spherical base subtends a positive solid angle
-    from the origin); the renderer falls back to area sampling where it is not (pbrt-v4)."""
+    """Whether a solid-angle chain is usable; the renderer falls back to area sampling (density
+    ``1 / A``, the warps in front of the base dropped) where it is not, as pbrt-v4 does: the
+    spherical base must subtend a positive solid angle from the origin (the warp's own
+    ``valid``), and a spherical triangle (also the one Arvo 2001's warp is built on) or rectangle
+    one inside ``[MIN_SPHERICAL_SAMPLE_AREA, MAX_SPHERICAL_SAMPLE_AREA]``. The projected-solid-
+    angle warp has only its own ``valid`` (Peters' sectors stay float32-accurate down to
+    ``warps.polygon.MIN_PROJECTED_SOLID_ANGLE``)."""
     last = warp.warps[-1] if isinstance(warp, W.Compose) else warp
     last = getattr(last, "triangle", last)  # CosineSphericalTriangle wraps a SphericalTriangle
-    return getattr(last, "valid", True)
+    ok = getattr(last, "valid", True)
+    if isinstance(last, W.SphericalTriangle):
+        sa = last.solid_angle
+        ok = ok & (sa >= MIN_SPHERICAL_SAMPLE_AREA["triangle"])
+        ok = ok & (sa <= MAX_SPHERICAL_SAMPLE_AREA["triangle"])
+    elif isinstance(last, W.SphericalRectangle):
+        ok = ok & (last.solid_angle >= MIN_SPHERICAL_SAMPLE_AREA["rectangle"])
+    return ok

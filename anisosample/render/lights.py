@@ -14,8 +14,10 @@ the point the rays leave from.
   uniform sphere map.
 * ``"solid_angle"``: uniform in the solid angle the primitive subtends from the origin
   (Ureña et al. 2013 for parallelograms, Arvo 1995 for triangles), with the density converted
-  to area by ``cos / d^2``. Where the spherical warp declines (a tiny or degenerate solid angle)
-  both :func:`sample_light` and :func:`light_pdf` fall back to area sampling, as pbrt-v4 does.
+  to area by ``cos / d^2``. Where the spherical warp declines (a degenerate solid angle, or one
+  outside pbrt-v4's range: below 2e-4 sr or above 6.22 sr for triangles, below 1e-4 sr for
+  rectangles, :func:`~anisosample.render.light_warps.solid_angle_valid`) both
+  :func:`sample_light` and :func:`light_pdf` fall back to area sampling, as pbrt-v4 does.
 * ``"parametric"``: uniform in the primitive's own parameters; the same as ``"area"`` except on
   bilinear patches.
 

@@ -36,6 +36,28 @@ def form_factor_parallel(h, a, b):
             + y / np.sqrt(1 + y * y) * np.arctan(x / np.sqrt(1 + y * y))) / (2 * np.pi)
 
 
+def lambert_clipped(v):
+    """Lambert's projected solid angle of polygon ``v`` (vertices relative to the receiving
+    point) about +z, clipped to z >= 0 first (Sutherland-Hodgman), float64."""
+    out = []
+    for i in range(len(v)):
+        a, b = v[i], v[(i + 1) % len(v)]
+        if a[2] >= 0:
+            out.append(a)
+        if a[2] * b[2] < 0:
+            out.append(a + a[2] / (a[2] - b[2]) * (b - a))
+    if len(out) < 3:
+        return 0.0
+    w = np.asarray(out) / np.linalg.norm(out, axis=1, keepdims=True)
+    phi = 0.0
+    for i in range(len(w)):
+        a, b = w[i], w[(i + 1) % len(w)]
+        cr = np.cross(a, b)
+        if np.linalg.norm(cr) > 0:
+            phi += np.arctan2(np.linalg.norm(cr), a @ b) * cr[2] / np.linalg.norm(cr)
+    return abs(phi) / 2
+
+
 def midpoint_grid(m):
     g = (np.arange(m) + 0.5) / m
     xx, yy = np.meshgrid(g, g)

@@ -28,7 +28,7 @@ from anisosample.render.geometry import intersect, offset_origin
 from anisosample.render.light_warps import APPLIES_TO, LIGHT_WARPS, Receiver
 from anisosample.render.lights import light_pdf
 
-from .helpers import SCENES
+from .helpers import SCENES, lambert_clipped
 
 TRIANGLE = np.array([[-0.6, -0.5, 1.0], [0.7, -0.3, 1.0], [0.0, 0.7, 1.0]])  # facing down
 
@@ -109,31 +109,11 @@ def test_projected_solid_angle_is_zero_variance_on_an_unoccluded_plane(kind):
         x = jax.random.uniform(jax.random.key(4), (256, 2), jnp.float32, 0.0, 1.0 - 2.0**-24)
         v = np.asarray(f.rgb(x)[:, 0], np.float64)
         assert v.min() > 0, "a light sample missed the light"
-        phi = _lambert_clipped(verts - _ray_origin(scene, f.film))
+        phi = lambert_clipped(verts - _ray_origin(scene, f.film))
         assert v.mean() == pytest.approx(0.5 / np.pi * 4.0 * phi, rel=2e-4), (row, col)
     if kind == "crossing":  # some floor points do see the light cut by their horizon
         o = _ray_origin(scene, [(cols[0] + 0.5) / 16, (rows[0] + 0.5) / 16])
         assert np.any((verts - o)[:, 2] < 0)
-
-
-def _lambert_clipped(v):
-    """Lambert's projected solid angle of polygon ``v`` (relative to the point) about +z,
-    clipped to z >= 0 first (Sutherland-Hodgman), float64."""
-    out = []
-    for i in range(len(v)):
-        a, b = v[i], v[(i + 1) % len(v)]
-        if a[2] >= 0:
-            out.append(a)
-        if a[2] * b[2] < 0:
-            out.append(a + a[2] / (a[2] - b[2]) * (b - a))
-    w = np.asarray(out) / np.linalg.norm(out, axis=1, keepdims=True)
-    phi = 0.0
-    for i in range(len(w)):
-        a, b = w[i], w[(i + 1) % len(w)]
-        cr = np.cross(a, b)
-        if np.linalg.norm(cr) > 0:
-            phi += np.arctan2(np.linalg.norm(cr), a @ b) * cr[2] / np.linalg.norm(cr)
-    return abs(phi) / 2
 
 
 def test_arvo2001_is_zero_variance_on_an_unoccluded_plane():
