@@ -7,7 +7,9 @@ scene (H Table 4, ``patch-three-warp``), after compilation. Times are the best o
 processes hits all of them alike); the table prints ns per sample (one light sample and one
 BSDF sample, the chain fitted anew for every sample) and the ratio to the base technique of the
 same scene measured in the same run. Issue 14's targets: cosine-bilinear <= 1.15x,
-cosine-biquadratic <= 1.6x, arvo2001 <= 2x (H reports 1.01x, 1.06x, 1.24x in pbrt).
+cosine-biquadratic <= 1.6x, arvo2001 <= 2x (H reports 1.01x, 1.06x, 1.24x in pbrt); issue 24's:
+projected-solid-angle (Peters 2021) <= 1.5x the solid-angle base, on the triangle light and on
+the glossy scene's quad light (H Table 5's scene; Arvo 2001 is for triangles only).
 
     python experiments/bench_light_warps.py [--size 256] [--repeats 7]
 """
@@ -25,8 +27,11 @@ from anisosample import render, scenes
 SCENES = scenes.FOLDER
 CASES = {  # scene -> (base technique, [light warps]); the first row of each is the base
     "triangle_light": ("solid_angle", ["none", "cosine-bilinear", "cosine-biquadratic",
-                                       "arvo2001", "product-bilinear", "product-biquadratic",
-                                       "product-tabulated"]),
+                                       "arvo2001", "projected-solid-angle", "product-bilinear",
+                                       "product-biquadratic", "product-tabulated"]),
+    "glossy": ("solid_angle", ["none", "cosine-bilinear", "cosine-biquadratic",
+                               "projected-solid-angle", "product-bilinear",
+                               "product-biquadratic"]),
     "patch_light": ("area", ["none", "cosine-bilinear", "cosine-biquadratic",
                              "patch-three-warp"]),
 }
