@@ -892,7 +892,9 @@ def _add_render(sub):
                                  "blinds, attic, dof, ...)")
     p.add_argument("--sampler", default="random",
                    help="point-set sampler per pixel; 'aligned' (or 'sheared'): per-block sets "
-                        "from a direction estimate per block (W Sec. 5.3-5.4)")
+                        "from a direction estimate per block (W Sec. 5.3-5.4); 'aligned-pixel': "
+                        "every pixel its own directions from a fixed isotropic prefix that its "
+                        "estimate reuses (spp >= 64)")
     p.add_argument("--block", type=int, default=None,
                    help="aligned/sheared: block side in pixels of the direction estimate "
                         "(default 16; images that are no multiple are padded)")
@@ -997,6 +999,13 @@ def _pixel_summary(result) -> str:
 
     rec = result.settings["blocks"]
     code = np.asarray(result.pixel_sampler)
+    if rec["method"] == "aligned-pixel":
+        return (f"pixels: {int((code == 3).sum())} of {code.size} with their own direction "
+                f"(3-direction set), {int((code == 4).sum())} with two (corner, 4-direction "
+                f"set), {int((code == 5).sum())} without an edge (the {rec['fallback_deg']}-deg "
+                f"fallback set); estimation: {rec['estimation_samples_per_pixel']:g} samples "
+                f"per pixel beyond the {rec['prefix_points']}-point prefix ({rec['prefix']}), "
+                f"which every pixel's estimate reuses")
     own, none, gated = (int((code == c).sum()) for c in (2, 0, 1))
     line = (f"pixels: {own} of {code.size} use their block's set ({rec['blocks_with_set']} of "
             f"{rec['blocks']} blocks have one), {none + gated} use {rec['base']} ({none} in "

@@ -29,8 +29,13 @@ class RenderResult(NamedTuple):
     spp: int
     realizations: int
     settings: dict
-    # per-block samplers: each pixel's decision (render.aligned.PIXEL_CODES), else None
+    # per-block and per-pixel samplers: each pixel's decision (render.aligned.PIXEL_CODES)
     pixel_sampler: np.ndarray | None = None
+    # per-pixel aligned sampler (first realization): (h, w, 2) float32 spectral directions in
+    # degrees, strongest first, NaN where none; (h, w) int32 samples the estimation took beyond
+    # the reused prefix (render.pixel_aligned)
+    pixel_directions: np.ndarray | None = None
+    pixel_estimation_samples: np.ndarray | None = None
 
 
 def _get_sampler(sampler) -> tuple[Callable, str]:
@@ -94,11 +99,28 @@ def render(
         raise TypeError(f"mis must be True or False, got {mis!r}")
     mis = bool(mis) and dimension == "light"
     from .aligned import render_chunk_sets, resolve_sampler
+    from .pixel_aligned import PIXEL_SAMPLERS, PixelSampler, pixel_sampler
 
-    blocks = resolve_sampler(scene, sampler, sampler_options, dimension=dimension,
-                             technique=technique, square_aperture=bool(square_aperture),
-                             progress=progress)
-    if blocks is None:
+    per_pixel = None
+    if isinstance(sampler, str) and sampler in PIXEL_SAMPLERS:
+        per_pixel = pixel_sampler(scene, **(sampler_options or {}))
+    elif isinstance(sampler, PixelSampler):
+        if sampler_options:
+            raise ValueError("sampler_options are for samplers given by name, not a finished "
+                             "PixelSampler")
+        per_pixel = sampler
+    blocks = None if per_pixel is not None else resolve_sampler(
+        scene, sampler, sampler_options, dimension=dimension, technique=technique,
+        square_aperture=bool(square_aperture), progress=progress)
+    if per_pixel is not None:
+        sampler_name = per_pixel.name
+        if (per_pixel.width, per_pixel.height) != (scene.width, scene.height):
+            raise ValueError(f"sampler was made for a {per_pixel.width}x{per_pixel.height} "
+                             f"image, the scene is {scene.width}x{scene.height}")
+        if spp < 64:
+            raise ValueError(f"sampler 'aligned-pixel' needs spp >= 64 (a 16-point prefix and "
+                             f"its set), got {spp}")
+    elif blocks is None:
         sample_points, sampler_name = _get_sampler(sampler)
     else:
         sampler_name = blocks.name
@@ -125,37 +147,54 @@ def render(
         square_aperture=bool(square_aperture),
         light_warp=light_warp,
     )
+    passes = 2 if per_pixel is not None else 1
     with bar(
-        total=realizations * n_chunks,
+        total=realizations * n_chunks * passes,
         desc="render",
         disable=None if progress else True,
         unit="chunk",
     ) as pb:
-        for r in range(realizations):
-            k_pts, k_pix = jax.random.split(jax.random.fold_in(key, r))
-            if blocks is not None:
-                sets, pixel_set = blocks.point_sets(k_pts, spp)
-                pixel_set = jnp.asarray(pixel_set)
-                pts = sets[0]
-            else:
-                pts = jnp.asarray(sample_points(k_pts, spp), jnp.float32)
-            if pts.shape != (spp, 2):
-                raise ValueError(
-                    f"sampler {sampler_name!r} returned shape {pts.shape}, expected ({spp}, 2)"
-                )
-            est = np.zeros((npix, 3), np.float64)
+
+        def over_pixels(kernel):
+            """``kernel(idx)`` over every pixel in chunks: its outputs, each ``(npix, ...)``."""
+            outs = None
             for c in range(n_chunks):
                 idx = np.arange(c * chunk * per_call, (c + 1) * chunk * per_call)
                 valid = idx < npix
                 idx = np.where(valid, idx, npix - 1).astype(np.int32)
-                if blocks is None:
-                    out = render_chunk(scene, pts, k_pix,
-                                        jnp.asarray(idx.reshape(per_call, chunk)), **opts)
-                else:
-                    out = render_chunk_sets(scene, sets, pixel_set, k_pix,
-                                            jnp.asarray(idx.reshape(per_call, chunk)), **opts)
-                est[idx[valid]] = np.asarray(out, np.float64).reshape(-1, 3)[valid]
+                res = kernel(jnp.asarray(idx.reshape(per_call, chunk)))
+                res = res if isinstance(res, tuple) else (res,)
+                if outs is None:
+                    outs = [np.zeros((npix, *r.shape[2:]), r.dtype) for r in res]
+                for o, r in zip(outs, res, strict=True):
+                    o[idx[valid]] = np.asarray(r).reshape(-1, *r.shape[2:])[valid]
                 pb.update(1)
+            return outs
+
+        for r in range(realizations):
+            k_pts, k_pix = jax.random.split(jax.random.fold_in(key, r))
+            if per_pixel is not None:
+                est, record = _render_per_pixel(per_pixel, scene, spp, k_pix, opts, over_pixels,
+                                                progress)
+                if r == 0:
+                    first = record
+            else:
+                if blocks is not None:
+                    sets, pixel_set = blocks.point_sets(k_pts, spp)
+                    pixel_set = jnp.asarray(pixel_set)
+                    pts = sets[0]
+                else:
+                    pts = jnp.asarray(sample_points(k_pts, spp), jnp.float32)
+                if pts.shape != (spp, 2):
+                    raise ValueError(f"sampler {sampler_name!r} returned shape {pts.shape}, "
+                                     f"expected ({spp}, 2)")
+                if blocks is None:
+                    (est,) = over_pixels(lambda idx: render_chunk(scene, pts, k_pix, idx,
+                                                                  **opts))
+                else:
+                    (est,) = over_pixels(lambda idx: render_chunk_sets(
+                        scene, sets, pixel_set, k_pix, idx, **opts))
+                est = est.astype(np.float64)
             if not np.all(np.isfinite(est)):
                 raise FloatingPointError("the render produced NaN or Inf (a bug: please report)")
             total += est
@@ -178,16 +217,59 @@ def render(
         width=w,
         height=h,
     )
+    code = dirs = extra = None
     if blocks is not None:
         settings["blocks"] = blocks.settings()
+        code = blocks.pixel_sampler
+    if per_pixel is not None:
+        settings["blocks"] = {**per_pixel.settings(), **first["settings"]}
+        code = first["code"].reshape(h, w)
+        dirs = first["directions"].reshape(h, w, 2)
+        extra = first["extra"].reshape(h, w)
     return RenderResult(
         mean=mean.reshape(h, w, 3).astype(np.float32),
         variance=var,
         spp=spp,
         realizations=realizations,
         settings=settings,
-        pixel_sampler=None if blocks is None else blocks.pixel_sampler,
+        pixel_sampler=code,
+        pixel_directions=dirs,
+        pixel_estimation_samples=extra,
     )
+
+
+def _render_per_pixel(sampler, scene: Scene, spp: int, key, opts: dict, over_pixels,
+                      progress: bool):
+    """One realization with the per-pixel aligned sampler (:mod:`anisosample.render.
+    pixel_aligned`): pass 1 renders each pixel's prefix and estimates its directions, the sets
+    are chosen (and built where missing), pass 2 renders the rest. ``(estimate, record)``."""
+    from ..prefix import prefix_points
+    from .pixel_aligned import choose_sets, pixel_prefix, prefix_chunk, rest_chunk
+
+    prefix = jnp.asarray(prefix_points(pixel_prefix(spp)), jnp.float32)
+    m = prefix.shape[0]
+    head, dirs, count, extra = over_pixels(lambda idx: prefix_chunk(
+        scene, prefix, key, idx, spp=spp, search=sampler.search, **opts))
+    requests, index, code = choose_sets(dirs, count, sampler.k)
+    sets = sampler.sets(requests, spp, progress=progress)
+    if not bool(jnp.all(sets[:, :m] == prefix[None])):
+        raise ValueError("a prefix set does not start with its prefix (a damaged table)")
+    (rest,) = over_pixels(lambda idx: rest_chunk(scene, sets[:, m:], jnp.asarray(index), key,
+                                                 idx, spp=spp, **opts))
+    est = (head.astype(np.float64) + rest.astype(np.float64)) / spp
+    extra = extra.astype(np.int32)
+    found = count > 0
+    record = dict(code=code, directions=dirs.astype(np.float32), extra=extra, settings=dict(
+        prefix=pixel_prefix(spp), prefix_points=m, reused_samples_per_pixel=m,
+        estimation_samples_per_pixel=round(float(extra.mean()), 3),
+        estimation_samples_per_edge_pixel=round(float(extra[found].mean()), 3) if found.any()
+        else 0.0,
+        pixels=int(code.size), pixels_with_3_direction_set=int((code == 3).sum()),
+        pixels_with_4_direction_set=int((code == 4).sum()),
+        pixels_fallback=int((code == 5).sum()),
+        sets_3_directions_deg=sorted(e[0] for e in requests[1:] if len(e) == 1),
+        sets_4_directions_deg=sorted(list(e) for e in requests[1:] if len(e) == 2)))
+    return est, record
 
 
 _BYTES_PER_PIXEL = 3 * (8 + 8 + 8 + 4 + 4)  # float64 sum, sum of squares, estimate; mean, var

@@ -151,9 +151,10 @@ def check_options(scene, dimension, technique, light_warp="none") -> str:
 _check_options = check_options  # old private name (render/aligned.py), until it moves over
 
 
-def _sample_fn(scene: Scene, dimension: str, technique: str, mis: bool, square_aperture: bool,
-               light_warp: str = "none"):
-    """``g(x, film, other, bsdf_u) -> rgb`` where ``x`` drives ``dimension``."""
+def sample_function(scene: Scene, dimension: str, technique: str, mis: bool,
+                    square_aperture: bool, light_warp: str = "none"):
+    """``g(x, film, other, bsdf_u) -> rgb``: one sample of :func:`radiance` where ``x``
+    drives ``dimension`` (the other dimension's sample is ``other``)."""
 
     def g(x, film, other, bsdf_u):
         if dimension == "light":
@@ -226,7 +227,7 @@ _BLOCK = 4096  # points per vmapped block: keeps the working set in cache (see i
 
 @eqx.filter_jit
 def _integrand_rgb(f: PixelIntegrand, flat):
-    g = _sample_fn(f.scene, f.dimension, f.technique, False, f.square_aperture, f.light_warp)
+    g = sample_function(f.scene, f.dimension, f.technique, False, f.square_aperture, f.light_warp)
     half = jnp.full(2, 0.5, jnp.float32)
 
     def point(xi):
@@ -304,36 +305,54 @@ def render_chunk(
     """
     from ..samplers import toroidal_shift
 
-    g = _sample_fn(scene, dimension, technique, mis, square_aperture, light_warp)
-    w, h = scene.width, scene.height
-    spp = points.shape[0]
+    g = sample_function(scene, dimension, technique, mis, square_aperture, light_warp)
 
     def one_pixel(q):
-        kq = jax.random.fold_in(key, q)
-        k_shift, k_film, k_other, k_bsdf = jax.random.split(kq, 4)
-        x = toroidal_shift(k_shift, points)
-        col = (q % w).astype(jnp.float32)
-        row = (q // w).astype(jnp.float32)
-        if pixel_center:
-            pos = jnp.broadcast_to(jnp.stack([col, row]) + 0.5, (spp, 2))
-        else:  # uniform in the pixel (box) or from its reconstruction filter (render/film.py)
-            cam = scene.camera
-            pos = film_offsets(cam.rfilter, cam.rfilter_stddev, _uniform(k_film, spp), col, row,
-                               w, h)
-        film = pos / jnp.asarray([[w, h]], jnp.float32)
-        # Draw only the random numbers this configuration uses.
-        half = jnp.full((spp, 2), 0.5, jnp.float32)
-        # (dimension "lens" implies point lights only: no light sample is needed.)
-        need_other = dimension == "light" and scene.camera.kind == THINLENS
-        other = _uniform(k_other, spp) if need_other else half
-        bsdf_u = _uniform(k_bsdf, spp) if mis else half
-        vals = jax.vmap(g)(x, film, other, bsdf_u)
-        return jnp.mean(vals, axis=0)
+        x = toroidal_shift(pixel_shift_key(key, q), points)
+        rgb = pixel_samples(scene, g, x, key, q, points.shape[0], 0, mis=mis,
+                            pixel_center=pixel_center, dimension=dimension)
+        return jnp.mean(rgb, axis=0)
 
     if pixels.ndim == 1:
         return jax.vmap(one_pixel)(pixels)
     # (blocks, chunk): lax.map over cache-sized chunks keeps the working set small.
     return jax.lax.map(jax.vmap(one_pixel), pixels)
+
+
+def pixel_shift_key(key, q):
+    """The key of pixel ``q``'s toroidal shift (W Sec. 5.4) in a render keyed ``key``."""
+    return jax.random.split(jax.random.fold_in(key, q), 4)[0]
+
+
+def pixel_samples(scene: Scene, g, x, key, q, spp: int, start: int, *, mis: bool,
+                  pixel_center: bool, dimension: str) -> Float[Array, "k 3"]:
+    """Samples ``start .. start + k - 1`` of pixel ``q``'s ``spp``-sample estimate, ``x``
+    ``(k, 2)`` their (shifted) points in the studied dimension: the film position, the other
+    dimension's and the BSDF's random numbers are the same counters of the pixel's streams
+    (``fold_in(key, q)``) whatever the split, so a pixel rendered in parts (a prefix, then the
+    rest of its set: :mod:`anisosample.render.pixel_aligned`) gets the bits it gets whole."""
+    k = x.shape[0]
+    w, h = scene.width, scene.height
+    _, k_film, k_other, k_bsdf = jax.random.split(jax.random.fold_in(key, q), 4)
+
+    def stream(kk):
+        return jax.lax.dynamic_slice_in_dim(_uniform(kk, spp), start, k)
+
+    col = (q % w).astype(jnp.float32)
+    row = (q // w).astype(jnp.float32)
+    if pixel_center:
+        pos = jnp.broadcast_to(jnp.stack([col, row]) + 0.5, (k, 2))
+    else:  # uniform in the pixel (box) or from its reconstruction filter (render/film.py)
+        cam = scene.camera
+        pos = film_offsets(cam.rfilter, cam.rfilter_stddev, stream(k_film), col, row, w, h)
+    film = pos / jnp.asarray([[w, h]], jnp.float32)
+    # Draw only the random numbers this configuration uses.
+    half = jnp.full((k, 2), 0.5, jnp.float32)
+    # (dimension "lens" implies point lights only: no light sample is needed.)
+    need_other = dimension == "light" and scene.camera.kind == THINLENS
+    other = stream(k_other) if need_other else half
+    bsdf_u = stream(k_bsdf) if mis else half
+    return jax.vmap(g)(x, film, other, bsdf_u)
 
 
 _render_chunk = render_chunk  # old private name (render/aligned.py), until it moves over

@@ -1,0 +1,265 @@
+"""Per-pixel aligned rendering: every pixel its own directions, its estimation samples reused
+(beyond W Sec. 5.3-5.4, the way W Sec. 7 points).
+
+``render(scene, key, sampler="aligned-pixel")`` renders each pixel ``q`` in two passes over
+one point set of ``spp`` points with one toroidal shift ``s_q`` (the pixel's, W Sec. 5.4):
+
+1. **The prefix** (W Sec. 7: "the first few 16-64 points are always fixed and isotropically
+   distributed so that we can use the samples for the principal direction estimation directly
+   for the final Monte Carlo estimate"): the ``m`` points of the fixed isotropic prefix
+   :func:`pixel_prefix` (``dihedral-<m>``, :mod:`anisosample.prefix`), shifted by ``s_q``, are
+   rendered as the first ``m`` samples of the pixel's estimate. The same points drive
+   :func:`anisosample.edges.search` on the pixel's own 2D integrand (its centre, luminance, no
+   MIS): up to ``k`` spectral directions, strongest first, from the prefix's values plus the
+   search's few dozen bisection samples. When the render's samples *are* that integrand
+   (``pixel_center=True``, no MIS, no random lens), the prefix values are read, not
+   re-evaluated.
+2. **The rest of the pixel's set**: the directions, rounded by
+   :func:`anisosample.selection.table_directions`, pick the table set with the fixed prefix
+   (one direction: the 3-direction set, two, a corner: the 4-direction set;
+   :func:`anisosample.tables.lookup` with ``prefix``, whose first ``m`` points are the prefix bit
+   for bit whatever the directions); points ``m .. spp - 1`` of it, shifted by the same
+   ``s_q``, complete the estimate. A pixel without an edge (lit, occluded, smooth) completes
+   the 3-direction set of :data:`FALLBACK_DEG`, the direction farthest from both axes.
+
+The estimate is the mean over all ``spp`` points: the search's samples are the only ones not
+in it (``RenderResult.pixel_estimation_samples``); the prefix's ``m`` are reused. Unbiasedness:
+with a uniform shift every point of every set is uniform, and the set's choice depends on the
+shift only through the rounding of a direction estimated to a fraction of a degree; the
+residual bias is tested against the closed form on a rounding boundary
+(``tests/render/test_pixel_aligned.py``). ``RenderResult.pixel_directions`` holds each pixel's
+directions (NaN where none), ``pixel_sampler`` its choice (:data:`PIXEL_CODES` 3-5).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import edges, selection
+from .. import tables as _tables
+from .._validate import check_int
+from .integrator import sample_function, pixel_samples, pixel_shift_key
+from .scene import LUMINANCE, THINLENS, Scene
+
+__all__ = ["FALLBACK_DEG", "PIXEL_SAMPLERS", "PixelEstimates", "PixelSampler", "choose_sets",
+           "exact_values", "integrand_estimates", "pixel_prefix", "pixel_sampler", "prefix_chunk",
+           "prefix_sets", "rest_chunk", "toroidal_shift_key"]
+
+PIXEL_SAMPLERS = ("aligned-pixel",)
+"""Sampler names :func:`anisosample.render.render` resolves with a :class:`PixelSampler`."""
+
+FALLBACK_DEG = 45
+"""The extra direction of the set a pixel without an edge completes: farthest from both axes."""
+
+
+def pixel_prefix(spp: int) -> str:
+    """The prefix of a ``spp``-point pixel set: ``dihedral-<m>``, ``m = min(64, 8 (spp // 32))``
+    (W Sec. 7's 16-64 points; at most a quarter of the set, the prefix sets' limit; at least 16,
+    what the edge search needs). ``spp >= 64``."""
+    spp = check_int("spp", spp, minimum=64)
+    return f"dihedral-{min(64, 8 * (spp // 32))}"
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class PixelSampler:
+    """The per-pixel aligned sampler (module docstring), made by :func:`pixel_sampler` and
+    passed as ``render(sampler=...)``: the options of the search and of the table lookup;
+    everything per pixel is decided during the render."""
+
+    width: int
+    height: int
+    k: int = 2
+    search: edges.SearchOptions = edges.SearchOptions()
+    table: object = None
+    build_missing: bool | None = None
+    build_options: dict = dataclasses.field(default_factory=dict)
+
+    name = "aligned-pixel"
+
+    def sets(self, requests, spp: int, *, progress: bool = True) -> jax.Array:
+        """:func:`prefix_sets` with this sampler's table options."""
+        return prefix_sets(requests, spp, table=self.table, build_missing=self.build_missing,
+                           build_options=self.build_options, progress=progress)
+
+    def settings(self) -> dict:
+        """What a render records about the sampler (EXR metadata); the render adds the counts."""
+        return dict(method="aligned-pixel", k=self.k, fallback_deg=FALLBACK_DEG,
+                    search=self.search._asdict())
+
+
+def prefix_sets(requests, spp: int, *, table=None, build_missing: bool | None = None,
+                build_options: dict | None = None, progress: bool = True) -> jax.Array:
+    """The sets with the prefix :func:`pixel_prefix` for ``requests`` (tuples of integer extra
+    directions), stacked ``(len(requests), spp, 2)``, each starting with the prefix bit for
+    bit; missing ones are built first (:func:`anisosample.tables.lookup`'s one rule), with a
+    progress bar over the sets."""
+    from ..progress import progress as bar
+
+    prefix = pixel_prefix(spp)
+    opts = dict(build_options or {})
+    opts["show_progress"] = False
+    out = []
+    for extra in bar(requests, desc=f"pixel sets n={spp}", unit="set",
+                     disable=None if progress and len(requests) > 8 else True):
+        out.append(_tables.lookup(extra, spp, kind=len(extra) + 2, table=table,
+                                  build_missing=build_missing, prefix=prefix, **opts))
+    return jnp.stack(out)
+
+
+class PixelEstimates(NamedTuple):
+    """:func:`integrand_estimates`: per realization the estimate, the directions found
+    ``(R, 2)`` (NaN: none), the search's samples and the choice (:data:`PIXEL_CODES` 3-5)."""
+
+    estimates: np.ndarray
+    directions_deg: np.ndarray
+    search_samples: np.ndarray
+    code: np.ndarray
+
+
+def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=None,
+                        build_missing: bool | None = None, build_options: dict | None = None,
+                        **search) -> PixelEstimates:
+    """The per-pixel aligned estimator of one 2D integrand ``f`` (the renderer's two passes at
+    the level of :func:`anisosample.variance.realization_estimates`): per realization one
+    toroidal shift from ``key``, the prefix's values, :func:`anisosample.edges.search`, the set
+    (:func:`choose_sets`, :func:`prefix_sets`) and the mean of ``f`` over all ``n`` points,
+    the prefix's included."""
+    from ..prefix import prefix_points
+    from ..samplers import toroidal_shift
+
+    n = check_int("n", n, minimum=64)
+    realizations = check_int("realizations", realizations, minimum=1)
+    k = check_int("k", k, minimum=1, maximum=2)
+    o = edges.search_options(**search)
+    prefix = jnp.asarray(prefix_points(pixel_prefix(n)), jnp.float32)
+    m = prefix.shape[0]
+    keys = jax.random.split(key, realizations)
+    x = jax.vmap(toroidal_shift, in_axes=(0, None))(keys, prefix)
+    head = f(x)
+    r = jax.vmap(lambda xx, vv: edges.search(f, xx, vv, o))(x, head)
+    requests, index, code = choose_sets(r.directions_deg, r.count, k)
+    sets = prefix_sets(requests, n, table=table, build_missing=build_missing,
+                       build_options=build_options, progress=False)
+    rest = jax.vmap(toroidal_shift)(keys, sets[jnp.asarray(index), m:])
+    est = (np.asarray(jnp.sum(head, axis=1), np.float64)
+           + np.asarray(jnp.sum(f(rest), axis=1), np.float64)) / n
+    return PixelEstimates(est, np.asarray(r.directions_deg), np.asarray(r.samples), code)
+
+
+def pixel_sampler(scene: Scene, *, k: int = 2, table=None, build_missing: bool | None = None,
+                  build_options: dict | None = None, **search) -> PixelSampler:
+    """The per-pixel aligned sampler for ``scene``: at most ``k`` (1 or 2) directions per pixel;
+    ``search``: :class:`anisosample.edges.SearchOptions` fields; ``table``, ``build_missing``,
+    ``build_options``: the prefix sets' lookup (:func:`anisosample.tables.lookup`: missing sets
+    are built into the user cache unless ``build_missing=False``)."""
+    if not isinstance(scene, Scene):
+        raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
+    k = check_int("k", k, minimum=1, maximum=2)
+    if build_missing is not None and not isinstance(build_missing, bool):
+        raise TypeError(f"build_missing must be None, True or False, got {build_missing!r}")
+    if build_options is not None and not isinstance(build_options, dict):
+        raise TypeError(f"build_options must be a dict, got {type(build_options).__name__}")
+    return PixelSampler(scene.width, scene.height, k, edges.search_options(**search), table,
+                        build_missing, dict(build_options or {}))
+
+
+def exact_values(scene: Scene, *, dimension: str, mis: bool, pixel_center: bool) -> bool:
+    """Whether a pixel's render samples are values of its 2D integrand (pixel centre, no MIS,
+    no random lens), so the search reads the prefix's samples instead of re-evaluating them."""
+    lens_random = dimension == "light" and scene.camera.kind == THINLENS
+    return bool(pixel_center) and not mis and not lens_random
+
+
+_STATIC = ("spp", "dimension", "technique", "mis", "pixel_center", "square_aperture",
+           "light_warp", "search")
+
+
+@functools.partial(jax.jit, static_argnames=_STATIC)
+def prefix_chunk(scene: Scene, prefix, key, pixels, *, spp, dimension, technique, mis,
+                 pixel_center, square_aperture, light_warp, search: edges.SearchOptions):
+    """Pass 1 for ``pixels``: the sum of each pixel's first ``m`` samples ``(..., 3)``, its
+    directions ``(..., 2)`` (NaN: none), its edge count and the search's extra samples."""
+    g = sample_function(scene, dimension, technique, mis, square_aperture, light_warp)
+    g0 = sample_function(scene, dimension, technique, False, square_aperture, light_warp)
+    exact = exact_values(scene, dimension=dimension, mis=mis, pixel_center=pixel_center)
+    lum = jnp.asarray(LUMINANCE, jnp.float32)
+    w, h = scene.width, scene.height
+    m = prefix.shape[0]
+
+    def one(q):
+        x = toroidal_shift_key(key, q, prefix)
+        rgb = pixel_samples(scene, g, x, key, q, spp, 0, mis=mis, pixel_center=pixel_center,
+                            dimension=dimension)
+        centre = jnp.stack([(q % w).astype(jnp.float32) + 0.5,
+                            (q // w).astype(jnp.float32) + 0.5]) / jnp.asarray([w, h],
+                                                                                jnp.float32)
+
+        def f(y):  # the pixel's 2D integrand f_q (W Eq. 8): centre, lens centre, luminance
+            flat = y.reshape(-1, 2)
+            half = jnp.full_like(flat, 0.5)
+            film = jnp.broadcast_to(centre, flat.shape)
+            return (jax.vmap(g0)(flat, film, half, half) @ lum).reshape(y.shape[:-1])
+
+        values = rgb @ lum if exact else f(x)
+        r = edges.search(f, x, values, search)
+        extra = r.samples + (0 if exact else m)
+        return jnp.sum(rgb, axis=0), r.directions_deg, r.count, extra
+
+    if pixels.ndim == 1:
+        return jax.vmap(one)(pixels)
+    return jax.lax.map(jax.vmap(one), pixels)
+
+
+def toroidal_shift_key(key, q, points):
+    """``points`` under pixel ``q``'s toroidal shift (the same for its prefix and its rest)."""
+    from ..samplers import toroidal_shift
+
+    return toroidal_shift(pixel_shift_key(key, q), points)
+
+
+@functools.partial(jax.jit, static_argnames=_STATIC[:-1])
+def rest_chunk(scene: Scene, rests, pixel_set, key, pixels, *, spp, dimension, technique, mis,
+               pixel_center, square_aperture, light_warp):
+    """Pass 2 for ``pixels``: the sum of samples ``m .. spp - 1`` ``(..., 3)``, pixel ``q``
+    taking ``rests[pixel_set[q]]`` (its set without the prefix) under its shift."""
+    g = sample_function(scene, dimension, technique, mis, square_aperture, light_warp)
+    m = spp - rests.shape[1]
+
+    def one(q):
+        x = toroidal_shift_key(key, q, rests[pixel_set[q]])
+        rgb = pixel_samples(scene, g, x, key, q, spp, m, mis=mis, pixel_center=pixel_center,
+                            dimension=dimension)
+        return jnp.sum(rgb, axis=0)
+
+    if pixels.ndim == 1:
+        return jax.vmap(one)(pixels)
+    return jax.lax.map(jax.vmap(one), pixels)
+
+
+def choose_sets(directions_deg, count, k: int) -> tuple[list, np.ndarray, np.ndarray]:
+    """Per pixel, W Sec. 5.4's table request from its directions: ``(requests, index, code)``
+    with ``requests[0]`` the fallback ``(FALLBACK_DEG,)``, ``index`` each pixel's request and
+    ``code`` its :data:`~anisosample.render.aligned.PIXEL_CODES` (3: a 3-direction set,
+    4: a 4-direction set, 5: the fallback)."""
+    dirs = np.asarray(directions_deg, np.float64).reshape(-1, 2)
+    count = np.asarray(count).reshape(-1)
+    requests = [(FALLBACK_DEG,)]
+    where = {requests[0]: 0}
+    index = np.zeros(dirs.shape[0], np.int32)
+    code = np.full(dirs.shape[0], 5, np.int8)
+    for q in np.flatnonzero(count > 0):
+        extra = selection.table_directions(tuple(dirs[q, :count[q]]), k)
+        if not extra:
+            continue
+        if extra not in where:
+            where[extra] = len(requests)
+            requests.append(extra)
+        index[q] = where[extra]
+        code[q] = len(extra) + 2
+    return requests, index, code
