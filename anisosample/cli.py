@@ -1002,10 +1002,10 @@ def _pixel_summary(result) -> str:
     if rec["method"] == "aligned-pixel":
         return (f"pixels: {int((code == 3).sum())} of {code.size} with their own direction "
                 f"(3-direction set), {int((code == 4).sum())} with two (corner, 4-direction "
-                f"set), {int((code == 5).sum())} without an edge (the {rec['fallback_deg']}-deg "
-                f"fallback set); estimation: {rec['estimation_samples_per_pixel']:g} samples "
-                f"per pixel beyond the {rec['prefix_points']}-point prefix ({rec['prefix']}), "
-                f"which every pixel's estimate reuses")
+                f"set), {int((code == 5).sum())} without an edge ({rec['fallback']}, the prefix "
+                f"weighted in); estimation: {rec['estimation_samples_per_pixel']:g} samples per "
+                f"pixel beyond --spp; the {rec['prefix_points']}-point prefix ({rec['prefix']}) "
+                f"is part of every pixel's estimate")
     own, none, gated = (int((code == c).sum()) for c in (2, 0, 1))
     line = (f"pixels: {own} of {code.size} use their block's set ({rec['blocks_with_set']} of "
             f"{rec['blocks']} blocks have one), {none + gated} use {rec['base']} ({none} in "

@@ -194,7 +194,8 @@ def measure_class(full, base, cname, pixels, dirs, num, cfg, key, cache):
                      "block": list(block), "block_directions_deg": [float(x) for x in block_dirs],
                      "methods": per})
     add_gate(full, base, rows)
-    return {"ns": ns, "pixels": rows, "summary": summarize(rows)}
+    add_beyond(full, base, cname, rows, ns, cfg, key)
+    return {"ns": ns, "pixels": rows, "summary": summarize(rows, ns)}
 
 
 def add_gate(full, base, rows):
@@ -214,11 +215,87 @@ def add_gate(full, base, rows):
             r["methods"]["aligned (block)" if flag else "pmj02bn"])
 
 
-def summarize(rows) -> dict:
+BEYOND_LOG2_NS = (8, 10, 12)
+"""The sizes of the beyond-W columns (``add_beyond``): every method's slope over these is in the
+summary (``slope3_median``) so the columns compare on the same sizes."""
+
+
+def add_beyond(full, base, cname, rows, ns, cfg, key):
+    """Beyond W (issue: per-pixel directions), on the same pixels and shifts' keys:
+
+    * ``aligned (window)``: W's estimator (Sobel histogram + vMF, ``directions.estimate``) on a
+      *sliding* window of ``block_px^2`` pixels centred on the pixel (``estimation.
+      window_grid_values``: a crop of the same estimation grid, no extra samples), its
+      3-direction set (corners: ``aligned 4-dir (window)`` with its two directions);
+    * ``aligned (pixel)``: the renderer's per-pixel sampler (``render.pixel_aligned``): per
+      shift, the fixed prefix's samples, the pixel's own edge search, the prefix set for what it
+      found, the prefix reused in the estimate (``integrand_estimates``).
+    """
+    from anisosample.render import estimation
+    from anisosample.render import pixel_aligned as PA
+
+    todo = [n for n in ns if int(np.log2(n)) in BEYOND_LOG2_NS]
+    for q, r in enumerate(progress(rows, desc=f"{cname} beyond", leave=False)):
+        pix = (int(r["pixel"][0]), int(r["pixel"][1]))
+        true_dirs = r["true_directions_deg"]
+        grid = estimation.window_grid_values(full, pix, cfg["block_px"], cfg["samples"],
+                                             integrand=base)
+        wd = [float(d) for d in directions.estimate(grid, k=2)]
+        r["window_directions_deg"] = wd
+        f = W.pixel_f(base, full, pix)
+        errs, extra = [], []
+        for n in todo:
+            kq = jax.random.fold_in(jax.random.fold_in(key, 10_000 + q), n)
+            sets = {"aligned (window)": _lookup(wd[:1], n) if wd else None}
+            if cname == "corner":
+                sets["aligned 4-dir (window)"] = _lookup(wd[:2], n) if len(wd) == 2 else None
+            pmj = samplers.get("pmj02bn")(jax.random.fold_in(key, n), n)
+            for m, pts in sets.items():
+                v, se, _ = W.pixel_variance(f, pmj if pts is None else pts, n, kq,
+                                            cfg["realizations"])
+                c = r["methods"].setdefault(m, {"variance": [], "std_error": [], "ns": todo})
+                c["variance"].append(v)
+                c["std_error"].append(se)
+            e = PA.integrand_estimates(f, n, kq, cfg["realizations"], table=W.TABLES,
+                                       build_missing=True)
+            res = V.variance_from_estimates(e.estimates, n=n, randomization="shift")
+            c = r["methods"].setdefault("aligned (pixel)",
+                                        {"variance": [], "std_error": [], "ns": todo})
+            c["variance"].append(res.variance)
+            c["std_error"].append(res.std_error)
+            extra.append(float(np.mean(e.search_samples)))
+            if true_dirs:
+                found = e.directions_deg[:, 0]
+                ok = np.isfinite(found)
+                errs.extend(directions.axial_distance_deg(found[ok], true_dirs[0]).tolist()
+                            if cname != "corner" else
+                            np.minimum(directions.axial_distance_deg(found[ok], true_dirs[0]),
+                                       directions.axial_distance_deg(found[ok], true_dirs[-1]))
+                            .tolist())
+                errs.extend([90.0] * int((~ok).sum()))  # no edge found: counted as missed
+        for m in ("aligned (window)", "aligned 4-dir (window)", "aligned (pixel)"):
+            if m in r["methods"]:
+                c = r["methods"][m]
+                c["slope"] = V.fit_slope(todo, c["variance"], c["std_error"]).slope
+        r["pixel_search_samples"] = extra
+        if errs:
+            r["pixel_direction_error_deg"] = float(np.median(errs))
+
+
+def _slope3(c, ns):
+    idx = [i for i, n in enumerate(c.get("ns", ns)) if int(np.log2(n)) in BEYOND_LOG2_NS]
+    sub = [c.get("ns", ns)[i] for i in idx]
+    return V.fit_slope(sub, [c["variance"][i] for i in idx],
+                       [c["std_error"][i] for i in idx]).slope
+
+
+def summarize(rows, ns=None) -> dict:
     if not rows:
         return {}
     out = {}
     for m in rows[0]["methods"]:
+        if ns is not None:
+            s3 = np.array([_slope3(r["methods"][m], ns) for r in rows])
         slopes = np.array([r["methods"][m]["slope"] for r in rows])
         ratio = np.array([r["methods"][m]["variance"][-1] / r["methods"]["pmj02bn"]["variance"][-1]
                           for r in rows])
@@ -226,6 +303,8 @@ def summarize(rows) -> dict:
                   "slope_quartiles": [float(x) for x in np.percentile(slopes, [25, 75])],
                   "ratio_median": float(np.median(ratio)),
                   "ratio_quartiles": [float(x) for x in np.percentile(ratio, [25, 75])]}
+        if ns is not None:
+            out[m]["slope3_median"] = float(np.median(s3))
     gate = [r["gate_discontinuous"] for r in rows if "gate_discontinuous" in r]
     if gate:
         out["gate_discontinuous_share"] = float(np.mean(gate))
@@ -237,6 +316,18 @@ def summarize(rows) -> dict:
             "median": float(np.median(err)), "within_3_deg": float(np.mean(err <= 3.0)),
             "pixels_with_estimate": int(len(err)), "pixels": len(rows)}
         out["by_block_error"] = by_block_error(rows)
+    for key, name in (("window_directions_deg", "window_direction_error_deg"),):
+        e = [directions.axial_distance_deg(r[key][0], r["true_directions_deg"][0])
+             for r in rows if r.get(key) and r["true_directions_deg"]]
+        if e:
+            out[name] = {"median": float(np.median(e)), "pixels_with_estimate": len(e),
+                         "pixels": len(rows)}
+    pe = [r["pixel_direction_error_deg"] for r in rows if "pixel_direction_error_deg" in r]
+    if pe:
+        out["pixel_direction_error_deg"] = {"median": float(np.median(pe)), "pixels": len(pe)}
+    ss = [np.mean(r["pixel_search_samples"]) for r in rows if r.get("pixel_search_samples")]
+    if ss:
+        out["pixel_search_samples"] = float(np.mean(ss))
     return out
 
 
@@ -279,17 +370,23 @@ def run_scene(name, cfg, key, out, fresh):
         stale = [c for c in cached["classes"].values()
                  if c["pixels"] and "gate_discontinuous" not in c["pixels"][0]]
         absent = [c for c in CLASS_NAMES if c not in cached["classes"]]
-        if stale or absent:  # a record from before a column or class was added: add only those
+        beyond = [n for n, c in cached["classes"].items()
+                  if c["pixels"] and "aligned (pixel)" not in c["pixels"][0]["methods"]]
+        if stale or absent or beyond:  # a record from before a column or class was added
             full = W.load_scene(name, cfg["size"], cfg["size"])
             base = W.base_integrand(full, name)
             for c in stale:
                 add_gate(full, base, c["pixels"])
-                c["summary"] = summarize(c["pixels"])
             for cname in absent:
                 cached["classes"][cname] = measure_extra_class(name, cname, cfg, key, full, base)
+            for cname in beyond:
+                c = cached["classes"][cname]
+                add_beyond(full, base, cname, c["pixels"], c["ns"], cfg,
+                           jax.random.fold_in(key, CLASS_NAMES.index(cname)))
+                asp.io.save_json(path, cached, overwrite=True)  # resumable class by class
             asp.io.save_json(path, cached, overwrite=True)
         for c in cached["classes"].values():  # derived: follows this script's summary
-            c["summary"] = summarize(c["pixels"])
+            c["summary"] = summarize(c["pixels"], c["ns"])
         return cached
     started = time.time()
     rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).astype(np.uint32))
@@ -335,7 +432,8 @@ def figure(results, out):
             for m in c["pixels"][0]["methods"]:
                 v = np.median([r["methods"][m]["variance"] for r in c["pixels"]], axis=0)
                 sm = c["summary"][m]
-                plot.convergence_panel(ax, ns, v, label=m, slope=sm["slope_median"])
+                plot.convergence_panel(ax, c["pixels"][0]["methods"][m].get("ns", ns), v,
+                                       label=m, slope=sm["slope_median"])
             ax.legend(fontsize=5, loc="lower left")
             ax.set_title(f"{s}: {cname} ({len(c['pixels'])} px), median variance", fontsize=8)
     return plot.save_figure(fig, out / NAME, formats=("png",))
@@ -364,6 +462,12 @@ def main(argv=None):
                     print(f"    block direction error: median {sm['median']:.1f} deg, "
                           f"{100 * sm['within_3_deg']:.0f}% within 3 deg")
                     continue
+                if m in ("window_direction_error_deg", "pixel_direction_error_deg"):
+                    print(f"    {m.split('_')[0]} direction error: median {sm['median']:.2f} deg")
+                    continue
+                if m == "pixel_search_samples":
+                    print(f"    pixel search: {sm:.1f} samples per pixel beyond the prefix")
+                    continue
                 if m == "by_block_error":
                     for b in sm:
                         if b["pixels"]:
@@ -375,6 +479,7 @@ def main(argv=None):
                     continue
                 q = sm["slope_quartiles"]
                 print(f"    {m:22s} slope {sm['slope_median']:+.2f} [{q[0]:+.2f}, {q[1]:+.2f}]"
+                      f" (256/1k/4k: {sm.get('slope3_median', float('nan')):+.2f})"
                       f"  Var@{c['ns'][-1]} / pmj02bn {sm['ratio_median']:.2f}")
     return json.loads(json_path.read_text())
 

@@ -64,7 +64,7 @@ BLOCK_SAMPLERS = ("aligned", "sheared")
 PIXEL_CODES = {0: "base: the block has no set", 1: "base: gated (the pixel's probe is smooth)",
                2: "the block's set", 3: "prefix + the 3-direction set of the pixel's direction",
                4: "prefix + the 4-direction set of the pixel's two directions (a corner)",
-               5: "prefix + the fallback set (no edge found)"}
+               5: "pmj02bn, the prefix weighted in (no edge found)"}
 """The per-pixel record ``RenderResult.pixel_sampler``: 0-2 per-block samplers
 (``BlockSampler.pixel_sampler``), 3-5 the per-pixel aligned sampler
 (:mod:`anisosample.render.pixel_aligned`)."""

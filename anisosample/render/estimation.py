@@ -43,7 +43,7 @@ from .scene import Scene
 
 __all__ = [
     "BlockEstimate", "block_grid_values", "estimate_blocks", "estimation_grid", "gate_estimate",
-    "pixel_probes", "probe_discontinuous", "strongest_directions",
+    "pixel_probes", "probe_discontinuous", "strongest_directions", "window_grid_values",
 ]
 
 JUMP_RATIO = 3.0
@@ -190,13 +190,44 @@ def block_grid_values(
     w, h = scene.width, scene.height
     a = check_int("block[0] (row)", block[0], minimum=0, maximum=-(-h // block_px) - 1)
     b = check_int("block[1] (column)", block[1], minimum=0, maximum=-(-w // block_px) - 1)
+    return _tile_grid(scene, base, a * block_px, b * block_px, block_px, samples)
+
+
+def _tile_grid(scene, base, row0: int, col0: int, block_px: int, samples: int) -> np.ndarray:
+    """The ``(s, s)`` grid of the ``block_px^2`` pixels from ``(row0, col0)``, each filling a
+    tile of ``s / block_px`` cells (rows and columns clamped to the image: edge replication)."""
+    w, h = scene.width, scene.height
     ii, jj = np.meshgrid(np.arange(samples), np.arange(samples), indexing="ij")
     t = samples // block_px
-    row = np.minimum(a * block_px + ii // t, h - 1)
-    col = np.minimum(b * block_px + jj // t, w - 1)
+    row = np.clip(row0 + ii // t, 0, h - 1)
+    col = np.clip(col0 + jj // t, 0, w - 1)
     films = np.stack([(col + 0.5) / w, (row + 0.5) / h], -1).reshape(-1, 2).astype(np.float32)
     x = jnp.asarray(_cell_centres(samples))
     return np.asarray(_films_eval(base, jnp.asarray(films), x)).reshape(samples, samples)
+
+
+def window_grid_values(
+    scene: Scene,
+    pixel: tuple[int, int],
+    window_px: int = 16,
+    samples: int = 96,
+    *,
+    integrand=None,
+    dimension: str = "auto",
+    technique: str = "area",
+    square_aperture: bool = False,
+) -> np.ndarray:
+    """W's estimation grid (Sec. 5.3) on a *sliding* window: the ``window_px^2`` pixels centred
+    on ``pixel = (column, row)`` instead of the fixed block holding it, each pixel filling its
+    tile as in :func:`estimation_grid` (so the window is a crop of the whole image's grid:
+    no samples beyond W's per pixel). Feeding it to :func:`anisosample.directions.estimate`
+    gives the pixel a direction pooled only over its own neighbourhood."""
+    window_px, samples = _check_blocks(scene, window_px, samples)
+    base = _base_integrand(scene, integrand, dimension, technique, square_aperture)
+    col = check_int("pixel[0] (column)", pixel[0], minimum=0, maximum=scene.width - 1)
+    row = check_int("pixel[1] (row)", pixel[1], minimum=0, maximum=scene.height - 1)
+    half = window_px // 2
+    return _tile_grid(scene, base, row - half, col - half, window_px, samples)
 
 
 # --- the per-pixel gate ---------------------------------------------------------------------------

@@ -147,35 +147,41 @@ def render(
         square_aperture=bool(square_aperture),
         light_warp=light_warp,
     )
-    passes = 2 if per_pixel is not None else 1
     with bar(
-        total=realizations * n_chunks * passes,
+        total=realizations * (n_chunks + 2 if per_pixel is not None else n_chunks),
         desc="render",
         disable=None if progress else True,
         unit="chunk",
     ) as pb:
 
-        def over_pixels(kernel):
-            """``kernel(idx)`` over every pixel in chunks: its outputs, each ``(npix, ...)``."""
+        def over_pixels(kernel, pixels=None):
+            """``kernel(idx)`` over every pixel (or the flat indices ``pixels``) in chunks: its
+            outputs, each ``(npix, ...)`` (zero outside ``pixels``)."""
+            todo = np.arange(npix) if pixels is None else np.asarray(pixels, np.int64)
             outs = None
-            for c in range(n_chunks):
-                idx = np.arange(c * chunk * per_call, (c + 1) * chunk * per_call)
-                valid = idx < npix
-                idx = np.where(valid, idx, npix - 1).astype(np.int32)
+            steps = max(1, -(-todo.size // (chunk * per_call)))
+            for c in range(steps):
+                pos = np.arange(c * chunk * per_call, (c + 1) * chunk * per_call)
+                valid = pos < todo.size
+                idx = todo[np.where(valid, pos, max(todo.size - 1, 0))] if todo.size else pos
+                idx = idx.astype(np.int32)
                 res = kernel(jnp.asarray(idx.reshape(per_call, chunk)))
                 res = res if isinstance(res, tuple) else (res,)
                 if outs is None:
                     outs = [np.zeros((npix, *r.shape[2:]), r.dtype) for r in res]
                 for o, r in zip(outs, res, strict=True):
                     o[idx[valid]] = np.asarray(r).reshape(-1, *r.shape[2:])[valid]
+                if pixels is None:
+                    pb.update(1)
+            if pixels is not None:
                 pb.update(1)
             return outs
 
         for r in range(realizations):
             k_pts, k_pix = jax.random.split(jax.random.fold_in(key, r))
             if per_pixel is not None:
-                est, record = _render_per_pixel(per_pixel, scene, spp, k_pix, opts, over_pixels,
-                                                progress)
+                est, record = _render_per_pixel(per_pixel, scene, spp, k_pts, k_pix, opts,
+                                                over_pixels, progress)
                 if r == 0:
                     first = record
             else:
@@ -238,26 +244,43 @@ def render(
     )
 
 
-def _render_per_pixel(sampler, scene: Scene, spp: int, key, opts: dict, over_pixels,
+def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, over_pixels,
                       progress: bool):
     """One realization with the per-pixel aligned sampler (:mod:`anisosample.render.
     pixel_aligned`): pass 1 renders each pixel's prefix and estimates its directions, the sets
-    are chosen (and built where missing), pass 2 renders the rest. ``(estimate, record)``."""
+    are chosen (and built where missing), pass 2 renders the rest of each edge pixel's set and
+    pmj02bn on the others. ``(estimate, record)``."""
+    from .. import samplers
     from ..prefix import prefix_points
-    from .pixel_aligned import choose_sets, pixel_prefix, prefix_chunk, rest_chunk
+    from .pixel_aligned import (FALLBACK, choose_sets, fallback_chunk, pixel_prefix,
+                                prefix_chunk, prefix_weight, rest_chunk)
 
     prefix = jnp.asarray(prefix_points(pixel_prefix(spp)), jnp.float32)
     m = prefix.shape[0]
     head, dirs, count, extra = over_pixels(lambda idx: prefix_chunk(
         scene, prefix, key, idx, spp=spp, search=sampler.search, **opts))
     requests, index, code = choose_sets(dirs, count, sampler.k)
-    sets = sampler.sets(requests, spp, progress=progress)
-    if not bool(jnp.all(sets[:, :m] == prefix[None])):
-        raise ValueError("a prefix set does not start with its prefix (a damaged table)")
-    (rest,) = over_pixels(lambda idx: rest_chunk(scene, sets[:, m:], jnp.asarray(index), key,
-                                                 idx, spp=spp, **opts))
-    est = (head.astype(np.float64) + rest.astype(np.float64)) / spp
-    extra = extra.astype(np.int32)
+    edge = np.flatnonzero(index >= 0)
+    smooth = np.flatnonzero(index < 0)
+    est = np.zeros((index.size, 3), np.float64)
+    if edge.size:
+        sets = sampler.sets(requests, spp, progress=progress)
+        if not bool(jnp.all(sets[:, :m] == prefix[None])):
+            raise ValueError("a prefix set does not start with its prefix (a damaged table)")
+        (rest,) = over_pixels(lambda idx: rest_chunk(
+            scene, sets[:, m:], jnp.asarray(np.maximum(index, 0)), key, idx, spp=spp, **opts),
+            edge)
+        est[edge] = (head[edge].astype(np.float64) + rest[edge].astype(np.float64)) / spp
+    if smooth.size:
+        base = jnp.asarray(samplers.get(FALLBACK)(k_pts, spp), jnp.float32)
+        (fb,) = over_pixels(lambda idx: fallback_chunk(scene, base, key, idx, spp=spp, m=m,
+                                                       **opts), smooth)
+        w = prefix_weight(m, spp)
+        est[smooth] = (w * head[smooth].astype(np.float64) / m
+                       + (1 - w) * fb[smooth].astype(np.float64))
+    # beyond spp: the search's samples (and the prefix re-evaluated, or on smooth pixels taken
+    # beside pmj02bn's spp and weighted in)
+    extra = extra.astype(np.int32) + np.where(index < 0, m, 0).astype(np.int32)
     found = count > 0
     record = dict(code=code, directions=dirs.astype(np.float32), extra=extra, settings=dict(
         prefix=pixel_prefix(spp), prefix_points=m, reused_samples_per_pixel=m,
@@ -266,7 +289,7 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, key, opts: dict, over_pix
         else 0.0,
         pixels=int(code.size), pixels_with_3_direction_set=int((code == 3).sum()),
         pixels_with_4_direction_set=int((code == 4).sum()),
-        pixels_fallback=int((code == 5).sum()),
+        pixels_fallback=int((code == 5).sum()), fallback_prefix_weight=prefix_weight(m, spp),
         sets_3_directions_deg=sorted(e[0] for e in requests[1:] if len(e) == 1),
         sets_4_directions_deg=sorted(list(e) for e in requests[1:] if len(e) == 2)))
     return est, record

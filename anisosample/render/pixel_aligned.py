@@ -19,15 +19,20 @@ one point set of ``spp`` points with one toroidal shift ``s_q`` (the pixel's, W 
    (one direction: the 3-direction set, two, a corner: the 4-direction set;
    :func:`anisosample.tables.lookup` with ``prefix``, whose first ``m`` points are the prefix bit
    for bit whatever the directions); points ``m .. spp - 1`` of it, shifted by the same
-   ``s_q``, complete the estimate. A pixel without an edge (lit, occluded, smooth) completes
-   the 3-direction set of :data:`FALLBACK_DEG`, the direction farthest from both axes.
+   ``s_q``, complete the estimate, the mean over all ``spp`` points.
+3. **A pixel without an edge** (lit, occluded, smooth) takes pmj02bn (``spp`` points, its own
+   independent shift and stream counters ``m ..``): aligned sets are worse than pmj02bn on
+   smooth integrands (measured on W Fig. 9's lit pixels at 4096: the prefix completed by a
+   45-degree set 1.86x pmj02bn's variance), so the prefix enters with the fixed weight
+   :func:`prefix_weight` ``= m^2 / (m^2 + spp^2)``, the inverse-variance weight of two
+   stratified estimates converging as ``N^-2``.
 
-The estimate is the mean over all ``spp`` points: the search's samples are the only ones not
-in it (``RenderResult.pixel_estimation_samples``); the prefix's ``m`` are reused. Unbiasedness:
-with a uniform shift every point of every set is uniform, and the set's choice depends on the
-shift only through the rounding of a direction estimated to a fraction of a degree; the
-residual bias is tested against the closed form on a rounding boundary
-(``tests/render/test_pixel_aligned.py``). ``RenderResult.pixel_directions`` holds each pixel's
+The search's samples (and, on smooth pixels, pmj02bn's ``spp`` beside the prefix) are the
+cost beyond ``spp`` (``RenderResult.pixel_estimation_samples``); the prefix's ``m`` are reused.
+Unbiasedness: with a uniform shift every point of every set is uniform; the set's choice
+depends on the shift only through the rounding of a direction estimated to a fraction of a
+degree, and the fallback's shift is independent of the prefix's. The residual bias is tested
+against the closed form on a rounding boundary (``tests/render/test_pixel_aligned.py``). ``RenderResult.pixel_directions`` holds each pixel's
 directions (NaN where none), ``pixel_sampler`` its choice (:data:`PIXEL_CODES` 3-5).
 """
 
@@ -47,15 +52,23 @@ from .._validate import check_int
 from .integrator import sample_function, pixel_samples, pixel_shift_key
 from .scene import LUMINANCE, THINLENS, Scene
 
-__all__ = ["FALLBACK_DEG", "PIXEL_SAMPLERS", "PixelEstimates", "PixelSampler", "choose_sets",
+__all__ = ["FALLBACK", "PIXEL_SAMPLERS", "fallback_chunk", "fallback_shift_key", "prefix_weight", "PixelEstimates", "PixelSampler", "choose_sets",
            "exact_values", "integrand_estimates", "pixel_prefix", "pixel_sampler", "prefix_chunk",
            "prefix_sets", "rest_chunk", "toroidal_shift_key"]
 
 PIXEL_SAMPLERS = ("aligned-pixel",)
 """Sampler names :func:`anisosample.render.render` resolves with a :class:`PixelSampler`."""
 
-FALLBACK_DEG = 45
-"""The extra direction of the set a pixel without an edge completes: farthest from both axes."""
+FALLBACK = "pmj02bn"
+"""The sampler of a pixel without an edge (module docstring, step 3)."""
+
+
+def prefix_weight(m: int, n: int) -> float:
+    """The fixed weight of the ``m``-point prefix's mean beside an ``n``-point pmj02bn estimate
+    on a pixel without an edge: ``m^2 / (m^2 + n^2)``, inverse-variance weights for two
+    independent stratified estimates whose variance falls as ``N^-2`` (smooth integrands). A
+    constant weight keeps the combination unbiased."""
+    return m * m / (m * m + n * n)
 
 
 def pixel_prefix(spp: int) -> str:
@@ -89,7 +102,7 @@ class PixelSampler:
 
     def settings(self) -> dict:
         """What a render records about the sampler (EXR metadata); the render adds the counts."""
-        return dict(method="aligned-pixel", k=self.k, fallback_deg=FALLBACK_DEG,
+        return dict(method="aligned-pixel", k=self.k, fallback=FALLBACK,
                     search=self.search._asdict())
 
 
@@ -144,11 +157,23 @@ def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=
     head = f(x)
     r = jax.vmap(lambda xx, vv: edges.search(f, xx, vv, o))(x, head)
     requests, index, code = choose_sets(r.directions_deg, r.count, k)
-    sets = prefix_sets(requests, n, table=table, build_missing=build_missing,
-                       build_options=build_options, progress=False)
-    rest = jax.vmap(toroidal_shift)(keys, sets[jnp.asarray(index), m:])
-    est = (np.asarray(jnp.sum(head, axis=1), np.float64)
-           + np.asarray(jnp.sum(f(rest), axis=1), np.float64)) / n
+    head = np.asarray(jnp.sum(head, axis=1), np.float64)
+    est = np.empty(realizations, np.float64)
+    edge = index >= 0
+    if edge.any():
+        sets = prefix_sets(requests, n, table=table, build_missing=build_missing,
+                           build_options=build_options, progress=False)
+        rest = jax.vmap(toroidal_shift)(keys[edge], sets[jnp.asarray(index[edge]), m:])
+        est[edge] = (head[edge] + np.asarray(jnp.sum(f(rest), axis=1), np.float64)) / n
+    if (~edge).any():
+        from ..samplers import get
+
+        base = jnp.asarray(get(FALLBACK)(jax.random.fold_in(key, 1), n), jnp.float32)
+        own = jax.vmap(lambda kk: jax.random.fold_in(kk, 1))(keys[~edge])
+        pts = jax.vmap(toroidal_shift, in_axes=(0, None))(own, base)
+        w = prefix_weight(m, n)
+        est[~edge] = (w * head[~edge] / m
+                      + (1 - w) * np.asarray(jnp.mean(f(pts), axis=1), np.float64))
     return PixelEstimates(est, np.asarray(r.directions_deg), np.asarray(r.samples), code)
 
 
@@ -242,16 +267,42 @@ def rest_chunk(scene: Scene, rests, pixel_set, key, pixels, *, spp, dimension, t
     return jax.lax.map(jax.vmap(one), pixels)
 
 
+def fallback_shift_key(key, q):
+    """The key of pixel ``q``'s shift of the fallback set: independent of its prefix's."""
+    return jax.random.fold_in(pixel_shift_key(key, q), 1)
+
+
+@functools.partial(jax.jit, static_argnames=(*_STATIC[:-1], "m"))
+def fallback_chunk(scene: Scene, base, key, pixels, *, spp, m, dimension, technique, mis,
+                   pixel_center, square_aperture, light_warp):
+    """Pass 2 for pixels without an edge: the mean ``(..., 3)`` over the ``spp`` points of
+    ``base`` (pmj02bn) under the pixel's own fallback shift, on stream counters
+    ``m .. m + spp - 1`` (after the prefix's)."""
+    from ..samplers import toroidal_shift
+
+    g = sample_function(scene, dimension, technique, mis, square_aperture, light_warp)
+
+    def one(q):
+        x = toroidal_shift(fallback_shift_key(key, q), base)
+        rgb = pixel_samples(scene, g, x, key, q, spp + m, m, mis=mis, pixel_center=pixel_center,
+                            dimension=dimension)
+        return jnp.mean(rgb, axis=0)
+
+    if pixels.ndim == 1:
+        return jax.vmap(one)(pixels)
+    return jax.lax.map(jax.vmap(one), pixels)
+
+
 def choose_sets(directions_deg, count, k: int) -> tuple[list, np.ndarray, np.ndarray]:
     """Per pixel, W Sec. 5.4's table request from its directions: ``(requests, index, code)``
-    with ``requests[0]`` the fallback ``(FALLBACK_DEG,)``, ``index`` each pixel's request and
-    ``code`` its :data:`~anisosample.render.aligned.PIXEL_CODES` (3: a 3-direction set,
-    4: a 4-direction set, 5: the fallback)."""
+    with ``index`` each pixel's request (-1: none) and ``code`` its
+    :data:`~anisosample.render.aligned.PIXEL_CODES` (3: a 3-direction set, 4: a 4-direction
+    set, 5: no direction off the axes, the fallback)."""
     dirs = np.asarray(directions_deg, np.float64).reshape(-1, 2)
     count = np.asarray(count).reshape(-1)
-    requests = [(FALLBACK_DEG,)]
-    where = {requests[0]: 0}
-    index = np.zeros(dirs.shape[0], np.int32)
+    requests = []
+    where = {}
+    index = np.full(dirs.shape[0], -1, np.int32)
     code = np.full(dirs.shape[0], 5, np.int8)
     for q in np.flatnonzero(count > 0):
         extra = selection.table_directions(tuple(dirs[q, :count[q]]), k)
