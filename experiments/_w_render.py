@@ -47,6 +47,7 @@ SCENES = {
     "blinds": dict(xml="blinds.xml", square_aperture=False),
     "attic": dict(xml="attic.xml", square_aperture=False),
     "dof": dict(xml="dof.xml", square_aperture=True),  # W: a square aperture
+    "pillars": dict(xml="pillars.xml", square_aperture=False),  # directions turn in a block
 }
 METHODS = ("pmj02bn", "sheared pmj02bn", "aligned 3-dir")
 TABLES = ROOT / "results" / "w_render_tables"  # on-demand aligned sets, shared by Figs. 8-10

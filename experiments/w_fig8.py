@@ -12,6 +12,10 @@ realization (W Sec. 5.4; the variance engine's ``"shift"`` randomization):
   shows no jump -- fully lit, fully occluded -- keep pmj02bn; ``_w_render.pixel_gate``, the
   renderer's default for ``sampler="aligned"``). A gated pixel's estimator *is* the pmj02bn
   pixel's (same set, same per-pixel shift), so its variance is taken from that column.
+* ``aligned (pixel)`` (beyond W: the renderer's ``sampler="aligned-pixel"``,
+  ``render.pixel_aligned.integrand_estimates``): per realization the pixel's own edge search on
+  its fixed prefix, its own prefix set (pmj02bn without an edge), the prefix reused; the
+  search's samples beyond ``spp`` are recorded (``pixel_search_samples``).
 
 Blocks without an extra direction use pmj02bn for every method. W's 4-direction sets are not
 measured here (no 4141-set table ships; the renderer builds them on demand, one n = 256 set in
@@ -48,7 +52,8 @@ from anisosample.progress import progress
 
 NAME = "w_fig8"
 GATED = "aligned 3-dir gated"
-METHODS = (*W.METHODS, GATED)
+PIXEL = "aligned (pixel)"
+METHODS = (*W.METHODS, GATED, PIXEL)
 SCALES = {
     "small": dict(size=32, block_px=8, spp=256, realizations=16),
     "paper": dict(size=128, block_px=16, spp=4096, realizations=32),
@@ -61,7 +66,7 @@ def _slug(m: str) -> str:
 
 def run_scene(name, cfg, key, out, fresh):
     settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist()),
-                "estimation_layout": "tiles", "gate_probe": 6}
+                "estimation_layout": "tiles", "gate_probe": 6, "methods": list(METHODS)}
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
     exrs = [out / f"{name}_{_slug(m)}_variance.exr" for m in METHODS]
@@ -73,7 +78,10 @@ def run_scene(name, cfg, key, out, fresh):
     est, _, _ = W.estimate_blocks(scene, base, bp)
     disc, gate_seconds = W.pixel_gate(scene, base, settings["gate_probe"])
     nb = size // bp
-    var = {m: np.zeros((size, size)) for m in W.METHODS}
+    from anisosample.render import pixel_aligned as PA
+
+    var = {m: np.zeros((size, size)) for m in (*W.METHODS, PIXEL)}
+    search = np.zeros((size, size))
     k_sets, k_pix = jax.random.split(key)
     block_dirs = {}
     for a, b in progress([(a, b) for a in range(nb) for b in range(nb)], desc=f"{name} blocks",
@@ -93,6 +101,9 @@ def run_scene(name, cfg, key, out, fresh):
                 if d is None:  # no extra direction: every method falls back to pmj02bn
                     for m in W.METHODS[1:]:
                         var[m][row, col] = var["pmj02bn"][row, col]
+                e = PA.integrand_estimates(f, n, kq, R, table=W.TABLES, build_missing=True)
+                var[PIXEL][row, col] = float(np.var(e.estimates, ddof=1))
+                search[row, col] = float(np.mean(e.search_samples))
     has_set = np.kron(np.asarray([[block_dirs[f"{a},{b}"] is not None for b in range(nb)]
                                   for a in range(nb)]), np.ones((bp, bp), bool))
     keep = has_set & disc  # gated: only these pixels keep the block's aligned set
@@ -110,6 +121,7 @@ def run_scene(name, cfg, key, out, fresh):
         "pixels_in_blocks_with_direction": int(has_set.sum()),
         "pixels_gated": int((has_set & ~disc).sum()),
         "gate_seconds": gate_seconds,
+        "pixel_search_samples_mean": float(search.mean()),
         "block_mean_variance": per_block,
         "block_direction_deg": block_dirs,
         "blocks_with_direction": int(sum(d is not None for d in block_dirs.values())),
