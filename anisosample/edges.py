@@ -103,11 +103,10 @@ class EdgeSearch(NamedTuple):
     count: Int[Array, ""]
     samples: Int[Array, ""]
     points: Float[Array, "P 2"]
-    line: Int[Array, "P"]
+    line: Int[Array, " P"]
 
 
-def neighbour_pairs(points, neighbours: int = 4) -> tuple[Int[Array, "q"], Int[Array, "q"],
-                                                          Array]:
+def neighbour_pairs(points, neighbours: int = 4) -> tuple[Array, Array, Array]:
     """Each point's ``neighbours`` nearest (Euclidean, not toroidal: a segment between them
     must not wrap around the integrand's domain): ``(i, j, keep)`` over ``m * neighbours``
     directed pairs, ``keep`` false on the second copy of a pair both ends list."""
@@ -222,7 +221,7 @@ def search(f, points, values, o: SearchOptions) -> EdgeSearch:
         def across(c, e):
             lo, hi = _extent(c, e)
             t = lo + (hi - lo) * (0.05 + 0.9 * (jnp.arange(o.walk, dtype=jnp.float32) + 0.5) / o.walk)
-            q = c[None, :] + t[:, None] * e[None, :]
+            q = c[None, :] + t[:, None] * e[None, :]  # walk positions on the line
             nrm = jnp.stack([-e[1], e[0]])
             nrm = WIDTH * nrm[None, :]
             return jnp.clip(q - nrm, 0.0, 1.0), jnp.clip(q + nrm, 0.0, 1.0)

@@ -13,6 +13,11 @@ machine, per scene, with bench-like timing (warm-up, best of ``repeats``):
 ``shift = t_est / t_spp`` samples per pixel, timed on a ``timing_size``^2 image (both costs
 are per pixel, so the image size only sets how long the timing takes); ``gate_shift_spp`` is
 the per-pixel gate's probe (beyond W, an upper bound: every pixel probed) in the same units.
+Beyond W, ``aligned (pixel)`` (the renderer's ``sampler="aligned-pixel"``) is shifted by its own
+measured cost: ``(t_pixel - t_pmj) / t_spp`` per pixel, the two renders' times at
+``pixel_spp`` on the same image (the search's samples and compute, the lit pixels' prefix beside
+pmj02bn, the set lookups); ``aligned (window)`` by the block shift (the same estimation samples;
+its per-pixel vMF fits are not timed, so its shift is a lower bound).
 The curves are W Fig. 9's on its one-edge penumbra pixels (``w_fig9``, reused or computed
 first at the same scale): the median over those pixels of each method's per-pixel variance;
 the aligned curves are drawn at ``N + shift``, the unaligned ones at ``N``. The JSON also
@@ -38,8 +43,8 @@ import anisosample as asp
 from anisosample import plot, render
 
 NAME = "w_fig10"
-SCALES = {"small": dict(repeats=3, spp=64, timing_size=128),
-          "paper": dict(repeats=5, spp=256, timing_size=256)}
+SCALES = {"small": dict(repeats=3, spp=64, timing_size=128, pixel_spp=256),
+          "paper": dict(repeats=5, spp=256, timing_size=256, pixel_spp=256)}
 CLASS = "one-edge"  # W Fig. 9's penumbra pixels: where the claim lives
 ALIGNED = "aligned (block)"  # what the renderer's aligned sampler uses (W Sec. 5.4)
 
@@ -62,17 +67,38 @@ def measure(name, cfg9, cfg, key):
         times.append(time.perf_counter() - t0)
     px = scene.width * scene.height
     t_spp = min(times) / (px * cfg["spp"])
+    # The per-pixel sampler against pmj02bn at pixel_spp, both timed alike.
+    t_pair = {}
+    for sampler in ("pmj02bn", "aligned-pixel"):
+        o = dict(opts, spp=cfg["pixel_spp"], sampler=sampler)
+        if sampler == "aligned-pixel":
+            o["sampler_options"] = {"table": W.TABLES, "build_missing": True}
+        render.render(scene, key, **o)  # warm-up (compilation, set builds)
+        ts = []
+        for r in range(cfg["repeats"]):
+            t0 = time.perf_counter()
+            render.render(scene, jax.random.fold_in(key, r), **o)
+            ts.append(time.perf_counter() - t0)
+        t_pair[sampler] = min(ts)
+    t_spp_p = t_pair["pmj02bn"] / (px * cfg["pixel_spp"])
+    pixel_shift = (t_pair["aligned-pixel"] - t_pair["pmj02bn"]) / px / t_spp_p
     return {"t_est_s": t_est, "t_est_per_pixel_s": t_est / px, "t_render_s": min(times),
+            "t_pixel_render_s": t_pair["aligned-pixel"], "t_pmj_render_s": t_pair["pmj02bn"],
+            "pixel_shift_spp": pixel_shift,
             "t_per_sample_s": t_spp, "shift_spp": t_est / px / t_spp,
             "t_gate_s": t_gate, "gate_shift_spp": t_gate / px / t_spp,
             "integrand_samples_per_pixel_for_estimation": 96**2 / bp**2}
 
 
-def median_curves(c) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """``(ns, {method: median over the class's pixels of the per-pixel variance})``."""
+def median_curves(c) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """``(ns, {method: median over the class's pixels of the per-pixel variance}, {method: its
+    ns})`` (the beyond-W columns are measured on a subset of the sizes)."""
     methods = c["pixels"][0]["methods"]
+    own = {m: np.asarray(c["pixels"][0]["methods"][m].get("ns", c["ns"]), float)
+           for m in methods}
     return np.asarray(c["ns"], float), {
-        m: np.median([r["methods"][m]["variance"] for r in c["pixels"]], axis=0) for m in methods}
+        m: np.median([r["methods"][m]["variance"] for r in c["pixels"]], axis=0)
+        for m in methods}, own
 
 
 def interp_loglog(ns, var, x):
@@ -95,6 +121,8 @@ def main(argv=None):
     cached = common.cached_json(args.out / "timings.json", args.fresh)
     curves9 = {s: median_curves(r["classes"][CLASS]) for s, r in fig9["scenes"].items()
                if r["classes"].get(CLASS, {}).get("pixels")}
+    ns_of = {s: c[2] for s, c in curves9.items()}
+    curves9 = {s: c[:2] for s, c in curves9.items()}
     scenes = list(curves9)
     if cached is not None and cached.get("settings") == settings:
         timings = cached["timings"]
@@ -111,15 +139,20 @@ def main(argv=None):
         shift = t["shift_spp"]
         ax = axes[0, col]
         cmp = {}
+        shifts = {m: (t["pixel_shift_spp"] if m == "aligned (pixel)" else shift)
+                  for m in curves if m.startswith("aligned")}
         for m, v in curves.items():
-            aligned = m.startswith("aligned")
-            x = ns + shift if aligned else ns
-            plot.convergence_panel(ax, x, v, label=m + (" (+est.)" if aligned else ""))
+            x = ns_of[s][m] + shifts.get(m, 0.0)
+            plot.convergence_panel(ax, x, v, label=m + (" (+est.)" if m in shifts else ""))
         for m, v in curves.items():
-            if not m.startswith("aligned"):
-                at = interp_loglog(ns, v, ns[0] + shift)
-                cmp[m] = {"variance_at_N0_plus_shift": at,
-                          "aligned_over_this": curves[ALIGNED][0] / at}
+            if m not in shifts:
+                cmp[m] = {"variance_at_N0_plus_shift": interp_loglog(ns, v, ns[0] + shift),
+                          "aligned_over_this": curves[ALIGNED][0]
+                          / interp_loglog(ns, v, ns[0] + shift)}
+                cmp[m]["by_method"] = {
+                    a: {"shift_spp": sh, "aligned_over_this":
+                        curves[a][0] / interp_loglog(ns, v, ns_of[s][a][0] + sh)}
+                    for a, sh in shifts.items()}
         rows[s] = {"ns": ns.tolist(), "pixels": len(fig9["scenes"][s]["classes"][CLASS]["pixels"]),
                    "shift_spp": shift, "aligned_ns_shifted": (ns + shift).tolist(),
                    "curves": {m: v.tolist() for m, v in curves.items()},
@@ -137,6 +170,8 @@ def main(argv=None):
         for m, c in r["at_smallest_n"].items():
             print(f"    aligned@{r['ns'][0]} / {m}@{r['ns'][0]}+shift = "
                   f"{c['aligned_over_this']:.3f}")
+            for a, b in c["by_method"].items():
+                print(f"      {a:18s} +{b['shift_spp']:.1f} spp: {b['aligned_over_this']:.3f}")
     return json.loads(json_path.read_text())
 
 

@@ -108,8 +108,8 @@ def test_neighbour_pairs_match_brute_force():
     d = np.linalg.norm(p[:, None] - p[None], axis=-1)
     np.fill_diagonal(d, np.inf)
     want = {(a, b) for a in range(len(p)) for b in np.argsort(d[a])[:4]}
-    assert {(int(a), int(b)) for a, b in zip(i, j)} == want
-    kept = {tuple(sorted((int(a), int(b)))) for a, b, k in zip(i, j, keep) if k}
+    assert {(int(a), int(b)) for a, b in zip(i, j, strict=True)} == want
+    kept = {tuple(sorted((int(a), int(b)))) for a, b, k in zip(i, j, keep, strict=True) if k}
     assert kept == {tuple(sorted(e)) for e in want}  # every undirected pair once
     assert keep.sum() == len(kept)
 

@@ -195,11 +195,11 @@ def render(
                     raise ValueError(f"sampler {sampler_name!r} returned shape {pts.shape}, "
                                      f"expected ({spp}, 2)")
                 if blocks is None:
-                    (est,) = over_pixels(lambda idx: render_chunk(scene, pts, k_pix, idx,
-                                                                  **opts))
+                    (est,) = over_pixels(lambda idx, pts=pts, k=k_pix: render_chunk(
+                        scene, pts, k, idx, **opts))
                 else:
-                    (est,) = over_pixels(lambda idx: render_chunk_sets(
-                        scene, sets, pixel_set, k_pix, idx, **opts))
+                    (est,) = over_pixels(lambda idx, sets=sets, ps=pixel_set, k=k_pix:
+                                         render_chunk_sets(scene, sets, ps, k, idx, **opts))
                 est = est.astype(np.float64)
             if not np.all(np.isfinite(est)):
                 raise FloatingPointError("the render produced NaN or Inf (a bug: please report)")
@@ -252,8 +252,15 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
     pmj02bn on the others. ``(estimate, record)``."""
     from .. import samplers
     from ..prefix import prefix_points
-    from .pixel_aligned import (FALLBACK, choose_sets, fallback_chunk, pixel_prefix,
-                                prefix_chunk, prefix_weight, rest_chunk)
+    from .pixel_aligned import (
+        FALLBACK,
+        choose_sets,
+        fallback_chunk,
+        pixel_prefix,
+        prefix_chunk,
+        prefix_weight,
+        rest_chunk,
+    )
 
     prefix = jnp.asarray(prefix_points(pixel_prefix(spp)), jnp.float32)
     m = prefix.shape[0]

@@ -27,13 +27,15 @@ one point set of ``spp`` points with one toroidal shift ``s_q`` (the pixel's, W 
    :func:`prefix_weight` ``= m^2 / (m^2 + spp^2)``, the inverse-variance weight of two
    stratified estimates converging as ``N^-2``.
 
-The search's samples (and, on smooth pixels, pmj02bn's ``spp`` beside the prefix) are the
-cost beyond ``spp`` (``RenderResult.pixel_estimation_samples``); the prefix's ``m`` are reused.
+The search's samples (and, on smooth pixels, the prefix beside pmj02bn's ``spp``) are the cost
+beyond ``spp`` (``RenderResult.pixel_estimation_samples``); an edge pixel reuses the prefix's
+``m`` samples whole.
 Unbiasedness: with a uniform shift every point of every set is uniform; the set's choice
 depends on the shift only through the rounding of a direction estimated to a fraction of a
 degree, and the fallback's shift is independent of the prefix's. The residual bias is tested
-against the closed form on a rounding boundary (``tests/render/test_pixel_aligned.py``). ``RenderResult.pixel_directions`` holds each pixel's
-directions (NaN where none), ``pixel_sampler`` its choice (:data:`PIXEL_CODES` 3-5).
+against the closed form on a rounding boundary (``tests/render/test_pixel_aligned.py``).
+``RenderResult.pixel_directions`` holds each pixel's directions (NaN where none),
+``pixel_sampler`` its choice (:data:`PIXEL_CODES` 3-5).
 """
 
 from __future__ import annotations
@@ -49,12 +51,13 @@ import numpy as np
 from .. import edges, selection
 from .. import tables as _tables
 from .._validate import check_int
-from .integrator import sample_function, pixel_samples, pixel_shift_key
+from .integrator import pixel_samples, pixel_shift_key, sample_function
 from .scene import LUMINANCE, THINLENS, Scene
 
-__all__ = ["FALLBACK", "PIXEL_SAMPLERS", "fallback_chunk", "fallback_shift_key", "prefix_weight", "PixelEstimates", "PixelSampler", "choose_sets",
-           "exact_values", "integrand_estimates", "pixel_prefix", "pixel_sampler", "prefix_chunk",
-           "prefix_sets", "rest_chunk", "toroidal_shift_key"]
+__all__ = ["FALLBACK", "PIXEL_SAMPLERS", "PixelEstimates", "PixelSampler", "choose_sets",
+           "exact_values", "fallback_chunk", "fallback_shift_key", "integrand_estimates",
+           "pixel_prefix", "pixel_sampler", "prefix_chunk", "prefix_sets", "prefix_weight",
+           "rest_chunk", "toroidal_shift_key"]
 
 PIXEL_SAMPLERS = ("aligned-pixel",)
 """Sampler names :func:`anisosample.render.render` resolves with a :class:`PixelSampler`."""
