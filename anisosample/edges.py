@@ -220,7 +220,8 @@ def search(f, points, values, o: SearchOptions) -> EdgeSearch:
     if o.walk:
         def across(c, e):
             lo, hi = _extent(c, e)
-            t = lo + (hi - lo) * (0.05 + 0.9 * (jnp.arange(o.walk, dtype=jnp.float32) + 0.5) / o.walk)
+            frac = (jnp.arange(o.walk, dtype=jnp.float32) + 0.5) / o.walk
+            t = lo + (hi - lo) * (0.05 + 0.9 * frac)
             q = c[None, :] + t[:, None] * e[None, :]  # walk positions on the line
             nrm = jnp.stack([-e[1], e[0]])
             nrm = WIDTH * nrm[None, :]
