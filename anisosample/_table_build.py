@@ -495,7 +495,7 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
 
 def build_set(n: int, kind: int, extra, *, out, show_progress: bool = True,
               **build_options) -> dict:
-    """Build one missing canonical set on demand (what :func:`anisosample.tables.lookup` does).
+    """Build one missing canonical set on demand (what :func:`anisosample.tables.ensure` does).
 
     An existing table at ``out`` is finished with its own settings (seed, batch, synthesis
     options, warm start); given ``build_options`` must then match them (else ``ValueError``).

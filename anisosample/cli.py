@@ -555,10 +555,12 @@ def _run_tables_export(args):
         if not extras or any(len(e) != args.directions - 2 for e in extras):
             raise ValueError(f"--sets must give {args.directions - 2} extra direction(s) per "
                              f"set for a {args.directions}-direction table, got {args.sets!r}")
-        sets = [tables.lookup([*tables.AXES_DEG, *e], args.n, kind=args.directions,
-                              table=args.table, build_missing=False if args.no_build else (
-                                  True if args.table is not None else None))
-                for e in extras]
+        requests = [[*tables.AXES_DEG, *e] for e in extras]
+        tables.ensure(requests, args.n, kind=args.directions, table=args.table,
+                      build_missing=False if args.no_build else (
+                          True if args.table is not None else None))
+        sets = [tables.lookup(r, args.n, kind=args.directions, table=args.table)
+                for r in requests]
         dirs = [[*tables.AXES_DEG, *e] for e in extras]
         where = args.table or "the table search path"
     else:

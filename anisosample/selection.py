@@ -16,10 +16,11 @@ sampler (:mod:`anisosample.render.aligned`).
   (1 or 2) remain.
 * **The set** (:func:`aligned_set`): one remaining direction takes the 3-direction set, two the
   4-direction set (W's four low-energy directions) -- never the 3-direction set in place of a
-  missing 4-direction one. Sets come from :func:`anisosample.tables.lookup`, with its one rule
-  for missing sets: built on demand into the user cache, with progress (``build_missing=None``,
-  the default; ``True`` also builds into an explicit ``table``); ``build_missing=False``
-  refuses with ``FileNotFoundError`` naming the build command. Any ``n >= 2``.
+  missing 4-direction one. Sets come from :func:`anisosample.tables.lookup` after
+  :func:`anisosample.tables.ensure`, the one rule for missing sets: built on demand into the
+  user cache, with progress (``build_missing=None``, the default; ``True`` also builds into an
+  explicit ``table``); ``build_missing=False`` refuses with ``FileNotFoundError`` naming the
+  build command. Any ``n >= 2``.
   No remaining direction: the fallback sampler (pmj02bn).
 """
 
@@ -70,16 +71,19 @@ def aligned_set(extra_deg, n: int, key=None, *, table=None, build_missing: bool 
     toroidally shifted by ``key`` when given (Cranley & Patterson 1976, W Sec. 5.4).
 
     ``table``, ``build_missing`` and ``build_options`` (``show_progress``, ``seed``, synthesis
-    options) go to :func:`anisosample.tables.lookup`: a missing set is built on demand unless
-    ``build_missing=False``.
+    options; ``prefix``, ``sequence_from``) go to :func:`anisosample.tables.ensure`, which builds
+    a missing set unless ``build_missing=False``, then to the pure
+    :func:`anisosample.tables.lookup`.
     """
     extra = tuple(int(a) for a in np.asarray(extra_deg, np.int64).reshape(-1))
     if not 1 <= len(extra) <= 2 or any(a in _tables.AXES_DEG for a in extra):
         raise ValueError(f"extra_deg must hold one or two integer directions other than the "
                          f"axes (from table_directions), got {list(extra)}")
     n = check_int("n", n, minimum=2)
-    pts = _tables.lookup(extra, n, kind=len(extra) + 2, table=table,
-                         build_missing=build_missing, **build_options)
+    where = dict(kind=len(extra) + 2, table=table, prefix=build_options.pop("prefix", None),
+                 sequence_from=build_options.pop("sequence_from", 0))
+    _tables.ensure([extra], n, build_missing=build_missing, **where, **build_options)
+    pts = _tables.lookup(extra, n, **where)
     pts = jnp.asarray(pts, jnp.float32)
     return pts if key is None else _samplers.toroidal_shift(key, pts)
 

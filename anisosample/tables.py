@@ -42,9 +42,10 @@ projects 5.1 min for the 46 sets on this project's 2-core machine); ``n = 256``
 keeps the aligned-only weights (``offsets_deg=()``): at 256 points the robust weights measured
 worse in the renderer (aligned / pmj02bn variance on the edge pixels of a Cornell crop 1.23
 instead of 0.87) and shallower along the requested lines (0.117 of white instead of 0.066), while
-the offset lines lie inside the band there anyway. Every other set is built on demand: ``lookup``
+the offset lines lie inside the band there anyway. Every other set is built on demand: ``ensure``
 synthesizes a set no table holds into the user cache (one set, with progress; ``build_missing=
-False`` refuses instead), and ``anisosample tables build`` builds whole tables. A 4-direction set
+False`` refuses instead) before the pure ``lookup`` reads it, and ``anisosample tables build``
+builds whole tables. A 4-direction set
 ``(a, b)`` for an ``n`` with a complete 3-direction table starts from that table's set for ``a``
 (already dark along 0, 90 and ``a``) and runs 150 steps at learning rate 0.2 instead of 200 at
 0.5. Measured (``experiments/bench_tables.py --compare-warm``; directions 0/90/16/146 and
@@ -116,6 +117,7 @@ __all__ = [
     "Table",
     "open_table",
     "lookup",
+    "ensure",
     "build",
     "build_command",
     "installed_sizes",
@@ -125,10 +127,9 @@ __all__ = [
 
 
 def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
-           build_missing: bool | None = None, show_progress: bool = True,
-           prefix: str | None = None, sequence_from: int = 0,
-           **build_options) -> jax.Array:
-    """The aligned set of ``n`` points for integer ``directions_deg`` (W Sec. 5.4).
+           prefix: str | None = None, sequence_from: int = 0, **unexpected) -> jax.Array:
+    """The aligned set of ``n`` points for integer ``directions_deg`` (W Sec. 5.4): a pure
+    lookup, it never builds (:func:`ensure` builds what is missing, with progress, before).
 
     Reduces the request by symmetry (:func:`canonicalize`), loads the canonical set from the
     table for ``n`` (``table``: a table directory, or a folder of tables; default: the search path
@@ -147,35 +148,73 @@ def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
     ``d{kind}_n{n}_seq{sequence_from}``; the symmetry keeps the order of the points, so every
     nested prefix of the served sequence is aligned for the requested directions.
 
-    Every set on demand: a set no table on the search path holds is synthesized at once (one
-    set, with a progress bar) into the user cache's table for ``(kind, n)``
-    (:func:`cache_dir`), and found there from then on; a table there that lacks the set is
-    finished with its own settings. A new 4-direction table is warm-started from the complete
-    3-direction table for ``n`` where one exists (:func:`anisosample._table_build.build_set`).
-    ``build_options`` (``seed``, synthesis options) go to :func:`build`.
+    A set no table holds raises ``FileNotFoundError`` naming :func:`ensure` and the command that
+    builds it (:func:`build_command`). Damaged or incompatible tables raise ``ValueError``.
+    """
+    if unexpected:
+        raise TypeError(f"tables.lookup is a pure lookup and takes no {sorted(unexpected)}; "
+                        "build missing sets first with tables.ensure(requests, n, ...) (its "
+                        "build_missing, show_progress and synthesis options)")
+    canon = canonicalize(directions_deg, kind=kind)
+    n = check_int("n", n, minimum=2)
+    prefix = check_table_prefix(prefix)
+    sequence_from = check_int("sequence_from", sequence_from, minimum=0)
+    path = find_table(canon.kind, n, root=table, prefix=prefix, sequence_from=sequence_from)
+    if path is None or not (path / f"{canon.name}.npz").exists():
+        where = table if table is not None else os.pathsep.join(map(str, table_dirs()))
+        into = None if table is None else (
+            path if path is not None
+            else Path(table) / table_name(canon.kind, n, prefix, sequence_from))
+        command = build_command(canon.kind, n, [canon.extra], out=into, prefix=prefix,
+                                sequence_from=sequence_from)
+        raise FileNotFoundError(
+            f"no {canon.kind}-direction table for n={n} with set {canon.name} in {where}; "
+            f"build it with tables.ensure([{list(canon.extra)}], {n}"
+            + (f", table={str(table)!r}, build_missing=True" if table is not None else "")
+            + f") or `{command}`")
+    set_file = Path(path) / f"{canon.name}.npz"
+    st = set_file.stat()
+    pts, held = _load_verified(str(path), n, canon.kind, canon.extra, st.st_mtime_ns,
+                               st.st_size, (Path(path) / "table.json").stat().st_mtime_ns)
+    if held != (prefix, sequence_from):
+        raise ValueError(f"table {path} holds sets with (prefix, sequence_from) {held}, not "
+                         f"the requested {(prefix, sequence_from)}")
+    return jnp.asarray(restore_prefix(transform_points(pts, canon.transform), prefix,
+                                      canon.transform))
+
+
+def ensure(requests, n: int, *, kind: int | None = None, table=None,
+           build_missing: bool | None = None, show_progress: bool = True,
+           prefix: str | None = None, sequence_from: int = 0, **build_options) -> list:
+    """Make the sets for ``requests`` (each a ``directions_deg`` of :func:`lookup`) available
+    for ``n`` points, building the missing ones now: the one rule for missing sets, used by
+    every caller (``samplers.get("aligned", ...)``, :mod:`anisosample.selection`,
+    ``render(sampler="aligned" | "aligned-pixel")`` and the CLI, whose ``--no-build`` is
+    ``build_missing=False``). Returns the canonical names it built.
+
+    A set no table on the search path holds is synthesized (one set at a time, with a progress
+    bar unless ``show_progress=False``) into the user cache's table for ``(kind, n)``
+    (:func:`cache_dir`), or into the table on the search path that lacks it (finished with its
+    own settings). A new 4-direction table is warm-started from the complete 3-direction table
+    for ``n`` where one exists (:func:`anisosample._table_build.build_set`). ``build_options``
+    (``seed``, synthesis options) go to :func:`build`.
 
     ``build_missing``: ``None`` (default) builds into the cache as above, but never into an
-    explicit ``table=`` (a missing set there raises ``FileNotFoundError``); ``True`` also
-    builds into ``table``; ``False`` refuses: ``FileNotFoundError`` with the command that
-    builds the set (:func:`build_command`). Any ``n >= 2`` builds (a table size or not; the
-    installed sizes: :func:`installed_sizes`). ``show_progress``: the build's progress bar.
-    The same rule holds everywhere sets are looked up (``samplers.get("aligned", ...)``,
-    :mod:`anisosample.selection`, ``render(sampler="aligned")``, and the CLI, whose
-    ``--no-build`` is ``build_missing=False``). Damaged or incompatible tables raise
-    ``ValueError``.
+    explicit ``table=`` (a missing set there raises ``FileNotFoundError``); ``True`` also builds
+    into ``table``; ``False`` refuses: ``FileNotFoundError`` with the command that builds the
+    set (:func:`build_command`). Any ``n >= 2`` builds.
     """
-    canon = canonicalize(directions_deg, kind=kind)
     n = check_int("n", n, minimum=2)
     if build_missing is not None and not isinstance(build_missing, bool):
         raise TypeError(f"build_missing must be None, True or False, got {build_missing!r}")
     prefix = check_table_prefix(prefix)
-    if prefix != "none":
-        build_options["prefix"] = prefix
     sequence_from = check_int("sequence_from", sequence_from, minimum=0)
-    if sequence_from:
-        build_options["sequence_from"] = sequence_from
-    path = find_table(canon.kind, n, root=table, prefix=prefix, sequence_from=sequence_from)
-    if path is None or not (path / f"{canon.name}.npz").exists():
+    built = []
+    for request in requests:
+        canon = canonicalize(request, kind=kind)
+        path = find_table(canon.kind, n, root=table, prefix=prefix, sequence_from=sequence_from)
+        if path is not None and (path / f"{canon.name}.npz").exists():
+            continue
         explicit = table is not None and build_missing is None
         if build_missing is False or explicit:
             where = table if table is not None else os.pathsep.join(map(str, table_dirs()))
@@ -198,21 +237,16 @@ def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
             out = path  # a table on the search path (the cache, $ANISOSAMPLE_TABLES) lacks it
         else:
             out = cache_table_path(canon.kind, n, prefix, sequence_from)
-        if (Path(out) / "table.json").exists():  # an existing table is finished as it was made
-            build_options.pop("prefix", None)
-            build_options.pop("sequence_from", None)
+        opts = dict(build_options)
+        if not (Path(out) / "table.json").exists():  # an existing table keeps its own settings
+            if prefix != "none":
+                opts["prefix"] = prefix
+            if sequence_from:
+                opts["sequence_from"] = sequence_from
         _table_build.build_set(n, canon.kind, canon.extra, out=out,
-                               show_progress=show_progress, **build_options)
-        path = out
-    set_file = Path(path) / f"{canon.name}.npz"
-    st = set_file.stat()
-    pts, held = _load_verified(str(path), n, canon.kind, canon.extra, st.st_mtime_ns,
-                               st.st_size, (Path(path) / "table.json").stat().st_mtime_ns)
-    if held != (prefix, sequence_from):
-        raise ValueError(f"table {path} holds sets with (prefix, sequence_from) {held}, not "
-                         f"the requested {(prefix, sequence_from)}")
-    return jnp.asarray(restore_prefix(transform_points(pts, canon.transform), prefix,
-                                      canon.transform))
+                               show_progress=show_progress, **opts)
+        built.append(canon.name)
+    return built
 
 
 def build_command(kind: int, n: int, sets=None, *, out=None, prefix: str = "none",

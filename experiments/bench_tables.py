@@ -100,7 +100,7 @@ def _four_direction(args):
             for e in pick:
                 t0, p0 = time.perf_counter(), time.process_time()
                 c0 = _COMPILES[0]
-                tables.lookup([0, 90, *e], args.n, show_progress=False)
+                tables.ensure([[0, 90, *e]], args.n, show_progress=False)
                 times.append(time.perf_counter() - t0)
                 cpu.append(time.process_time() - p0)
                 print(f"  set {tables.set_name(e)}: {times[-1]:.1f} s ({cpu[-1]:.1f} CPU s), "

@@ -152,9 +152,10 @@ def _lookup(extra, n):
     if not extra:
         return None
     try:  # the installed tables (shipped, user cache), then this experiment's own
-        return tables.lookup(extra, n, kind=2 + len(extra), build_missing=False)
+        return tables.lookup(extra, n, kind=2 + len(extra))
     except FileNotFoundError:
-        return tables.lookup(extra, n, kind=2 + len(extra), table=W.TABLES, build_missing=True)
+        tables.ensure([extra], n, kind=2 + len(extra), table=W.TABLES, build_missing=True)
+        return tables.lookup(extra, n, kind=2 + len(extra), table=W.TABLES)
 
 
 def method_sets(cname, true_dirs, block_dirs, n, pmj):

@@ -558,9 +558,14 @@ api("tables-lookup-nan", lambda d: A().tables.lookup([NAN], 256), ValueError,
     r"directions_deg must lie in \[0, 180\)", owner=T)
 api("tables-lookup-n-zero", lambda d: A().tables.lookup([30], 0), ValueError, r"n must be >= ",
     owner=T)
-api("tables-lookup-missing-n", lambda d: A().tables.lookup([30], 100, build_missing=False),
+api("tables-lookup-missing-n", lambda d: A().tables.lookup([30], 100),
+    FileNotFoundError,
+    r"no 3-direction table for n=100.*tables\.ensure.*tables build --n 100", owner=T)
+api("tables-ensure-refused", lambda d: A().tables.ensure([[30]], 100, build_missing=False),
     FileNotFoundError,
     r"no 3-direction table for n=100.*tables build --n 100", owner=T)
+api("tables-lookup-builds-nothing", lambda d: A().tables.lookup([30], 100, build_missing=True),
+    TypeError, r"pure lookup and takes no \['build_missing'\].*tables\.ensure", owner=T)
 api("tables-lookup-three-extra", lambda d: A().tables.lookup([10, 20, 30], 256), ValueError,
     r"at most two directions besides 0 and 90", owner=T)
 api("tables-open-missing", lambda d: A().tables.open_table(d / "nosuch"), FileNotFoundError,

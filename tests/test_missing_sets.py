@@ -125,7 +125,7 @@ def test_explicit_table_names_its_directory_in_the_command(tmp_path, cache):
     into it (--out), and build_missing=True builds there on demand."""
     root = tmp_path / "mine"
     with pytest.raises(FileNotFoundError) as info:
-        tables.lookup([20], 8, table=root)
+        tables.ensure([[20]], 8, table=root)
     argv = _command(str(info.value))
     assert argv[-2:] == ["--out", str(root / "d3_n8")]
     assert "build_missing=True" in str(info.value)

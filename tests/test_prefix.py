@@ -168,12 +168,12 @@ def test_prefixed_table_serves_the_prefix_for_every_transform(cache):
     # one request per symmetry transform of the canonical set psi_030
     for dirs in ([0, 90, 30], [0, 90, 150], [0, 90, 60], [0, 90, 120]):
         seen.add(tables.canonicalize(dirs).transform)
-        pts = np.asarray(tables.lookup(dirs, 64, prefix="dihedral-16", show_progress=False,
-                                       steps=10, method="direct"))
+        tables.ensure([dirs], 64, prefix="dihedral-16", show_progress=False, steps=10,
+                      method="direct")
+        pts = np.asarray(tables.lookup(dirs, 64, prefix="dihedral-16"))
         assert pts[:16].tobytes() == pre.tobytes()
         # the rest is the canonical set under that transform: the same multiset of points
-        canon = np.asarray(tables.lookup([0, 90, 30], 64, prefix="dihedral-16",
-                                         show_progress=False))
+        canon = np.asarray(tables.lookup([0, 90, 30], 64, prefix="dihedral-16"))
         t = tables.canonicalize(dirs).transform
         moved = np.mod(tables.transform_points(canon, t) + np.float32(P.TABLE_SHIFTS[t]), 1)
         moved = np.minimum(moved, np.float32(1 - 2**-24)).astype(np.float32)

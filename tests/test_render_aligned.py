@@ -386,10 +386,10 @@ def test_missing_sets_are_built_on_demand(scene, est, tmp_path, monkeypatch):
     one = dataclasses.replace(s, block_extra=((30, 100),) + ((),) * 15)
     assert one.table_directions == ((30, 100),)
     with pytest.raises(FileNotFoundError):
-        tables.lookup((30, 100), 16, kind=4, build_missing=False)
+        tables.lookup((30, 100), 16, kind=4)
     one.check_tables(16, progress=False)
     assert (tables.cache_dir() / "d4_n16").is_dir()
-    pts = tables.lookup((30, 100), 16, kind=4, build_missing=False)
+    pts = tables.lookup((30, 100), 16, kind=4)
     sets, _ = one.point_sets(jax.random.key(0), 16)
     np.testing.assert_array_equal(np.asarray(sets[1]), np.asarray(pts))
     assert one.settings()["sets_4_directions_deg"] == [[30, 100]]
@@ -436,7 +436,7 @@ def test_progress_false_silences_the_on_demand_builds(scene, est, tmp_path, monk
         one = dataclasses.replace(s, block_extra=(extra,) + ((),) * 15)
         R.render(scene, jax.random.key(0), sampler=one, progress=progress, **opts)
         out, err = capfd.readouterr()
-        assert tables.lookup(extra, 16, kind=4, build_missing=False).shape == (16, 2)
+        assert tables.lookup(extra, 16, kind=4).shape == (16, 2)
         if progress:
             assert "synthesize n=16" in err and "render" in err
         else:

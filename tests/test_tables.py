@@ -565,11 +565,15 @@ def user_cache(tmp_path, monkeypatch):
     return tables.cache_dir()
 
 
-def test_lookup_builds_a_missing_set_into_the_user_cache(user_cache, capsys):
-    """A 4-direction set no table holds is synthesized on demand (default: build), stored in
-    the user cache, found there next time; build_missing=False and an explicit table refuse."""
+def test_ensure_builds_a_missing_set_into_the_user_cache(user_cache, capsys):
+    """A 4-direction set no table holds: the pure lookup refuses, naming ensure; ensure
+    synthesizes it (default: build) into the user cache, where lookup finds it; nothing is
+    rebuilt next time; build_missing=False and an explicit table refuse."""
     n = 64
-    pts = np.asarray(tables.lookup([0, 90, 20, 50], n, steps=8))
+    with pytest.raises(FileNotFoundError, match=r"tables\.ensure\(\[\[20, 50\]\], 64\)"):
+        tables.lookup([0, 90, 20, 50], n)
+    assert tables.ensure([[0, 90, 20, 50]], n, steps=8) == ["psi_020_050"]
+    pts = np.asarray(tables.lookup([0, 90, 20, 50], n))
     path = user_cache / "d4_n64"
     tab = tables.open_table(path)
     assert tab.has((20, 50)) and not tab.complete and len(tab.missing()) == 4140
@@ -577,7 +581,8 @@ def test_lookup_builds_a_missing_set_into_the_user_cache(user_cache, capsys):
     assert "synthesize n=64" in capsys.readouterr().err  # the progress bar of the one set
     # found in the cache now: same bytes, nothing rebuilt (the set file is not rewritten)
     mtime = tab.set_path((20, 50)).stat().st_mtime_ns
-    again = np.asarray(tables.lookup([50, 20], n, steps=8))
+    assert tables.ensure([[50, 20]], n, steps=8) == []
+    again = np.asarray(tables.lookup([50, 20], n))
     assert again.tobytes() == pts.tobytes()
     assert tab.set_path((20, 50)).stat().st_mtime_ns == mtime
     # the same points as synthesize with the table's key for that canonical index
@@ -586,11 +591,13 @@ def test_lookup_builds_a_missing_set_into_the_user_cache(user_cache, capsys):
                           steps=8, show_progress=False)
     assert np.asarray(want.points).tobytes() == pts.tobytes()
     with pytest.raises(FileNotFoundError, match="psi_010_070"):
-        tables.lookup([10, 70], n, build_missing=False)
+        tables.ensure([[10, 70]], n, build_missing=False)
     with pytest.raises(FileNotFoundError, match="psi_010_070"):
-        tables.lookup([10, 70], n, table=path)  # an explicit table is not written unasked
+        tables.ensure([[10, 70]], n, table=path)  # an explicit table is not written unasked
     with pytest.raises(TypeError, match="build_missing"):
-        tables.lookup([10, 70], n, build_missing="yes")
+        tables.ensure([[10, 70]], n, build_missing="yes")
+    with pytest.raises(TypeError, match="pure lookup and takes no"):
+        tables.lookup([10, 70], n, build_missing=True)
 
 
 def test_on_demand_four_direction_set_is_warm_started_from_the_shipped_table(user_cache):
@@ -601,7 +608,8 @@ def test_on_demand_four_direction_set_is_warm_started_from_the_shipped_table(use
         pytest.skip("no complete 3-direction table for n = 256")
     start = _table_build.warm_points(256, (20, 50), src.settings["fingerprint"])
     np.testing.assert_array_equal(start, np.asarray(tables.lookup([20], 256)))
-    pts = np.asarray(tables.lookup([20, 50], 256, steps=4, show_progress=False))
+    tables.ensure([[20, 50]], 256, steps=4, show_progress=False)
+    pts = np.asarray(tables.lookup([20, 50], 256))
     tab = tables.open_table(user_cache / "d4_n256")
     warm = tab.settings["synthesis"]["warm_start"]
     assert warm["fingerprint"] == src.settings["fingerprint"]
@@ -609,7 +617,7 @@ def test_on_demand_four_direction_set_is_warm_started_from_the_shipped_table(use
     # 4 Adam steps of at most lr / sqrt(n) = 0.0125 each from the warm start (on the torus)
     d = np.abs(pts - start)
     assert np.max(np.minimum(d, 1 - d)) <= 4 * 0.2 / 16 + 1e-6
-    assert np.asarray(tables.lookup([20, 50], 256, steps=4)).tobytes() == pts.tobytes()
+    assert np.asarray(tables.lookup([20, 50], 256)).tobytes() == pts.tobytes()
 
 
 def test_four_direction_tables_run_single_precision_and_old_tables_keep_theirs(tmp_path):
@@ -654,6 +662,7 @@ def test_twenty_random_four_direction_sets_on_demand_are_dark(user_cache):
     worst = []
     for _ in range(20):
         a, b = rng.choice([x for x in range(1, 180) if x != 90], 2, replace=False)
-        pts = tables.lookup([0, 90, int(a), int(b)], 4096, show_progress=False)
+        tables.ensure([[0, 90, int(a), int(b)]], 4096, show_progress=False)
+        pts = tables.lookup([0, 90, int(a), int(b)], 4096)
         worst.append(max(_band_energy(pts, d, 4096) for d in (0, 90, int(a), int(b))))
     assert max(worst) <= 0.1, worst

@@ -180,7 +180,7 @@ class BlockSampler:
 
     def check_tables(self, n: int, *, progress: bool = True) -> None:
         """Make every aligned set needed for ``n`` points available now, before rendering:
-        missing sets are built (the table lookup's rule, :func:`anisosample.tables.lookup`:
+        missing sets are built (the one rule, :func:`anisosample.tables.ensure`:
         into the user cache unless ``build_missing=False``; into an explicit ``table`` only with
         ``build_missing=True``), else one ``FileNotFoundError`` lists them with the commands
         that build them. ``progress=False`` silences the builds' progress bars as well."""
@@ -193,8 +193,7 @@ class BlockSampler:
         missing = []
         for extra in self.table_directions:
             try:
-                tables.lookup(extra, n, kind=len(extra) + 2, table=self.table,
-                              build_missing=False)
+                tables.lookup(extra, n, kind=len(extra) + 2, table=self.table)
             except FileNotFoundError:
                 missing.append(extra)
         if missing and (self.build_missing is False
@@ -223,7 +222,7 @@ class BlockSampler:
         opts["show_progress"] = bool(progress) and opts.get("show_progress", True)
         for extra in bar(missing, desc=f"aligned sets n={n}", unit="set",
                          disable=None if progress and missing else True):
-            tables.lookup(extra, n, kind=len(extra) + 2, table=self.table,
+            tables.ensure([extra], n, kind=len(extra) + 2, table=self.table,
                           build_missing=self.build_missing, **opts)
 
     def point_sets(self, key, n: int) -> tuple[jax.Array, np.ndarray]:

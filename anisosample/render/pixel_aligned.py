@@ -114,18 +114,18 @@ def prefix_sets(requests, spp: int, *, table=None, build_missing: bool | None = 
     """The sets with the prefix :func:`pixel_prefix` for ``requests`` (tuples of integer extra
     directions), stacked ``(len(requests), spp, 2)``, each starting with the prefix bit for
     bit; missing ones are built first (:func:`anisosample.tables.lookup`'s one rule), with a
-    progress bar over the sets."""
+    progress bar over the sets (:func:`anisosample.tables.ensure`, then the pure lookup)."""
     from ..progress import progress as bar
 
     prefix = pixel_prefix(spp)
     opts = dict(build_options or {})
     opts["show_progress"] = False
-    out = []
     for extra in bar(requests, desc=f"pixel sets n={spp}", unit="set",
                      disable=None if progress and len(requests) > 8 else True):
-        out.append(_tables.lookup(extra, spp, kind=len(extra) + 2, table=table,
-                                  build_missing=build_missing, prefix=prefix, **opts))
-    return jnp.stack(out)
+        _tables.ensure([extra], spp, kind=len(extra) + 2, table=table,
+                       build_missing=build_missing, prefix=prefix, **opts)
+    return jnp.stack([_tables.lookup(extra, spp, kind=len(extra) + 2, table=table, prefix=prefix)
+                      for extra in requests])
 
 
 class PixelEstimates(NamedTuple):
