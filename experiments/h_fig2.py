@@ -14,7 +14,10 @@ shading point's ray origin (``render(technique="solid_angle", light_warp=...)``,
 * Arvo 2001 cosine-weighted spherical triangle (``"arvo2001"``). Where a vertex lies below the
   shading point's horizon (box sides) that warp is not defined (no clipping); there the library
   weights by the cosine about the light plane's normal instead, which keeps it exact and
-  unbiased but no longer cosine-proportional.
+  unbiased but no longer cosine-proportional;
+* projected-solid-angle sampling (Peters 2021, ``"projected-solid-angle"``): exact
+  cosine-weighted sampling of the triangle clipped to the shading point's horizon, so also exact
+  where Arvo 2001 is not (issue 24; with MIS both leave only the BSDF sample's variance).
 
 Three scenes: the shipped one (the light 2.2 above the floor: the cosine hardly varies across
 it, and a box's shadow carries much of the error, which no light warp can remove), a "near"
@@ -85,6 +88,7 @@ TECHNIQUES = {  # name -> (technique, light_warp) of asp.render.render
     "+ bilinear cosine warp": ("solid_angle", "cosine-bilinear"),
     "+ biquadratic cosine warp": ("solid_angle", "cosine-biquadratic"),
     "Arvo 2001 (cosine-weighted)": ("solid_angle", "arvo2001"),
+    "projected solid angle (Peters 2021)": ("solid_angle", "projected-solid-angle"),
 }
 
 

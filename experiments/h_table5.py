@@ -13,7 +13,10 @@ light_warp)`` fitted at every shading point's ray origin (H Sec. 4.3):
   solid-angle warp *and* in front of uniform area sampling (``technique="area"``);
 * BSDF product reference: the 32x32 tabulated distribution of BSDF x cosine
   (``"product-tabulated"``, H Sec. 4.3's exhaustive reference), with both base warps;
-* (ours, extra row) uniform area sampling alone.
+* (ours, extra row) uniform area sampling alone;
+* (ours, extra row, issue 24) projected-solid-angle sampling of the quad (Peters 2021, exact
+  cosine-weighted, clipped to the horizon; ``"projected-solid-angle"``), which ignores the BSDF:
+  the cosine half of the product, exactly. Arvo 2001 samples triangles only.
 
 MRSE (H Sec. 4.3: squared error divided by ``ref^2 + 0.01`` per pixel, mean over pixels) against
 a converged reference (tabulated solid-angle technique, many spp), time of the jitted per-pixel
@@ -67,6 +70,7 @@ TECHNIQUES = {  # name -> (technique, light_warp) of asp.render.render
     "BSDF product bilinear warp (area)": ("area", "product-bilinear"),
     "BSDF product biquadratic warp (area)": ("area", "product-biquadratic"),
     "BSDF product reference 32x32 (area)": ("area", "product-tabulated"),
+    "projected solid angle (Peters 2021)": ("solid_angle", "projected-solid-angle"),
 }
 
 
