@@ -16,7 +16,10 @@ light_warp)`` fitted at every shading point's ray origin (H Sec. 4.3):
 * (ours, extra row) uniform area sampling alone;
 * (ours, extra row, issue 24) projected-solid-angle sampling of the quad (Peters 2021, exact
   cosine-weighted, clipped to the horizon; ``"projected-solid-angle"``), which ignores the BSDF:
-  the cosine half of the product, exactly. Arvo 2001 samples triangles only.
+  the cosine half of the product, exactly. Arvo 2001 samples triangles only;
+* (ours, extra row, issue 24 item 3) LTC sampling (Heitz et al. 2016, the GGX table fitted by
+  ``anisosample.render.ltc``) restricted to the quad, sampled exactly (Peters 2021's pairing;
+  ``"ltc"``): the product of the lobe's LTC fit and the light's extent.
 
 MRSE (H Sec. 4.3: squared error divided by ``ref^2 + 0.01`` per pixel, mean over pixels) against
 a converged reference (tabulated solid-angle technique, many spp), time of the jitted per-pixel
@@ -71,6 +74,7 @@ TECHNIQUES = {  # name -> (technique, light_warp) of asp.render.render
     "BSDF product biquadratic warp (area)": ("area", "product-biquadratic"),
     "BSDF product reference 32x32 (area)": ("area", "product-tabulated"),
     "projected solid angle (Peters 2021)": ("solid_angle", "projected-solid-angle"),
+    "LTC over the polygon (Heitz 2016 + Peters 2021)": ("solid_angle", "ltc"),
 }
 
 

@@ -35,6 +35,10 @@ in the primitive's *base technique* (``technique``):
   the receiver's horizon (Peters 2021, ``warps.ProjectedSphericalPolygon``) instead of the base,
   triangle and parallelogram lights; with light sampling alone an unoccluded diffuse receiver
   gets zero variance, also where the light dips below its horizon (``technique`` is ignored);
+* ``"ltc"``: the GGX lobe's linearly transformed cosine (Heitz et al. 2016, fitted by
+  :mod:`~anisosample.render.ltc`) restricted to the light's polygon, sampled exactly
+  (``warps.LTCPolygon``, Peters 2021's pairing) instead of the base, triangle and parallelogram
+  lights; conductors only, other materials get the clamped cosine (= ``"projected-solid-angle"``);
 * ``"patch-three-warp"``: H Sec. 4.2's chain (``warps.patch_three_warp``) instead of the base,
   bilinear-patch lights only;
 * a callable ``make(base, receiver) -> warp`` (your own chain): given the base warp of the
@@ -80,14 +84,16 @@ LIGHT_WARPS = (
     "product-tabulated",
     "patch-three-warp",
     "projected-solid-angle",
+    "ltc",
 )
 _FITTED = (LIGHT_PARALLELOGRAM, LIGHT_TRIANGLE, LIGHT_PATCH)
 APPLIES_TO = {
     "arvo2001": (LIGHT_TRIANGLE,),
     "patch-three-warp": (LIGHT_PATCH,),
     "projected-solid-angle": (LIGHT_TRIANGLE, LIGHT_PARALLELOGRAM),
+    "ltc": (LIGHT_TRIANGLE, LIGHT_PARALLELOGRAM),
     **{name: _FITTED for name in LIGHT_WARPS[1:]
-       if name not in ("arvo2001", "patch-three-warp", "projected-solid-angle")},
+       if name not in ("arvo2001", "patch-three-warp", "projected-solid-angle", "ltc")},
 }
 
 
@@ -206,6 +212,12 @@ def chain(
         return W.CosineSphericalTriangle(verts, rec.origin, jnp.where(above, nf, axis))
     if light_warp == "projected-solid-angle":
         return W.ProjectedSphericalPolygon(_polygon(scene, kind, prim), rec.origin, nf)
+    if light_warp == "ltc":
+        from .ltc import frame as ltc_frame
+        from .ltc import m_inv_for
+
+        m_inv = m_inv_for(scene.materials, rec.material, nf, rec.wi)
+        return W.LTCPolygon(_polygon(scene, kind, prim), rec.origin, ltc_frame(nf, rec.wi), m_inv)
     if light_warp == "patch-three-warp":
         return W.patch_three_warp(_patch(scene, prim, rec.origin), rec.origin, nf)
     base = base_warp(scene, kind, prim, rec.origin, technique)

@@ -22,6 +22,7 @@ from .hemisphere import CosineHemisphere as CosineHemisphere
 from .hemisphere import HemiOctahedral as HemiOctahedral
 from .hemisphere import Octahedral as Octahedral
 from .hemisphere import UniformHemisphere as UniformHemisphere
+from .ltc import LTCPolygon as LTCPolygon
 from .mis import balance_heuristic as balance_heuristic
 from .mis import power_heuristic as power_heuristic
 from .patch import BilinearPatch as BilinearPatch

@@ -65,7 +65,8 @@ def _scene(light, material="diffuse"):
 
 def _receiver(material, wi=(0.0, 0.0, 1.0)):
     wi = np.asarray(wi, np.float64)
-    return Receiver(origin=jnp.asarray(ORIGIN, jnp.float32), n=jnp.asarray([0, 0, 1.0], jnp.float32),
+    return Receiver(origin=jnp.asarray(ORIGIN, jnp.float32),
+                    n=jnp.asarray([0, 0, 1.0], jnp.float32),
                     wi=jnp.asarray(wi / np.linalg.norm(wi), jnp.float32),
                     material=jnp.asarray(material, jnp.int32))
 

@@ -314,7 +314,8 @@ def _check_unbiased(scene_name, technique, light_warp, *, size, spp, realization
 
 
 @pytest.mark.parametrize(("scene_name", "light_warp"), [
-    ("triangle_light", "cosine-bilinear"), ("cornell", "projected-solid-angle")])
+    ("triangle_light", "cosine-bilinear"), ("cornell", "projected-solid-angle"),
+    ("glossy", "ltc")])
 def test_light_warp_is_unbiased(scene_name, light_warp):
     """The cheap default cases; every scene and warp: the slow test below."""
     _check_unbiased(scene_name, "solid_angle", light_warp, size=8, spp=16, realizations=6,

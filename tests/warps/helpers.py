@@ -70,6 +70,11 @@ SPHERICAL = [
         "psa-parallelogram-tilted",
         lambda: W.ProjectedSphericalPolygon(_P, np.zeros(3), _n([-0.8, 0.2, 0.5])),
     ),
+    (  # a sheared, stretched LTC (Heitz et al. 2016) over a tilted parallelogram
+        "ltc-parallelogram",
+        lambda: W.LTCPolygon(_P, np.zeros(3), np.eye(3),
+                             np.linalg.inv([[0.4, 0.0, 0.3], [0.0, 0.6, 0.0], [-0.2, 0.0, 1.0]])),
+    ),
     (
         "rectangle-square",
         lambda: W.SphericalRectangle([-0.5, -0.5, 1.0], [1, 0, 0], [0, 1, 0], [0, 0, 0]),

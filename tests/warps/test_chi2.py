@@ -23,6 +23,7 @@ DEFAULT = {
     "compose-bilinear-biquadratic",
     "triangle-general",
     "rectangle-skewed",
+    "ltc-parallelogram",
     "compose-bilinear-triangle",
     "cosine-hemisphere",
     "octahedral",

@@ -84,7 +84,7 @@ def test_linear_triplet_is_exact_and_continuous_as_b_approaches_a(a):
         pdf64 = 2 * ((1 - truth) * a64 + truth * b64) / (a64 + b64)
         np.testing.assert_allclose(pdf, pdf64, rtol=1e-6, err_msg=f"delta={delta}")
         # The sample's slope is 1/pdf (jacfwd through the branch-free root).
-        slope = jax.vmap(jax.grad(lambda t: W.sample_linear(t, a32, b32)))(u[1:-4])
+        slope = jax.vmap(jax.grad(lambda t, b32=b32: W.sample_linear(t, a32, b32)))(u[1:-4])
         np.testing.assert_allclose(np.asarray(slope) * pdf[1:-4], 1.0, rtol=2e-5)
     # The textbook form fails exactly where the rationalised one does not.
     b32 = np.float32(a * (1 + 1e-6))
@@ -100,8 +100,10 @@ def test_linear_triplet_is_exact_and_continuous_as_b_approaches_a(a):
 def test_linear_triplet_is_scale_invariant(scale):
     """The density ``lerp(x, a, b)`` does not change when ``(a, b)`` are scaled, nor may the
     triplet: the same samples, inverses and pdfs from ``1e-30`` to ``1e30`` times the values
-    (beyond, products of a value and a float32 ``x`` leave the normal range). (Unscaled, ``a^2`` flushes to 0 below ~1e-19 -- a GGX tail in a product fit -- and
-    overflows above ~1e19: samples off by up to 0.5, or NaN, with the pdf still right.)"""
+    (beyond, products of a value and a float32 ``x`` leave the normal range). (Unscaled,
+    ``a^2`` flushes to 0 below ~1e-19 -- a GGX tail in a product fit -- and overflows above
+    ~1e19: samples off by up to 0.5, or NaN, with the pdf still right.)
+    """
     u = jnp.asarray(_U_LIN)
     for a, b in [(0.3, 0.7), (1.0, 1.0), (0.0, 1.0), (2.0, 0.0), (1.0, 1.0 + 1e-6)]:
         ref = np.asarray(W.sample_linear(u, np.float32(a), np.float32(b)))
