@@ -157,6 +157,12 @@ def _sample_ggx_vndf(wi, alpha, u):
     return m / jnp.maximum(norm(m), 1e-30)
 
 
+def sample_ggx_vndf(wi, alpha, u):
+    """A GGX visible normal for the local view ``wi`` (Heitz 2018), as :func:`sample_bsdf` draws
+    it (the LTC fit, :mod:`.ltc`, probes the lobe with it)."""
+    return _sample_ggx_vndf(wi, alpha, u)
+
+
 def sample_bsdf(materials: Materials, mat, n, wi, u: Float[Array, "2"]):
     """Sample ``wo`` (world) for the BSDF at ``n`` seen from ``wi``: ``(wo, pdf)``.
 

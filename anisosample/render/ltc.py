@@ -34,7 +34,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Float
 
-from .bsdf import _sample_ggx_vndf, ggx_d, ggx_g1
+from .bsdf import ggx_d, ggx_g1, sample_ggx_vndf
 from .scene import CONDUCTOR
 
 ALPHA_MIN = 0.05
@@ -91,7 +91,7 @@ def ltc_density(m_inv, w):
 
 
 def _probe_directions(wi, alpha, u):
-    m = jax.vmap(lambda x: _sample_ggx_vndf(wi, alpha, x))(u)
+    m = jax.vmap(lambda x: sample_ggx_vndf(wi, alpha, x))(u)
     w1 = 2 * jnp.sum(m * wi[None, :], -1)[:, None] * m - wi[None, :]
     r, ph = jnp.sqrt(u[:, 0]), 2 * jnp.pi * u[:, 1]
     w2 = jnp.stack([r * jnp.cos(ph), r * jnp.sin(ph), jnp.sqrt(jnp.maximum(1 - u[:, 0], 0))], -1)

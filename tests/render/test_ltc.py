@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from anisosample.render import ltc
-from anisosample.render.bsdf import _sample_ggx_vndf
+from anisosample.render.bsdf import sample_ggx_vndf
 
 from .test_light_warps import _zero_variance, plane_under_light
 
@@ -52,7 +52,7 @@ def test_fitted_ltc_helps_visible_normal_sampling(table):
         wi = jnp.asarray([np.sin(th), 0.0, np.cos(th)], jnp.float32)
         for j in range(0, 16, 3):
             a = table.alpha[j]
-            m = jax.vmap(lambda x, a=a, wi=wi: _sample_ggx_vndf(wi, a, x))(u)
+            m = jax.vmap(lambda x, a=a, wi=wi: sample_ggx_vndf(wi, a, x))(u)
             w = 2 * jnp.sum(m * wi[None, :], -1)[:, None] * m - wi[None, :]
             f, q = jax.vmap(lambda x, a=a, wi=wi: ltc._lobe(wi, x, a))(w)
             _, m_inv = ltc.matrix(table.params[i, j])
