@@ -161,12 +161,7 @@ def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
     sequence_from = check_int("sequence_from", sequence_from, minimum=0)
     path = find_table(canon.kind, n, root=table, prefix=prefix, sequence_from=sequence_from)
     if path is None or not (path / f"{canon.name}.npz").exists():
-        where = table if table is not None else os.pathsep.join(map(str, table_dirs()))
-        into = None if table is None else (
-            path if path is not None
-            else Path(table) / table_name(canon.kind, n, prefix, sequence_from))
-        command = build_command(canon.kind, n, [canon.extra], out=into, prefix=prefix,
-                                sequence_from=sequence_from)
+        where, command = _where_and_command(canon, n, table, path, prefix, sequence_from)
         raise FileNotFoundError(
             f"no {canon.kind}-direction table for n={n} with set {canon.name} in {where}; "
             f"build it with tables.ensure([{list(canon.extra)}], {n}"
@@ -181,6 +176,16 @@ def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
                          f"the requested {(prefix, sequence_from)}")
     return jnp.asarray(restore_prefix(transform_points(pts, canon.transform), prefix,
                                       canon.transform))
+
+
+def _where_and_command(canon, n, table, path, prefix, sequence_from) -> tuple[str, str]:
+    """Where a missing set was looked for, and the command that builds it there."""
+    where = table if table is not None else os.pathsep.join(map(str, table_dirs()))
+    into = None if table is None else (
+        path if path is not None
+        else Path(table) / table_name(canon.kind, n, prefix, sequence_from))
+    return where, build_command(canon.kind, n, [canon.extra], out=into, prefix=prefix,
+                                sequence_from=sequence_from)
 
 
 def ensure(requests, n: int, *, kind: int | None = None, table=None,
@@ -217,12 +222,7 @@ def ensure(requests, n: int, *, kind: int | None = None, table=None,
             continue
         explicit = table is not None and build_missing is None
         if build_missing is False or explicit:
-            where = table if table is not None else os.pathsep.join(map(str, table_dirs()))
-            into = None if table is None else (
-                path if path is not None
-                else Path(table) / table_name(canon.kind, n, prefix, sequence_from))
-            command = build_command(canon.kind, n, [canon.extra], out=into, prefix=prefix,
-                                    sequence_from=sequence_from)
+            where, command = _where_and_command(canon, n, table, path, prefix, sequence_from)
             raise FileNotFoundError(
                 f"no {canon.kind}-direction table for n={n} with set {canon.name} in {where}; "
                 f"build it with `{command}` "
