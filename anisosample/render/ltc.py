@@ -148,12 +148,18 @@ def fit_ggx_table(n_theta: int = 16, n_alpha: int = 16, *, probes: int = 32,
 
 
 @functools.cache
-def ggx_table() -> LTCTable:
-    """The renderer's table (16 x 16), fitted once per process on first use, eagerly (also when
-    first asked for inside a trace)."""
+def _ggx_table_numpy() -> LTCTable:
+    # Cached as NumPy leaves: a jax array made inside the trace that first asks for the table
+    # would be that trace's tracer, leaked into every later trace.
     with jax.ensure_compile_time_eval():
         table = fit_ggx_table()
-    return jax.tree.map(lambda x: jnp.asarray(np.asarray(x)), table)
+    return jax.tree.map(lambda x: np.asarray(x), table)
+
+
+def ggx_table() -> LTCTable:
+    """The renderer's table (16 x 16), fitted once per process on first use, eagerly (also when
+    first asked for inside a trace); its leaves are made jax arrays in the caller's trace."""
+    return jax.tree.map(jnp.asarray, _ggx_table_numpy())
 
 
 def lookup(table: LTCTable, alpha, cos_theta):
