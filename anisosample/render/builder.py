@@ -68,20 +68,28 @@ class _Material:
 
 
 class Planar(NamedTuple):
-    """A planar primitive ``p0 + a e1 + b e2`` (``p1 = p0 + e1``, ``p2 = p0 + e2``): a triangle
-    (``a + b <= 1``) or, if ``parallelogram``, a parallelogram (``a, b <= 1``)."""
+    """A block of ``k`` planar primitives ``p0 + a e1 + b e2`` (``p1 = p0 + e1``, ``p2 = p0 +
+    e2``), every field with a leading axis of ``k``: triangles (``a + b <= 1``) or, where
+    ``parallelogram``, parallelograms (``a, b <= 1``). A mesh is one block (no per-triangle
+    records), so building a million-triangle scene is a few array operations."""
 
-    p0: np.ndarray
+    p0: np.ndarray  # (k, 3)
     p1: np.ndarray
     p2: np.ndarray
-    normal: np.ndarray
-    uv0: tuple
-    uv1: tuple
-    uv2: tuple
-    material: int
-    light: int  # light primitive, -1 if not emissive
-    parallelogram: bool
+    normal: np.ndarray  # (k, 3)
+    uv0: np.ndarray  # (k, 2)
+    uv1: np.ndarray
+    uv2: np.ndarray
+    material: np.ndarray  # (k,) int
+    light: np.ndarray  # (k,) light primitive, -1 if not emissive
+    parallelogram: np.ndarray  # (k,) bool
 
+    @classmethod
+    def one(cls, p0, p1, p2, normal, uv0, uv1, uv2, material, light, parallelogram):
+        """A block of one primitive."""
+        f = lambda a: np.asarray(a, np.float64)[None]  # noqa: E731
+        return cls(f(p0), f(p1), f(p2), f(normal), f(uv0), f(uv1), f(uv2),
+                   np.array([material]), np.array([light]), np.array([parallelogram], bool))
 
 class SphereRecord(NamedTuple):
     """An analytic sphere of the builder."""
@@ -107,11 +115,11 @@ class SceneBuilder:
     Shapes take a 4x4 ``to_world`` matrix (numpy, float64) as in Mitsuba 3.
     """
 
-    _tris: list = field(default_factory=list)  # Planar records
+    _tris: list = field(default_factory=list)  # Planar blocks
     _spheres: list = field(default_factory=list)  # SphereRecord
     _patches: list = field(default_factory=list)  # PatchRecord
     _materials: list = field(default_factory=list)
-    _lights: list = field(default_factory=list)  # dicts
+    _lights: list = field(default_factory=list)  # blocks of light primitives (_light_block)
     _emitters: list = field(default_factory=list)  # EmitterRecord
     _textures: list = field(default_factory=list)
     _camera: dict | None = None
@@ -193,9 +201,11 @@ class SceneBuilder:
         self._textures.append(img)
         return len(self._textures) - 1
 
-    def _add_emitter(self, prims: list[dict], delta: bool) -> list[int]:
-        start = len(self._lights)
-        areas = np.array([p["area"] for p in prims], np.float64)
+    def _add_emitter(self, prims: dict, delta: bool) -> np.ndarray:
+        """One emitter of the light primitives ``prims`` (a :func:`_light_block`), picked by
+        area (each with probability 1 if ``delta``); returns their indices."""
+        start = sum(len(b["kind"]) for b in self._lights)
+        areas = np.asarray(prims["area"], np.float64)
         if not delta:
             if not np.all(np.isfinite(areas)) or areas.sum() <= 0:
                 raise ValueError(
@@ -203,30 +213,20 @@ class SceneBuilder:
                 )
             prob = areas / areas.sum()
         else:
-            prob = np.ones(len(prims))
+            prob = np.ones(len(areas))
         cdf = np.cumsum(prob)
         cdf[-1] = 1.0
         e = len(self._emitters)
-        for p, pr, c in zip(prims, prob, cdf, strict=True):
-            self._lights.append({**p, "prob": pr, "cdf": c, "emitter": e})
-        self._emitters.append(EmitterRecord(start, len(prims), int(delta)))
-        return list(range(start, start + len(prims)))
+        self._lights.append({**prims, "prob": prob, "cdf": cdf,
+                             "emitter": np.full(len(areas), e)})
+        self._emitters.append(EmitterRecord(start, len(areas), int(delta)))
+        return np.arange(start, start + len(areas))
 
     def point_light(self, position, intensity) -> None:
         """Isotropic point light of radiant intensity ``intensity`` (W/sr, RGB)."""
         self._add_emitter(
-            [
-                _light_dict(
-                    LIGHT_POINT,
-                    np.asarray(position, np.float64),
-                    np.zeros(3),
-                    np.zeros(3),
-                    np.zeros(3),
-                    0.0,
-                    _rgb(intensity),
-                    -1,
-                )
-            ],
+            _light_block(LIGHT_POINT, np.asarray(position, np.float64), np.zeros(3), np.zeros(3),
+                         np.zeros(3), 0.0, _rgb(intensity), -1),
             delta=True,
         )
 
@@ -247,24 +247,13 @@ class SceneBuilder:
                 raise ValueError("rectangle emitter has zero area (degenerate to_world)")
             rad = _rgb(radiance if radiance is not None else (1.0, 1.0, 1.0))
             (light,) = self._add_emitter(
-                [
-                    _light_dict(
-                        LIGHT_PARALLELOGRAM,
-                        c,
-                        e1,
-                        e2,
-                        n,
-                        area,
-                        rad,
-                        texture,
-                        uv=((0, 0), (1, 0), (0, 1)),
-                    )
-                ],
+                _light_block(LIGHT_PARALLELOGRAM, c, e1, e2, n, area, rad, texture,
+                             uv=((0, 0), (1, 0), (0, 1))),
                 delta=False,
             )
         # One parallelogram primitive (Mitsuba splits it into two triangles; one test is cheaper).
         self._tris.append(
-            Planar(c, c + e1, c + e2, n, (0, 0), (1, 0), (0, 1), material, light, True))
+            Planar.one(c, c + e1, c + e2, n, (0, 0), (1, 0), (0, 1), material, light, True))
 
     def triangles(
         self,
@@ -280,50 +269,53 @@ class SceneBuilder:
         """A triangle mesh (world-space ``vertices`` (v, 3), ``faces`` (f, 3)).
 
         Face normals are ``(p1 - p0) x (p2 - p0)`` normalised (Mitsuba's geometric normal).
-        An emissive mesh becomes one emitter whose triangles are picked by area.
+        Triangles of zero area (collinear vertices) are dropped; an emissive mesh becomes one
+        emitter whose triangles are picked by area, and may have none. Vectorised: one array
+        operation per step over all faces. Raises ``ValueError`` for ``vertices`` not ``(v, 3)``
+        or ``faces`` not ``(f, 3)``.
         """
         v = np.asarray(vertices, np.float64)
         f = np.asarray(faces, np.int64)
+        if f.size == 0:
+            f = f.reshape(0, 3)
+        if v.ndim != 2 or v.shape[1] != 3:
+            raise ValueError(f"vertices must have shape (v, 3), got {v.shape}")
+        if f.ndim != 2 or f.shape[1] != 3:
+            raise ValueError(f"faces must have shape (f, 3), got {f.shape}")
         if uvs is None:
             uvs = np.zeros((len(v), 2))
         uvs = np.asarray(uvs, np.float64)
-        entries = []
-        prims = []
-        for i, tri in enumerate(f):
-            p0, p1, p2 = v[tri[0]], v[tri[1]], v[tri[2]]
-            cr = np.cross(p1 - p0, p2 - p0)
-            area = 0.5 * float(np.linalg.norm(cr))
-            longest = max(np.sum((p1 - p0) ** 2), np.sum((p2 - p0) ** 2), np.sum((p2 - p1) ** 2))
-            if not area > 1e-12 * longest:  # collinear (or coincident) vertices: zero area
-                if radiance is not None or texture >= 0:
-                    raise ValueError(
-                        f"triangle light: face {i}"
-                        f" (vertices {tri.tolist()}) has zero area (collinear vertices);"
-                        " an emitter needs triangles of positive area"
-                    )
-                continue  # degenerate triangles are never hit; drop them
-            n = _unit(cr) * (-1 if flip_normals else 1)
-            entries.append(Planar(p0, p1, p2, n, uvs[tri[0]], uvs[tri[1]], uvs[tri[2]],
-                                  material=material, light=-1, parallelogram=False))
-            prims.append(
-                _light_dict(
-                    LIGHT_TRIANGLE,
-                    p0,
-                    p1 - p0,
-                    p2 - p0,
-                    n,
-                    area,
-                    _rgb(radiance if radiance is not None else (1, 1, 1)),
-                    texture,
-                    uv=(uvs[tri[0]], uvs[tri[1]], uvs[tri[2]]),
-                )
-            )
+        p0, p1, p2 = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+        cr = np.cross(p1 - p0, p2 - p0)
+        norm = np.linalg.norm(cr, axis=-1)
+        area = 0.5 * norm
+        longest = np.maximum(np.maximum(np.sum((p1 - p0) ** 2, -1), np.sum((p2 - p0) ** 2, -1)),
+                             np.sum((p2 - p1) ** 2, -1))
+        keep = area > 1e-12 * longest  # not collinear (or coincident) vertices
         emissive = radiance is not None or texture >= 0
-        if emissive and not prims:
+        if emissive and not keep.all():
+            i = int(np.argmin(keep))
+            raise ValueError(
+                f"triangle light: face {i}"
+                f" (vertices {f[i].tolist()}) has zero area (collinear vertices);"
+                " an emitter needs triangles of positive area"
+            )
+        if emissive and not keep.any():
             raise ValueError("mesh emitter has zero area")
-        lights = self._add_emitter(prims, delta=False) if emissive else [-1] * len(entries)
-        for rec, li in zip(entries, lights, strict=True):
-            self._tris.append(rec._replace(light=li))
+        f, p0, p1, p2 = f[keep], p0[keep], p1[keep], p2[keep]  # degenerate ones are never hit
+        n = cr[keep] / norm[keep][:, None] * (-1 if flip_normals else 1)
+        uv = uvs[f]  # (k, 3 corners, 2)
+        lights = np.full(len(f), -1)
+        if emissive:
+            lights = self._add_emitter(
+                _light_block(LIGHT_TRIANGLE, p0, p1 - p0, p2 - p0, n, area[keep],
+                             _rgb(radiance if radiance is not None else (1, 1, 1)), texture,
+                             uv=uv),
+                delta=False,
+            )
+        if len(f):
+            self._tris.append(Planar(p0, p1, p2, n, uv[:, 0], uv[:, 1], uv[:, 2],
+                                     np.full(len(f), material), lights, np.zeros(len(f), bool)))
 
     def cube(self, to_world, material: int, *, radiance=None, flip_normals=False) -> None:
         """Mitsuba ``cube``: ``[-1, 1]^3`` with outward normals.
@@ -349,8 +341,8 @@ class SceneBuilder:
                 cr = np.cross(e1, e2)
                 if np.linalg.norm(cr) > 0:
                     n = _unit(cr) * (-1 if flip_normals else 1)
-                    self._tris.append(Planar(p0, p0 + e1, p0 + e2, n, (0, 0), (0, 0), (0, 0),
-                                             material, -1, True))
+                    self._tris.append(Planar.one(p0, p0 + e1, p0 + e2, n, (0, 0), (0, 0),
+                                                 (0, 0), material, -1, True))
             return
         verts = [v for p0, e1, e2 in faces for v in (p0, p0 + e1, p0 + e1 + e2, p0 + e2)]
         tris = [(4 * f + i, 4 * f + j, 4 * f + k) for f in range(6) for i, j, k in ((0, 1, 2),
@@ -366,18 +358,9 @@ class SceneBuilder:
         light = -1
         if radiance is not None:
             (light,) = self._add_emitter(
-                [
-                    _light_dict(
-                        LIGHT_SPHERE,
-                        np.asarray(center, np.float64),
-                        np.array([radius, 0, 0]),
-                        np.zeros(3),
-                        np.zeros(3),
-                        4 * np.pi * radius**2,
-                        _rgb(radiance),
-                        -1,
-                    )
-                ],
+                _light_block(LIGHT_SPHERE, np.asarray(center, np.float64),
+                             np.array([radius, 0, 0]), np.zeros(3), np.zeros(3),
+                             4 * np.pi * radius**2, _rgb(radiance), -1),
                 delta=False,
             )
         self._spheres.append(SphereRecord(np.asarray(center, np.float64), radius, material, light))
@@ -391,9 +374,9 @@ class SceneBuilder:
             c = c.transpose(1, 0, 2)
         light = -1
         if radiance is not None:
-            row = _light_dict(LIGHT_PATCH, c[0, 0], c[1, 0] - c[0, 0], c[0, 1] - c[0, 0],
-                              np.zeros(3), area, _rgb(radiance), -1)
-            (light,) = self._add_emitter([{**row, "patch": len(self._patches)}], delta=False)
+            row = _light_block(LIGHT_PATCH, c[0, 0], c[1, 0] - c[0, 0], c[0, 1] - c[0, 0],
+                               np.zeros(3), area, _rgb(radiance), -1, patch=len(self._patches))
+            (light,) = self._add_emitter(row, delta=False)
         self._patches.append(PatchRecord(c, material, light))
 
     # camera -------------------------------------------------------------------------------------
@@ -458,12 +441,14 @@ class SceneBuilder:
         i32 = lambda a: jnp.asarray(np.asarray(a, np.int64), jnp.int32)
 
         far = np.full(3, 1e30)
+        n_tris = sum(len(t.material) for t in self._tris)
         tris = self._tris or [
-            Planar(far, far, far, np.array([0, 0, 1.0]), (0, 0), (0, 0), (0, 0), 0, -1, False)
+            Planar.one(far, far, far, np.array([0, 0, 1.0]), (0, 0), (0, 0), (0, 0), 0, -1, False)
         ]
-        p0 = np.array([t.p0 for t in tris])
-        e1 = np.array([t.p1 for t in tris]) - p0
-        e2 = np.array([t.p2 for t in tris]) - p0
+        cat = lambda name: np.concatenate([getattr(t, name) for t in tris])  # noqa: E731
+        p0 = cat("p0")
+        e1 = cat("p1") - p0
+        e2 = cat("p2") - p0
         if not self._tris:  # a placeholder that nothing hits
             e1 = np.zeros_like(p0)
             e2 = np.zeros_like(p0)
@@ -490,28 +475,29 @@ class SceneBuilder:
             has_plastic=any(m.kind == PLASTIC for m in mats),
         )
 
-        L = self._lights
+        L = lambda name: np.concatenate([b[name] for b in self._lights])  # noqa: E731
+        uv = L("uv")
         lights = Lights(
-            kind=i32([x["kind"] for x in L]),
-            p0=f32([x["p0"] for x in L]),
-            e1=f32([x["e1"] for x in L]),
-            e2=f32([x["e2"] for x in L]),
-            normal=f32([x["normal"] for x in L]),
-            area=f32([x["area"] for x in L]),
-            uv0=f32([x["uv"][0] for x in L]),
-            uv1=f32([x["uv"][1] for x in L]),
-            uv2=f32([x["uv"][2] for x in L]),
-            radiance=f32([x["radiance"] for x in L]),
-            texture=i32([x["texture"] for x in L]),
-            prim_prob=f32([x["prob"] for x in L]),
-            prim_cdf=f32([x["cdf"] for x in L]),
-            emitter=i32([x["emitter"] for x in L]),
+            kind=i32(L("kind")),
+            p0=f32(L("p0")),
+            e1=f32(L("e1")),
+            e2=f32(L("e2")),
+            normal=f32(L("normal")),
+            area=f32(L("area")),
+            uv0=f32(uv[:, 0]),
+            uv1=f32(uv[:, 1]),
+            uv2=f32(uv[:, 2]),
+            radiance=f32(L("radiance")),
+            texture=i32(L("texture")),
+            prim_prob=f32(L("prob")),
+            prim_cdf=f32(L("cdf")),
+            emitter=i32(L("emitter")),
             start=i32([e.start for e in self._emitters]),
             count=i32([e.count for e in self._emitters]),
             delta=i32([e.delta for e in self._emitters]),
-            patch=i32([x.get("patch", -1) for x in L]),
-            n_prims=len(L),
-            kinds=tuple(sorted({int(x["kind"]) for x in L})),
+            patch=i32(L("patch")),
+            n_prims=len(uv),
+            kinds=tuple(int(k) for k in np.unique(L("kind"))),
         )
 
         if self._textures:
@@ -539,9 +525,9 @@ class SceneBuilder:
             rfilter_stddev=c["rfilter_stddev"],
         )
 
-        para = np.array([t.parallelogram for t in tris], bool)
-        pts = [p0[: len(self._tris)], (p0 + e1)[: len(self._tris)], (p0 + e2)[: len(self._tris)]]
-        pts += [(p0 + e1 + e2)[: len(self._tris)][para[: len(self._tris)]]]
+        para = cat("parallelogram")
+        pts = [p0[:n_tris], (p0 + e1)[:n_tris], (p0 + e2)[:n_tris]]
+        pts += [(p0 + e1 + e2)[:n_tris][para[:n_tris]]]
         pts += [np.array([s.center for s in self._spheres]).reshape(-1, 3)]
         pts += [np.array([q.corners for q in self._patches]).reshape(-1, 3)]
         pts += [np.asarray(c["to_world"][:3, 3])[None]]
@@ -550,7 +536,7 @@ class SceneBuilder:
 
         rows = _plane_rows(p0, e1, e2, para)
         if bvh is None:
-            bvh = len(self._tris) >= _bvh.THRESHOLD
+            bvh = n_tris >= _bvh.THRESHOLD
         accel = None
         if bvh and self._tris:
             corners = [p0, p0 + e1, p0 + e2, np.where(para[:, None], p0 + e1 + e2, p0)]
@@ -559,8 +545,8 @@ class SceneBuilder:
         return Scene(
             bvh=accel,
             tri_soa=f32(rows),
-            tri_attr=f32([np.concatenate([t.normal, t.uv0, t.uv1, t.uv2]) for t in tris]),
-            tri_ids=i32([(t.material, t.light) for t in tris]),
+            tri_attr=f32(np.concatenate([cat("normal"), cat("uv0"), cat("uv1"), cat("uv2")], 1)),
+            tri_ids=i32(np.stack([cat("material"), cat("light")], 1)),
             sph_center=f32([s.center for s in sph]),
             sph_radius=f32(sph_r),
             sph_material=i32([s.material for s in sph]),
@@ -611,17 +597,24 @@ def _rgb(v) -> np.ndarray:
     return a
 
 
-def _light_dict(kind, p0, e1, e2, n, area, radiance, texture, uv=((0, 0), (0, 0), (0, 0))):
+def _light_block(kind, p0, e1, e2, n, area, radiance, texture, uv=None, patch=-1) -> dict:
+    """Light primitives of one ``kind`` as arrays with a leading axis of ``k``: ``p0, e1, e2,
+    n`` ``(k, 3)`` (or ``(3,)`` for one), ``area`` ``(k,)`` or one number, one ``radiance``
+    (RGB), ``texture`` and ``patch`` index, corner ``uv`` ``(k, 3, 2)`` (default zeros)."""
+    p0 = np.asarray(p0, np.float64).reshape(-1, 3)
+    k = len(p0)
+    vec = lambda a: np.broadcast_to(np.asarray(a, np.float64), (k, 3))  # noqa: E731
     return {
-        "kind": kind,
-        "p0": np.asarray(p0),
-        "e1": np.asarray(e1),
-        "e2": np.asarray(e2),
-        "normal": np.asarray(n),
-        "area": float(area),
-        "radiance": np.asarray(radiance),
-        "texture": int(texture),
-        "uv": tuple(tuple(map(float, x)) for x in uv),
+        "kind": np.full(k, kind),
+        "p0": p0,
+        "e1": vec(e1),
+        "e2": vec(e2),
+        "normal": vec(n),
+        "area": np.broadcast_to(np.asarray(area, np.float64), (k,)),
+        "radiance": vec(radiance),
+        "texture": np.full(k, int(texture)),
+        "uv": np.zeros((k, 3, 2)) if uv is None else np.asarray(uv, np.float64).reshape(k, 3, 2),
+        "patch": np.full(k, int(patch)),
     }
 
 

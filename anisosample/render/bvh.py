@@ -80,6 +80,7 @@ def build_tree(lo: np.ndarray, hi: np.ndarray, leaf_size: int = LEAF_SIZE, bins:
     hi = np.asarray(hi, np.float64)
     p = lo.shape[0]
     cent = 0.5 * (lo + hi)
+    lo_t, hi_t = np.ascontiguousarray(lo.T), np.ascontiguousarray(hi.T)
     order = np.arange(p)
     n_start, n_count, n_bounds, n_child = [0], [p], [], []
     active = np.array([0])  # nodes of the current level
@@ -118,11 +119,12 @@ def build_tree(lo: np.ndarray, hi: np.ndarray, leaf_size: int = LEAF_SIZE, bins:
         b = np.clip(((ca - lo_a[seg]) * scale[seg]).astype(np.int64), 0, bins - 1)
         key = seg * bins + b
         cnt = np.bincount(key, minlength=k * bins).reshape(k, bins)
-        bl = np.full((k * bins, 3), np.inf)
-        bh = np.full((k * bins, 3), -np.inf)
-        np.minimum.at(bl, key, lo[prims])
-        np.maximum.at(bh, key, hi[prims])
-        bl, bh = bl.reshape(k, bins, 3), bh.reshape(k, bins, 3)
+        bl = np.full((3, k * bins), np.inf)
+        bh = np.full((3, k * bins), -np.inf)
+        for ax in range(3):  # 1-D ufunc.at is several times faster than on rows
+            np.minimum.at(bl[ax], key, lo_t[ax, prims])
+            np.maximum.at(bh[ax], key, hi_t[ax, prims])
+        bl, bh = bl.T.reshape(k, bins, 3), bh.T.reshape(k, bins, 3)
         # Prefix (left of boundary j+1) and suffix (right) sweeps over the bins.
         ll = np.minimum.accumulate(bl, axis=1)[:, :-1]
         lh = np.maximum.accumulate(bh, axis=1)[:, :-1]

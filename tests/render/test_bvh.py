@@ -121,7 +121,7 @@ def test_intersect_equals_brute_force_with_spheres_and_patches():
     t[2, 3] = 1.5
     b.rectangle(t, b.diffuse(0.0), radiance=3.0)
     b.camera(np.eye(4), width=2, height=2)
-    with_bvh, brute = _pair(b.build())  # 201 planar primitives: a BVH by default
+    with_bvh, brute = _pair(b.build(bvh=True))  # 201 planar primitives
     o, d, tmin, tmax = _rays(6)
     f = jax.jit(jax.vmap(intersect, in_axes=(None, 0, 0, 0, 0)))
     hb, hn = f(with_bvh, o, d, tmin, tmax), f(brute, o, d, tmin, tmax)
@@ -185,7 +185,7 @@ def test_render_with_and_without_bvh_agree():
     b.rectangle(t, b.diffuse(0.0), radiance=20.0)
     b.camera(_lookat(np.array([2.0, -2.5, 1.8]), np.array([0, 0, 0.4]), np.array([0, 0, 1.0])),
              width=12, height=10, fov=45)
-    with_bvh, brute = _pair(b.build())
+    with_bvh, brute = _pair(b.build(bvh=True))
     key = jax.random.key(3)
     for mis in (True,):
         a = R.render(with_bvh, key, spp=8, mis=mis, progress=False).mean
@@ -201,3 +201,18 @@ def test_bad_bvh_option():
     b.camera(np.eye(4), width=2, height=2)
     with pytest.raises(TypeError, match="bvh"):
         b.build(bvh="yes")
+
+
+def test_default_follows_the_threshold():
+    """``build()`` gives a BVH from :data:`bvh.THRESHOLD` planar primitives on, not below."""
+    for n, want in ((B.THRESHOLD - 1, False), (B.THRESHOLD, True)):
+        assert (_soup(n, 9).bvh is not None) == want, n
+
+
+def test_bad_mesh_shapes():
+    b = R.SceneBuilder()
+    m = b.diffuse()
+    with pytest.raises(ValueError, match="faces must have shape"):
+        b.triangles(np.zeros((4, 3)), [[0, 1], [1, 2]], m)
+    with pytest.raises(ValueError, match="vertices must have shape"):
+        b.triangles(np.zeros((4, 2)), [[0, 1, 2]], m)
