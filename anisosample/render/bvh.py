@@ -36,8 +36,12 @@ from jaxtyping import Array, Float, Int
 BINS = 16  # SAH bins per node
 LEAF_SIZE = 8  # primitives per leaf slot block
 # Scenes with at least this many planar primitives get a BVH (SceneBuilder.build's default);
-# below it testing every primitive is faster (measured: experiments/bench_render.py --prims).
-THRESHOLD = 64
+# below it testing every primitive is faster. Measured 2026-12-03 on the 2-core reference CPU,
+# light sampling 64^2 x 16 spp of a sphere mesh on a floor, ns per sample BVH / brute force:
+# 8 tris 1389 / 246, 80: 4868 / 944, 288: 6018 / 2501, 960: 8676 / 7394, 1848: 11161 / 8073,
+# 2400: 11065 / 9663, 2808: 10898 / 11291 and 7795 / 11200, 3968: 8309 / 14823 (load 0.8-2.8;
+# `python experiments/bench_render.py --no-mitsuba --prims 10,...,4000 --brute-max 4000`).
+THRESHOLD = 2500
 _PAD = 2.0**-16  # box padding, relative to the largest coordinate magnitude
 
 
@@ -84,28 +88,22 @@ def build_tree(lo: np.ndarray, hi: np.ndarray, leaf_size: int = LEAF_SIZE, bins:
     order = np.arange(p)
     n_start, n_count, n_bounds, n_child = [0], [p], [], []
     active = np.array([0])  # nodes of the current level
+    level_bounds = np.stack([lo.min(axis=0), hi.max(axis=0)])[None]  # their boxes
     depth = 0
     while active.size:
         depth += 1
         starts = np.asarray(n_start)[active]
         counts = np.asarray(n_count)[active]
-        pos, seg = _segments(starts, counts)
-        prims = order[pos]
-        offs = np.cumsum(counts) - counts
-        blo = np.minimum.reduceat(lo[prims], offs)
-        bhi = np.maximum.reduceat(hi[prims], offs)
-        n_bounds.append(np.stack([blo, bhi], 1))
+        n_bounds.append(level_bounds)
         n_child.append(np.full((len(active), 2), -1, np.int64))
         split = counts > leaf_size
         if not split.any():
             break
-        # Split the nodes with more than leaf_size primitives; keep only their primitives.
-        keep = split[seg]
-        pos, seg, prims = pos[keep], seg[keep], prims[keep]
-        remap = np.cumsum(split) - 1
-        seg = remap[seg]
+        # Split the nodes with more than leaf_size primitives.
         nodes = active[split]
         starts, counts = starts[split], counts[split]
+        pos, seg = _segments(starts, counts)
+        prims = order[pos]
         k = len(nodes)
         offs = np.cumsum(counts) - counts
         c = cent[prims]
@@ -144,6 +142,21 @@ def build_tree(lo: np.ndarray, hi: np.ndarray, leaf_size: int = LEAF_SIZE, bins:
         lrank = cl - cl[offs][seg]  # rank among the left ones of the segment
         new = np.where(left, lrank, nleft[seg] + (rank - lrank))
         order[starts[seg] + new] = prims
+        # The children's boxes: the bins' sweeps at the split (min and max are exact, so these
+        # equal the boxes of their primitives); median splits measure theirs.
+        kids = np.empty((k, 2, 2, 3))
+        ar = np.arange(k)
+        kids[:, 0, 0], kids[:, 0, 1] = ll[ar, best], lh[ar, best]
+        kids[:, 1, 0], kids[:, 1, 1] = rl[ar, best], rh[ar, best]
+        if not ok.all():
+            med = np.flatnonzero(~ok)
+            cs = np.stack([starts[med], starts[med] + nleft[med]], 1).reshape(-1)
+            cc = np.stack([nleft[med], counts[med] - nleft[med]], 1).reshape(-1)
+            mp = order[_segments(cs, cc)[0]]
+            mo = np.cumsum(cc) - cc
+            kids[med, :, 0] = np.minimum.reduceat(lo[mp], mo).reshape(-1, 2, 3)
+            kids[med, :, 1] = np.maximum.reduceat(hi[mp], mo).reshape(-1, 2, 3)
+        level_bounds = kids.reshape(2 * k, 2, 3)
         # Children.
         base = len(n_start)
         ids = base + np.arange(2 * k)
