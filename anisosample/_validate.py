@@ -126,3 +126,26 @@ def check_choice(name: str, value, choices: Sequence[str]) -> str:
     if value not in choices:
         raise ValueError(f"{name} must be one of {sorted(choices)}, got {value!r}")
     return value
+
+
+def check_devices(name: str, devices) -> list | None:
+    """``None`` (the default device), or a non-empty sequence of distinct ``jax.Device`` s as a
+    list (under ``jax.distributed`` they may be other processes' devices, e.g. ``jax.devices()``)."""
+    if devices is None:
+        return None
+    if isinstance(devices, jax.Device):
+        raise TypeError(f"{name} must be a sequence of jax.Device (e.g. jax.devices()), got one "
+                        f"device {devices}: pass [{devices}]")
+    try:
+        devs = list(devices)
+    except TypeError:
+        raise TypeError(f"{name} must be None or a sequence of jax.Device, got "
+                        f"{type(devices).__name__}") from None
+    if not devs:
+        raise ValueError(f"{name} must hold at least one device")
+    for i, d in enumerate(devs):
+        if not isinstance(d, jax.Device):
+            raise TypeError(f"{name}[{i}] must be a jax.Device, got {type(d).__name__}")
+    if len(set(devs)) != len(devs):
+        raise ValueError(f"{name} must be distinct, got {devs}")
+    return devs

@@ -439,20 +439,8 @@ def _add_tables(sub):
                    help="4-direction table: start each set from the 3-direction table's set "
                         "(default: the existing table's choice, else on for 4 directions, as "
                         "the on-demand lookups build)")
-    b.add_argument("--processes", type=int, default=1,
-                   help="local worker processes, each pinned to its share of the cores and "
-                        "joined by jax.distributed on a localhost coordinator (one command for "
-                        "a whole table on one machine; 2 on a 2-core machine)")
+    _add_distributed(b, "build", "a whole table")
     b.add_argument("--no-progress", action="store_true", help="no progress bar")
-    b.add_argument("--distributed", action="store_true",
-                   help="call jax.distributed.initialize() first (several hosts, shared --out)")
-    b.add_argument("--coordinator", default=None,
-                   help="with --distributed: coordinator host:port (else auto-detected, e.g. "
-                        "SLURM)")
-    b.add_argument("--num-processes", type=int, default=None,
-                   help="with --distributed: number of processes (hosts)")
-    b.add_argument("--process-id", type=int, default=None,
-                   help="with --distributed: this process's id in 0..num_processes-1")
     i = tsub.add_parser("info", help="describe and verify a table directory")
     i.add_argument("path", help="table directory (holds table.json)")
     e = tsub.add_parser("export", help="write a table's sets to one point file (UTK text or "
@@ -486,6 +474,53 @@ def _parse_sets(text):
         raise ValueError(f"--sets must look like 0,30,45 or 10:20,0:45, got {text!r}") from None
 
 
+def _add_distributed(p, verb: str, what: str) -> None:
+    """The flags that spread one command over processes: ``--processes`` (local workers joined
+    by jax.distributed) and ``--distributed`` with its coordinator (several hosts)."""
+    p.add_argument("--processes", type=int, default=1,
+                   help="local worker processes, each pinned to its share of the cores and "
+                        f"joined by jax.distributed on a localhost coordinator (one command to "
+                        f"{verb} {what} on one machine; 2 on a 2-core machine)")
+    p.add_argument("--distributed", action="store_true",
+                   help="call jax.distributed.initialize() first (several hosts, each running "
+                        "this command)")
+    p.add_argument("--coordinator", default=None,
+                   help="with --distributed: coordinator host:port (else auto-detected, e.g. "
+                        "SLURM)")
+    p.add_argument("--num-processes", type=int, default=None,
+                   help="with --distributed: number of processes (hosts)")
+    p.add_argument("--process-id", type=int, default=None,
+                   help="with --distributed: this process's id in 0..num_processes-1")
+
+
+def _init_distributed(args, *, collectives: bool = False) -> None:
+    """In a ``--processes`` worker, pin it to its cores; with ``--distributed``, check the
+    coordinator flags and join (``collectives``: CPU collectives across processes (gloo), which
+    a sharded render's gather needs), before anything touches the XLA backend."""
+    affinity = os.environ.pop(_AFFINITY_ENV, None)
+    if affinity:  # a worker of --processes: its share of the cores, before any thread starts
+        os.sched_setaffinity(0, {int(c) for c in affinity.split(",")})
+    given = [a is not None for a in (args.coordinator, args.num_processes, args.process_id)]
+    if any(given) and not args.distributed:
+        raise ValueError("--coordinator, --num-processes and --process-id need --distributed")
+    if not args.distributed:
+        return
+    import jax
+
+    if any(given) and not all(given):
+        raise ValueError("--coordinator, --num-processes and --process-id go together")
+    if collectives:
+        jax.config.update("jax_cpu_collectives_implementation", "gloo")
+    if all(given):
+        if args.num_processes < 1 or not 0 <= args.process_id < args.num_processes:
+            raise ValueError(f"--process-id must lie in 0..{args.num_processes - 1} and "
+                             f"--num-processes be >= 1, got {args.process_id} of "
+                             f"{args.num_processes}")
+        jax.distributed.initialize(args.coordinator, args.num_processes, args.process_id)
+    else:
+        jax.distributed.initialize()
+
+
 def _run_tables(args):
     from . import tables
 
@@ -506,26 +541,19 @@ def _run_tables(args):
                  if missing else ""))
         return
     if args.processes != 1:
-        return _run_local_processes(args)
-    affinity = os.environ.pop(_AFFINITY_ENV, None)
-    if affinity:  # a worker of --processes: its share of the cores, before any thread starts
-        os.sched_setaffinity(0, {int(c) for c in affinity.split(",")})
-    given = [a is not None for a in (args.coordinator, args.num_processes, args.process_id)]
-    if any(given) and not args.distributed:
-        raise ValueError("--coordinator, --num-processes and --process-id need --distributed")
-    if args.distributed:
-        import jax
-
-        if any(given) and not all(given):
-            raise ValueError("--coordinator, --num-processes and --process-id go together")
-        if all(given):
-            if args.num_processes < 1 or not 0 <= args.process_id < args.num_processes:
-                raise ValueError(f"--process-id must lie in 0..{args.num_processes - 1} and "
-                                 f"--num-processes be >= 1, got {args.process_id} of "
-                                 f"{args.num_processes}")
-            jax.distributed.initialize(args.coordinator, args.num_processes, args.process_id)
-        else:
-            jax.distributed.initialize()
+        _check_processes(args)
+        out = Path(args.out) if args.out else tables.cache_table_path(
+            args.directions, args.n, args.prefix or "none", args.sequence_from or 0)
+        if (out / "table.json").exists():  # a damaged or foreign table: one message, not P
+            tables.open_table(out, n=args.n, kind=args.directions)
+        _run_local_processes(args.processes, lambda pid, port: _worker_argv(args, pid, port),
+                             after_failure="; the same command resumes what they finished")
+        tab = tables.open_table(out)
+        sets = tables.canonical_sets(tab.kind)
+        print(f"table {tab.path}: {args.processes} local processes done; "
+              f"{sum(tab.has(e) for e in sets)}/{len(sets)} sets, complete={tab.complete}")
+        return
+    _init_distributed(args)
     opts = {k: v for k, v in (("recipe", args.recipe), ("steps", args.steps),
                               ("prefix", args.prefix), ("sequence_from", args.sequence_from))
             if v is not None}
@@ -621,14 +649,10 @@ def _die_with_parent():
         pass
 
 
-def _run_local_processes(args):
-    """``tables build --processes P``: P workers of this command on this machine, joined by
-    jax.distributed on a localhost coordinator (worker ``p`` builds the units ``i % P == p``,
-    the same sets, bit for bit, as one process), each pinned to its share of the cores so the
-    workers do not compete for them. Resumable as a single build is."""
-    import socket
-    import subprocess
-    import time
+def _check_processes(args) -> None:
+    """``--processes P`` starts its own workers: ``P >= 1``, without the ``--distributed`` flags,
+    and at most the usable cores (one each)."""
+    from . import synthesis
 
     if args.processes < 1:
         raise ValueError(f"--processes must be >= 1, got {args.processes}")
@@ -636,26 +660,37 @@ def _run_local_processes(args):
                                                         args.process_id)):
         raise ValueError("--processes starts its own local jax.distributed workers; it does not "
                          "go with --distributed, --coordinator, --num-processes or --process-id")
-    from . import synthesis, tables
-
-    out = Path(args.out) if args.out else tables.cache_table_path(
-        args.directions, args.n, args.prefix or "none", args.sequence_from or 0)
-    if (out / "table.json").exists():  # a damaged or foreign table: one message, not P
-        tables.open_table(out, n=args.n, kind=args.directions)
     cores = synthesis.usable_cpus()
     if args.processes > len(cores):
         raise ValueError(f"--processes must be at most the {len(cores)} usable cores, got "
                          f"{args.processes}")
+
+
+def _run_local_processes(processes: int, worker_argv, *, quiet_others: bool = False,
+                         after_failure: str = "") -> None:
+    """``--processes P``: P workers on this machine, worker ``p`` running the command line
+    ``worker_argv(p, port)`` (which joins jax.distributed on the localhost coordinator
+    ``127.0.0.1:port``), each pinned to its share of the cores so the workers do not compete for
+    them. A failed worker stops the others; a stopped parent takes them down
+    (:func:`_die_with_parent`). ``quiet_others``: only worker 0 writes to stdout."""
+    import socket
+    import subprocess
+    import time
+
+    from . import synthesis
+
+    cores = synthesis.usable_cpus()
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         port = sock.getsockname()[1]
     procs = []
     try:
-        for pid in range(args.processes):
+        for pid in range(processes):
             env = dict(os.environ)
-            env[_AFFINITY_ENV] = ",".join(str(c) for c in cores[pid::args.processes])
+            env[_AFFINITY_ENV] = ",".join(str(c) for c in cores[pid::processes])
             procs.append(subprocess.Popen(
-                [sys.executable, "-m", "anisosample", *_worker_argv(args, pid, port)], env=env,
+                [sys.executable, "-m", "anisosample", *worker_argv(pid, port)], env=env,
+                stdout=subprocess.DEVNULL if quiet_others and pid else None,
                 preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None))
         codes = [None] * len(procs)
         while None in codes:  # a failed worker stops the others (they would wait for it)
@@ -677,12 +712,8 @@ def _run_local_processes(args):
         (i, c) for i, c in enumerate(codes) if c]
     if bad:
         raise RuntimeError(f"worker(s) {', '.join(str(i) for i, _ in bad)} of "
-                           f"{args.processes} failed (exit {bad[0][1]}; their messages are "
-                           "above); the same command resumes what they finished")
-    tab = tables.open_table(out)
-    sets = tables.canonical_sets(tab.kind)
-    print(f"table {out}: {args.processes} local processes done; "
-          f"{sum(tab.has(e) for e in sets)}/{len(sets)} sets, complete={tab.complete}")
+                           f"{processes} failed (exit {bad[0][1]}; their messages are "
+                           f"above){after_failure}")
 
 
 # --- variance ----------------------------------------------------------------------------------
@@ -941,6 +972,11 @@ def _add_render(sub):
                    help="PNG preview exposure (stops)")
     p.add_argument("-o", "--output", required=True, help="output .exr (a .png preview beside)")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    p.add_argument("--devices", default="1", metavar="N|all",
+                   help="split the pixels over the first N local devices (jax.sharding; the "
+                        "same image as one); 'all': every local device. With --processes or "
+                        "--distributed: every device of every process")
+    _add_distributed(p, "render", "an image")
 
 
 def _scene_file(text: str) -> Path:
@@ -966,6 +1002,27 @@ def _run_render(args):
         raise ValueError(f"--output must end in .exr, got {out.name}")
     if not args.force and out.exists():
         raise FileExistsError(f"{out} exists; pass --force to replace it")
+    several = args.processes != 1 or args.distributed
+    if args.devices != "all" and (not args.devices.isdigit() or int(args.devices) < 1):
+        raise ValueError(f"--devices must be a positive integer or 'all', got {args.devices!r}")
+    if several and args.devices not in ("1", "all"):
+        raise ValueError("--devices N is for one process; with --processes or --distributed "
+                         "every device of every process renders")
+    if args.processes != 1:
+        _check_processes(args)
+        _run_local_processes(args.processes, lambda pid, port: _render_worker_argv(
+            args, pid, port), quiet_others=True)
+        return
+    _init_distributed(args, collectives=True)
+    if several:
+        devices = jax.devices()
+    else:
+        local = jax.local_devices()
+        count = len(local) if args.devices == "all" else int(args.devices)
+        if count > len(local):
+            raise ValueError(f"--devices {count}: this process has {len(local)} local "
+                             f"device(s)")
+        devices = None if count == 1 else local[:count]
     params = {}
     for item in args.set:
         if "=" not in item:
@@ -982,8 +1039,10 @@ def _run_render(args):
         scene, jax.random.key(args.seed), spp=spp, sampler=sampler,
         realizations=args.realizations, pixel_center=args.pixel_center,
         dimension=args.dimension, technique=args.technique, light_warp=args.light_warp,
-        mis=mis,
+        mis=mis, devices=devices,
     )
+    if jax.process_index() != 0:  # every process has the whole image; the first writes it
+        return
     written = render.save_result(
         out, result, overwrite=args.force, exposure=args.exposure,
         reference=None if reference is None else reference[..., :3],
@@ -992,6 +1051,22 @@ def _run_render(args):
     if result.pixel_sampler is not None:
         print(_pixel_summary(result))
     print(f"wrote {', '.join(str(w) for w in written)}")
+
+
+def _render_worker_argv(args, pid: int, port: int) -> list[str]:
+    """Worker ``pid``'s ``render`` command line under ``--processes``: the caller's own, without
+    ``--processes``, joined to the localhost coordinator."""
+    argv, skip = [], False
+    for a in args.argv:
+        flag = a.split("=", 1)[0]
+        if skip:
+            skip = False
+        elif len(flag) >= len("--processe") and "--processes".startswith(flag):  # argparse
+            skip = "=" not in a  # takes unambiguous abbreviations, --processe too
+        else:
+            argv.append(a)
+    return [*argv, "--distributed", "--coordinator", f"127.0.0.1:{port}", "--num-processes",
+            str(args.processes), "--process-id", str(pid)]
 
 
 def _pixel_summary(result) -> str:
@@ -1172,6 +1247,7 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, --version and argparse's errors end here
         return exc.code if isinstance(exc.code, int) else 2
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # --processes workers rerun it
     _, run = _COMMANDS[args.command]
     name = args.command + (f" {args.tables_command}" if args.command == "tables" else "")
     try:

@@ -72,6 +72,7 @@ from . import spectrum as _spectrum
 from ._validate import (
     ONE_MINUS_EPSILON,
     check_choice,
+    check_devices,
     check_directions_deg,
     check_int,
     check_key,
@@ -764,7 +765,7 @@ def synthesize_batch(key, n: int, direction_sets, *, recipe: str | Recipe = "rat
     checkpoint_every = check_int("checkpoint_every", checkpoint_every, minimum=1)
     for d in sets:
         _check_size(n, d)
-    devs = _check_devices(devices)
+    devs = check_devices("devices", devices) or [None]  # None: the default device
     if checkpoint is not None and len(devs) > 1:
         raise ValueError("checkpoint needs devices=None (one device)")
     b = len(sets)
@@ -826,20 +827,6 @@ class _nullcontext:
 
     def __exit__(self, *exc):
         return False
-
-
-def _check_devices(devices) -> list:
-    if devices is None:
-        return [None]  # the default device (respects jax.default_device)
-    devs = list(devices)
-    if not devs:
-        raise ValueError("devices must hold at least one device")
-    for i, d in enumerate(devs):
-        if not isinstance(d, jax.Device):
-            raise TypeError(f"devices[{i}] must be a jax.Device, got {type(d).__name__}")
-    if len(set(devs)) != len(devs):
-        raise ValueError(f"devices must be distinct, got {devs}")
-    return devs
 
 
 # --- results on disk --------------------------------------------------------------------------

@@ -8,6 +8,7 @@ the one-realization estimator (its MSE when the estimator is unbiased).
 
 from __future__ import annotations
 
+import collections
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -17,7 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._validate import check_int, check_key
+from .._validate import check_devices, check_int, check_key
 from .integrator import check_options, render_chunk
 from .light_warps import light_warp_name
 from .scene import Scene
@@ -65,6 +66,7 @@ def render(
     chunk_samples: int = 4096,
     progress: bool = True,
     sampler_options: dict | None = None,
+    devices=None,
 ) -> RenderResult:
     """Render ``scene`` ``realizations`` times with ``spp`` points per pixel per realization.
 
@@ -90,6 +92,13 @@ def render(
     the user cache first (``sampler_options={"build_missing": False}`` refuses instead, naming
     the command that builds them). ``progress=False`` silences everything the call starts: the
     render's bar, the estimation's and those of the sets it builds.
+
+    ``devices``: split the pixels over these devices, their blocks of ``chunk`` x ``per_call``
+    pixels dealt out in turn, e.g. ``jax.local_devices()``; under ``jax.distributed`` every
+    process's, ``jax.devices()`` (each process runs the same call, renders its share and gets
+    the whole image, gathered with ``multihost_utils.process_allgather``). The same bits as one
+    device: each block runs the one-device program, and a pixel's estimate depends only on its
+    index and ``key``. ``None``: the default device.
     """
     key = check_key("key", key)
     spp = check_int("spp", spp, minimum=1)
@@ -98,6 +107,7 @@ def render(
     if not isinstance(mis, (bool, np.bool_)):
         raise TypeError(f"mis must be True or False, got {mis!r}")
     mis = bool(mis) and dimension == "light"
+    split = _PixelSplit.of(check_devices("devices", devices))
     from .aligned import render_chunk_sets, resolve_sampler
     from .pixel_aligned import PIXEL_SAMPLERS, PixelSampler, pixel_sampler
 
@@ -150,29 +160,48 @@ def render(
     with bar(
         total=realizations * (n_chunks + 2 if per_pixel is not None else n_chunks),
         desc="render",
-        disable=None if progress else True,
+        disable=None if progress and jax.process_index() == 0 else True,
         unit="chunk",
     ) as pb:
 
-        def over_pixels(kernel, pixels=None):
-            """``kernel(idx)`` over every pixel (or the flat indices ``pixels``) in chunks: its
-            outputs, each ``(npix, ...)`` (zero outside ``pixels``)."""
+        def over_pixels(kernel, args, static, pixels=None):
+            """``kernel(*args, idx, **static)`` (a jitted chunk kernel: ``idx`` a
+            ``(per_call, chunk)`` block of flat pixel indices) over every pixel (or the flat
+            indices ``pixels``): its outputs, each ``(npix, ...)`` (zero outside ``pixels``).
+            Block ``c`` runs on process ``c % P`` of the ``P`` sharing ``devices``, on its
+            local devices in turn; the next block is dispatched before one is read."""
             todo = np.arange(npix) if pixels is None else np.asarray(pixels, np.int64)
-            outs = None
-            steps = max(1, -(-todo.size // (chunk * per_call)))
-            for c in range(steps):
-                pos = np.arange(c * chunk * per_call, (c + 1) * chunk * per_call)
-                valid = pos < todo.size
-                idx = todo[np.where(valid, pos, max(todo.size - 1, 0))] if todo.size else pos
-                idx = idx.astype(np.int32)
-                res = kernel(jnp.asarray(idx.reshape(per_call, chunk)))
+            per_step = chunk * per_call
+            steps = max(1, -(-todo.size // per_step))
+            shapes = jax.eval_shape(lambda i: kernel(*args, i, **static),
+                                    jax.ShapeDtypeStruct((per_call, chunk), jnp.int32))
+            shapes = shapes if isinstance(shapes, tuple) else (shapes,)
+            outs = [np.zeros((npix, *r.shape[2:]), r.dtype) for r in shapes]
+
+            def collect(idx, valid, res):
                 res = res if isinstance(res, tuple) else (res,)
-                if outs is None:
-                    outs = [np.zeros((npix, *r.shape[2:]), r.dtype) for r in res]
                 for o, r in zip(outs, res, strict=True):
                     o[idx[valid]] = np.asarray(r).reshape(-1, *r.shape[2:])[valid]
                 if pixels is None:
-                    pb.update(1)
+                    pb.update(split.processes)
+
+            pending = collections.deque()
+            mine = range(split.rank, steps, split.processes)
+            for turn, c in enumerate(mine):
+                pos = np.arange(c * per_step, (c + 1) * per_step)
+                valid = pos < todo.size
+                idx = todo[np.where(valid, pos, max(todo.size - 1, 0))] if todo.size else pos
+                idx = idx.astype(np.int32)
+                device = split.devices[turn % len(split.devices)]
+                block = idx.reshape(per_call, chunk)
+                block = jnp.asarray(block) if device is None else jax.device_put(block, device)
+                pending.append((idx, valid, kernel(*args, block, **static)))
+                if len(pending) > len(split.devices):
+                    collect(*pending.popleft())
+            while pending:
+                collect(*pending.popleft())
+            if split.processes > 1:  # every process gets the blocks the others rendered
+                outs = split.gather(outs, todo, per_step)
             if pixels is not None:
                 pb.update(1)
             return outs
@@ -195,11 +224,10 @@ def render(
                     raise ValueError(f"sampler {sampler_name!r} returned shape {pts.shape}, "
                                      f"expected ({spp}, 2)")
                 if blocks is None:
-                    (est,) = over_pixels(lambda idx, pts=pts, k=k_pix: render_chunk(
-                        scene, pts, k, idx, **opts))
+                    (est,) = over_pixels(render_chunk, (scene, pts, k_pix), opts)
                 else:
-                    (est,) = over_pixels(lambda idx, sets=sets, ps=pixel_set, k=k_pix:
-                                         render_chunk_sets(scene, sets, ps, k, idx, **opts))
+                    (est,) = over_pixels(render_chunk_sets,
+                                         (scene, sets, pixel_set, k_pix), opts)
                 est = est.astype(np.float64)
             if not np.all(np.isfinite(est)):
                 raise FloatingPointError("the render produced NaN or Inf (a bug: please report)")
@@ -244,6 +272,49 @@ def render(
     )
 
 
+class _PixelSplit(NamedTuple):
+    """How :func:`render` spreads its blocks of pixels: over ``processes`` processes (this one
+    is ``rank``-th of them) and, within this process, over ``devices`` in turn (``[None]``: the
+    default device).
+
+    Every block runs the one-device program on one device, so the bits are those of one device.
+    (A ``shard_map`` of the block's rows over a mesh, tried first, gives the same bits but on
+    two forced CPU devices the per-pixel aligned sampler's edge-search kernel never finished
+    (``jax 0.10.2``), while each device alone took 12 s; GSPMD on the chunk axis did the same
+    and also changes the vectorised width, and with it the last bit of some pixels.)"""
+
+    devices: list
+    processes: int = 1
+    rank: int = 0
+    owners: tuple = (0,)
+
+    @classmethod
+    def of(cls, devices) -> _PixelSplit:
+        if devices is None:
+            return cls([None])
+        me = jax.process_index()
+        owners = tuple(sorted({d.process_index for d in devices}))
+        if me not in owners:
+            raise ValueError(f"devices must include one of this process's devices (process "
+                             f"{me}), got only those of process(es) {list(owners)}")
+        return cls([d for d in devices if d.process_index == me], len(owners),
+                   owners.index(me), owners)
+
+    def gather(self, outs: list, todo: np.ndarray, per_step: int) -> list:
+        """Each pixel's values from the process that rendered its block (block ``c`` of the
+        ``todo`` pixels: process ``owners[c % processes]``), on every process."""
+        from jax.experimental import multihost_utils
+
+        every = multihost_utils.process_allgather(outs)  # [(process_count, npix, ...)]
+        owner = np.asarray(self.owners)[(np.arange(todo.size) // per_step) % self.processes]
+        merged = []
+        for o, e in zip(outs, every, strict=True):
+            o = o.copy()
+            o[todo] = np.asarray(e)[owner, todo]
+            merged.append(o)
+        return merged
+
+
 def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, over_pixels,
                       progress: bool):
     """One realization with the per-pixel aligned sampler (:mod:`anisosample.render.
@@ -264,8 +335,8 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
 
     prefix = jnp.asarray(prefix_points(pixel_prefix(spp)), jnp.float32)
     m = prefix.shape[0]
-    head, dirs, count, extra = over_pixels(lambda idx: prefix_chunk(
-        scene, prefix, key, idx, spp=spp, search=sampler.search, **opts))
+    head, dirs, count, extra = over_pixels(prefix_chunk, (scene, prefix, key),
+                                           dict(opts, spp=spp, search=sampler.search))
     requests, index, code = choose_sets(dirs, count, sampler.k)
     edge = np.flatnonzero(index >= 0)
     smooth = np.flatnonzero(index < 0)
@@ -274,14 +345,13 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
         sets = sampler.sets(requests, spp, progress=progress)
         if not bool(jnp.all(sets[:, :m] == prefix[None])):
             raise ValueError("a prefix set does not start with its prefix (a damaged table)")
-        (rest,) = over_pixels(lambda idx: rest_chunk(
-            scene, sets[:, m:], jnp.asarray(np.maximum(index, 0)), key, idx, spp=spp, **opts),
-            edge)
+        (rest,) = over_pixels(rest_chunk, (scene, sets[:, m:], jnp.asarray(np.maximum(index, 0)),
+                                           key), dict(opts, spp=spp), edge)
         est[edge] = (head[edge].astype(np.float64) + rest[edge].astype(np.float64)) / spp
     if smooth.size:
         base = jnp.asarray(samplers.get(FALLBACK)(k_pts, spp), jnp.float32)
-        (fb,) = over_pixels(lambda idx: fallback_chunk(scene, base, key, idx, spp=spp, m=m,
-                                                       **opts), smooth)
+        (fb,) = over_pixels(fallback_chunk, (scene, base, key), dict(opts, spp=spp, m=m),
+                            smooth)
         w = prefix_weight(m, spp)
         est[smooth] = (w * head[smooth].astype(np.float64) / m
                        + (1 - w) * fb[smooth].astype(np.float64))
