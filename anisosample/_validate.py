@@ -130,7 +130,7 @@ def check_choice(name: str, value, choices: Sequence[str]) -> str:
 
 def check_devices(name: str, devices) -> list | None:
     """``None`` (the default device), or a non-empty sequence of distinct ``jax.Device`` s as a
-    list (under ``jax.distributed`` they may be other processes' devices, e.g. ``jax.devices()``)."""
+    list (under ``jax.distributed`` they may be other processes' devices: ``jax.devices()``)."""
     if devices is None:
         return None
     if isinstance(devices, jax.Device):

@@ -33,3 +33,12 @@ def toroidal_nn_distance(points) -> np.ndarray:
     p = np.asarray(points, dtype=np.float64)
     d, _ = cKDTree(p, boxsize=1.0).query(p, k=2)
     return d[:, 1]
+
+
+def free_port() -> int:
+    """A TCP port on localhost that nothing listens on now (for a jax.distributed coordinator)."""
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]

@@ -21,6 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import free_port
 
 import anisosample as asp
 from anisosample import _table_build, selection, tables
@@ -391,14 +392,6 @@ def test_batched_build_shards_groups_over_two_devices(tmp_path):
     assert not np.array_equal(b.load((10,)), b.load((30,)))
 
 
-def _free_port() -> int:
-    import socket
-
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
 @pytest.mark.parametrize("kind", [3, 4])
 def test_build_over_two_processes_with_jax_distributed(tmp_path, kind):
     """Two processes joined by jax.distributed (a localhost coordinator, as two hosts would be)
@@ -413,7 +406,7 @@ def test_build_over_two_processes_with_jax_distributed(tmp_path, kind):
     common = ["--n", "32", "--directions", str(kind), "--sets", sets, "--steps", "6",
               "--seed", "2", "--out", str(run_dir)]
     if kind == 3:
-        common += ["--distributed", "--coordinator", f"127.0.0.1:{_free_port()}",
+        common += ["--distributed", "--coordinator", f"127.0.0.1:{free_port()}",
                    "--num-processes", "2"]
         procs = []
         for pid in range(2):

@@ -13,7 +13,7 @@ import textwrap
 import jax
 import numpy as np
 import pytest
-from test_tables import _free_port
+from helpers import free_port
 
 import anisosample.render as R
 from anisosample import cli, io, scenes, synthesis
@@ -89,7 +89,7 @@ def test_two_processes_give_the_same_image(tmp_path):
     scene, _ = R.load_xml_with_settings(scenes.path("cornell"), width=18, height=14)
     one = R.render(scene, jax.random.key(0), spp=16, sampler="pmj02bn", progress=False).mean
     two = tmp_path / "two.exr"
-    port = _free_port()
+    port = free_port()
     procs = [subprocess.Popen(_render_cli(two, "--distributed", "--coordinator",
                                           f"127.0.0.1:{port}", "--num-processes", "2",
                                           "--process-id", str(p)),
