@@ -973,8 +973,8 @@ def _add_render(sub):
     p.add_argument("-o", "--output", required=True, help="output .exr (a .png preview beside)")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument("--devices", default="1", metavar="N|all",
-                   help="split the pixels over the first N local devices (jax.sharding; the "
-                        "same image as one); 'all': every local device. With --processes or "
+                   help="deal the image's blocks of pixels out to the first N local devices "
+                        "(the same image as one); 'all': every local device. With --processes or "
                         "--distributed: every device of every process")
     _add_distributed(p, "render", "an image")
 

@@ -273,9 +273,9 @@ def render(
 
 
 class _PixelSplit(NamedTuple):
-    """How :func:`render` spreads its blocks of pixels: over ``processes`` processes (this one
-    is ``rank``-th of them) and, within this process, over ``devices`` in turn (``[None]``: the
-    default device).
+    """How :func:`render` spreads its blocks of pixels: over the processes ``owners`` (this one
+    is the ``rank``-th of them) and, within this process, over ``devices`` in turn (``[None]``:
+    the default device).
 
     Every block runs the one-device program on one device, so the bits are those of one device.
     (A ``shard_map`` of the block's rows over a mesh, tried first, gives the same bits but on
@@ -284,9 +284,15 @@ class _PixelSplit(NamedTuple):
     and also changes the vectorised width, and with it the last bit of some pixels.)"""
 
     devices: list
-    processes: int = 1
-    rank: int = 0
-    owners: tuple = (0,)
+    owners: tuple = (0,)  # the process indices that share the blocks, in order
+
+    @property
+    def processes(self) -> int:
+        return len(self.owners)
+
+    @property
+    def rank(self) -> int:
+        return self.owners.index(jax.process_index())
 
     @classmethod
     def of(cls, devices) -> _PixelSplit:
@@ -297,8 +303,7 @@ class _PixelSplit(NamedTuple):
         if me not in owners:
             raise ValueError(f"devices must include one of this process's devices (process "
                              f"{me}), got only those of process(es) {list(owners)}")
-        return cls([d for d in devices if d.process_index == me], len(owners),
-                   owners.index(me), owners)
+        return cls([d for d in devices if d.process_index == me], owners)
 
     def gather(self, outs: list, todo: np.ndarray, per_step: int) -> list:
         """Each pixel's values from the process that rendered its block (block ``c`` of the

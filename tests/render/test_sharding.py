@@ -1,7 +1,7 @@
 """Sharded rendering (``render(..., devices=...)``, ``anisosample render --devices/--processes``):
-the pixels of every chunk split over devices (``jax.sharding``) and processes
-(``jax.distributed``) give the image one device gives, bit for bit, since a pixel's estimate
-depends only on its index and the key."""
+the image's blocks of pixels dealt out to devices and processes (``jax.distributed``) give the
+image one device gives, bit for bit, since a pixel's estimate depends only on its index and the
+key."""
 
 from __future__ import annotations
 
