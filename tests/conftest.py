@@ -32,3 +32,38 @@ def _private_user_cache(tmp_path_factory):
         os.environ.pop("XDG_CACHE_HOME", None)
     else:
         os.environ["XDG_CACHE_HOME"] = old
+
+
+def _map_count() -> int:
+    """This process's memory mappings (Linux ``/proc/self/maps`` lines; 0 elsewhere)."""
+    try:
+        with open("/proc/self/maps", "rb") as f:
+            return f.read().count(b"\n")
+    except OSError:
+        return 0
+
+
+def _map_budget() -> int:
+    """Half the kernel's per-process mapping limit (``vm.max_map_count``, 65530 by default)."""
+    try:
+        with open("/proc/sys/vm/max_map_count") as f:
+            return int(f.read()) // 2
+    except (OSError, ValueError):
+        return 32765
+
+
+@pytest.fixture(autouse=True)
+def _bounded_compiled_code(request):
+    """After a slow test, drop JAX's compiled executables once the process holds more than
+    half of ``vm.max_map_count`` memory mappings. XLA:CPU keeps each executable's JIT code in
+    mappings of its own (about 600 per light-warp sweep case), released only with the
+    executable; a long process that reaches the limit crashes (SIGSEGV, or LLVM's "Unable to
+    allocate section memory" abort) when the next compilation's mmap fails: the one-process
+    light-warp sweep did, near its end. Only slow tests check (reading the map costs ~5 ms),
+    so the default suite is unchanged; results do not depend on the caches."""
+    yield
+    if request.node.get_closest_marker("slow") is not None and _map_count() > _map_budget():
+        import gc
+
+        jax.clear_caches()
+        gc.collect()
