@@ -378,13 +378,17 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
     seq = check_int("sequence_from", synth.get("sequence_from", 0), minimum=0)
     out = Path(out) if out is not None else _t.cache_table_path(kind, n, prefix, seq)
     existing = _existing_synthesis(out, kind)  # an existing table keeps its own choices
-    if seq and "steps" not in synth:  # a sequence table's step count: its own, else SEQUENCE_STEPS
-        if existing is None:
-            from .synthesis import SEQUENCE_STEPS
+    if seq:  # a sequence table's steps and learning rate: its own, else the sequence defaults
+        from .synthesis import SEQUENCE_LEARNING_RATE, SEQUENCE_STEPS
 
-            synth["steps"] = SEQUENCE_STEPS
-        elif "steps" in existing:
-            synth["steps"] = existing["steps"]
+        for name, default in (("steps", SEQUENCE_STEPS),
+                              ("learning_rate", SEQUENCE_LEARNING_RATE)):
+            if name in synth:
+                continue
+            if existing is None:
+                synth[name] = default
+            elif name in existing:
+                synth[name] = existing[name]
     if warm_start is None:
         warm_start = kind == 4 if existing is None else "warm_start" in existing
     if not isinstance(warm_start, bool):

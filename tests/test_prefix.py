@@ -231,6 +231,53 @@ def test_sequence_objective_sums_the_nested_prefixes_losses():
     np.testing.assert_allclose(total, want, rtol=1e-9)
 
 
+def test_explicit_sequence_weights_weigh_each_nested_prefix():
+    """Explicit weights (one per nested prefix, smallest first): all ones is "equal" bit for bit,
+    ``n_k / N`` is "size", and any other vector scales each prefix's term by its own weight."""
+    from anisosample import frequencies
+
+    dirs, key = (0.0, 90.0, 30.0), jax.random.key(3)
+    opts = dict(steps=6, method="direct", show_progress=False)
+    equal = synthesis.synthesize_sequence(key, 64, dirs, sequence_from=16, **opts)
+    ones = synthesis.synthesize_sequence(key, 64, dirs, sequence_from=16,
+                                         sequence_weights=[1, 1, 1], **opts)
+    np.testing.assert_array_equal(np.asarray(equal.points), np.asarray(ones.points))
+    size = synthesis.synthesize_sequence(key, 64, dirs, sequence_from=16,
+                                         sequence_weights="size", **opts)
+    quarter = synthesis.synthesize_sequence(key, 64, dirs, sequence_from=16,
+                                            sequence_weights=(0.25, 0.5, 1.0), **opts)
+    np.testing.assert_array_equal(np.asarray(size.points), np.asarray(quarter.points))
+    assert ones.recipe.record()["sequence_weights"] == [1.0, 1.0, 1.0]
+    assert equal.recipe.learning_rate == synthesis.SEQUENCE_LEARNING_RATE
+    assert equal.recipe.steps == 6
+
+    from anisosample import losses
+
+    x = np.asarray(asp.samplers.get("pmj02bn")(jax.random.key(4), 64), np.float64)
+    w = (2.0, 0.5, 3.0)
+    rec = synthesis.make_recipe(sequence_from=16, method="direct", sequence_weights=w)
+    obj = synthesis._objective(frequencies.design(64, dirs, "rate"), dirs, rec, 64)
+    with jax.enable_x64(True):
+        total = float(sum(synthesis._evaluate([obj], [jax.numpy.asarray(x)])[0][0]))
+        want = sum(wk * float(losses.linear_spectrum_loss(
+            x[:nk], frequencies.design(nk, dirs, "rate"), method="direct"))
+            for wk, nk in zip(w, (16, 32, 64), strict=True))
+    np.testing.assert_allclose(total, want, rtol=1e-9)
+
+
+@pytest.mark.parametrize(("weights", "error", "match"), [
+    ((1.0, 1.0), ValueError, r"one weight per nested prefix \[16, 32, 64\].*got 2"),
+    ((1.0, 0.0, 1.0), ValueError, "positive, finite weight per nested prefix"),
+    ((1.0, float("nan"), 1.0), ValueError, "positive, finite"),
+    (3, TypeError, "sequence_weights must be a name"),
+    (("a", "b", "c"), TypeError, "sequence_weights must be a name"),
+])
+def test_bad_sequence_weights_are_refused(weights, error, match):
+    with pytest.raises(error, match=match):
+        synthesis.synthesize_sequence(jax.random.key(0), 64, (0, 90, 30), sequence_from=16,
+                                      sequence_weights=weights, steps=1, show_progress=False)
+
+
 def test_sequence_with_prefix_resumes_to_the_same_bits(getkey, tmp_path):
     key = getkey()
     opts = dict(steps=12, method="direct", show_progress=False, checkpoint_every=4,
@@ -273,6 +320,20 @@ def test_aligned_sequence_sampler_serves_nested_prefixes_of_one_sequence(cache):
     assert names == ["d3_n64_seq16_dihedral-8", "d4_n64_seq16_dihedral-8"]
     tab = tables.open_table(cache / names[0])
     assert tables.table_sequence_from(tab) == 16
+
+
+def test_a_new_sequence_table_takes_the_sequence_defaults_and_an_old_one_keeps_its_own(cache):
+    """A sequence table built anew records SEQUENCE_LEARNING_RATE (and the steps asked for); a
+    table whose settings name no learning rate (the shipped d3_n4096_seq256 was built before
+    the sequence default) keeps the recipe's, so its fingerprint still matches its sets."""
+    out = cache / "seq"
+    tables.build(64, 3, out=out, sets=[(30,)], sequence_from=16, steps=3, method="direct",
+                 show_progress=False)
+    synth = tables.open_table(out).settings["synthesis"]
+    assert synth["learning_rate"] == synthesis.SEQUENCE_LEARNING_RATE and synth["steps"] == 3
+    shipped = tables.open_table(tables.shipped_dir() / "d3_n4096_seq256")
+    assert "learning_rate" not in shipped.settings["synthesis"]
+    assert shipped.settings["synthesis_resolved"]["learning_rate"] == 0.5
 
 
 _SEQUENCE_SCRIPT = """
