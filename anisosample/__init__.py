@@ -20,6 +20,7 @@ if _TYPE_CHECKING:  # the explicit re-exports, for type checkers and readers
     from . import integrands as integrands
     from . import io as io
     from . import losses as losses
+    from . import metrics as metrics
     from . import plot as plot
     from . import progress as progress
     from . import render as render
@@ -36,9 +37,9 @@ if _TYPE_CHECKING:  # the explicit re-exports, for type checkers and readers
     from .synthesis import synthesize as synthesize
 
 _SUBMODULES = (
-    "diagnostics", "directions", "edges", "frequencies", "integrands", "io", "losses", "plot",
-    "progress", "render", "samplers", "scenes", "selection", "spectrum", "synthesis", "tables",
-    "testing", "variance", "vmf", "warps",
+    "diagnostics", "directions", "edges", "frequencies", "integrands", "io", "losses", "metrics",
+    "plot", "progress", "render", "samplers", "scenes", "selection", "spectrum", "synthesis",
+    "tables", "testing", "variance", "vmf", "warps",
 )
 _FUNCTIONS = {"synthesize": "synthesis"}  # name -> the module that defines it
 

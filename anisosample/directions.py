@@ -66,9 +66,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Bool
 
-from . import vmf
+from . import metrics, vmf
 from ._types import Array, Float
 from ._validate import check_choice, check_int, check_positive_float
+from .metrics import axial_distance_deg as axial_distance_deg  # moved to metrics; kept here
 
 __all__ = [
     "Estimate",
@@ -77,7 +78,6 @@ __all__ = [
     "estimate",
     "estimate_from_histogram",
     "estimate_blocks",
-    "axial_distance_deg",
     "block_grid",
 ]
 
@@ -166,12 +166,6 @@ class Estimate(NamedTuple):
     valid: Bool[Array, "... k"]
     confidence: Float[Array, "... k"]
     kappa: Float[Array, "... k"]
-
-
-def axial_distance_deg(a, b):
-    """Axial distance ``min(|a - b| mod 180, 180 - |a - b| mod 180)`` in degrees."""
-    d = jnp.mod(jnp.abs(a - b), 180.0)
-    return jnp.minimum(d, 180.0 - d)
 
 
 # --- histogram (W Sec. 5.1) -----------------------------------------------------------------------
@@ -460,8 +454,7 @@ def estimate(values, k: int = 2, *, details: bool = False, **options):
 def block_grid(samples_per_block: int, dtype=jnp.float32):
     """Cell centres ``(s, s, 2)`` of the regular grid used per block: ``x[i, j] = ((j+.5)/s,
     (i+.5)/s)``, matching DESIGN's grid convention."""
-    c = (jnp.arange(samples_per_block, dtype=dtype) + 0.5) / samples_per_block
-    return jnp.stack(jnp.meshgrid(c, c, indexing="xy"), axis=-1)
+    return metrics.midpoint_grid(samples_per_block, dtype=dtype, xp=jnp)
 
 
 _BATCH = 8

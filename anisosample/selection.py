@@ -36,6 +36,7 @@ import numpy as np
 from . import samplers as _samplers
 from . import tables as _tables
 from ._validate import check_choice, check_int
+from .metrics import midpoint_grid
 
 __all__ = ["AlignedSampler", "aligned_sampler", "aligned_set", "table_directions"]
 
@@ -100,9 +101,8 @@ class AlignedSampler(_samplers.Sampler):
 
 
 def _grid_of(f, size: int) -> np.ndarray:
-    c = (jnp.arange(size, dtype=jnp.float32) + 0.5) / size
-    xx, yy = jnp.meshgrid(c, c)  # values[i, j] = f((j + .5)/w, (i + .5)/h)
-    return np.asarray(f(jnp.stack([xx, yy], axis=-1)), dtype=np.float32)
+    xy = midpoint_grid(size, xp=jnp)  # values[i, j] = f((j + .5)/w, (i + .5)/h)
+    return np.asarray(f(xy), dtype=np.float32)
 
 
 def aligned_sampler(*, integrand=None, values=None, directions_deg=None, k: int = 2,

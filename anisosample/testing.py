@@ -38,6 +38,7 @@ import numpy as np
 from scipy import stats
 
 from ._validate import check_int, check_key, check_positive_float
+from .metrics import midpoint_grid
 
 Chart = tuple[Callable, Callable]
 
@@ -155,8 +156,7 @@ def chi2_test(
 
     def integrate(cells, k):
         """Mean of the density over k x k midpoints of each (row, col) cell, in box units."""
-        g = (np.arange(k, dtype=np.float64) + 0.5) / k
-        sub = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+        sub = midpoint_grid(k, indexing="ij", dtype=np.float64).reshape(-1, 2)
         size = (hi - lo) / res
         pts = lo + (cells[:, None, :] + sub[None, :, :]) * size
         vals = cell_density(jnp.asarray(pts.reshape(-1, 2), jnp.float32))

@@ -162,17 +162,12 @@ def patch_methods():
     }
 
 
-def _midpoints(res):
-    g = (np.arange(res, dtype=np.float32) + 0.5) / res
-    return jnp.asarray(np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2))
-
-
 def measure(make, integrand, points, exact, keys, res):
     """Per shading point: brute-force variance, one-sample MSE; seconds per fit.
     ``integrand(p)`` is the integrand at shading point ``p`` (one output point -> scalar)."""
     fit = jax.jit(jax.vmap(make))
     warps = fit(points)
-    u = _midpoints(res)
+    u = jnp.asarray(asp.metrics.midpoint_grid(res, indexing="ij").reshape(-1, 2))
     exact32 = jnp.asarray(exact, jnp.float32)
 
     def ratio(warp, p, uu):

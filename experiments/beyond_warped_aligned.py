@@ -53,9 +53,7 @@ SCALES = {
 
 
 def _grid(f, s):
-    t = (np.arange(s) + 0.5) / s
-    X, Y = np.meshgrid(t, t, indexing="xy")
-    return np.asarray(f(jnp.asarray(np.stack([X, Y], -1), jnp.float32)), np.float64)
+    return np.asarray(f(jnp.asarray(asp.metrics.midpoint_grid(s))), np.float64)
 
 
 def pick_pixels(scene, settings):

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import anisosample as asp
-from anisosample import directions, integrands
+from anisosample import directions, integrands, metrics
 from anisosample.progress import progress
 
 SIZES = [64, 96, 128]
@@ -39,8 +39,7 @@ SEED = 2026
 
 
 def axial(a, b):
-    d = abs(a - b) % 180.0
-    return min(d, 180.0 - d)
+    return metrics.axial_distance_deg(a, b, xp=np)
 
 
 def axis_distance(a):

@@ -91,8 +91,7 @@ def main(argv=None):
 
     fig, axes = plot.new_figure(2, len(cases), size=3.6)
     m = 256
-    u = (jnp.arange(m, dtype=jnp.float32) + 0.5) / m
-    xy = jnp.stack(jnp.meshgrid(u, u, indexing="xy"), axis=-1)  # values[i, j] = f(x_j, y_i)
+    xy = asp.metrics.midpoint_grid(m, xp=jnp)  # values[i, j] = f(x_j, y_i)
     for j, (label, f) in enumerate(cases.items()):
         axes[0, j].imshow(np.asarray(f(xy)), origin="lower", cmap="gray", extent=(0, 1, 0, 1))
         axes[0, j].set_title(label, fontsize=9)

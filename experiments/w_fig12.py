@@ -40,7 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import anisosample as asp
-from anisosample import directions, plot, warps
+from anisosample import directions, metrics, plot, warps
 from anisosample import variance as V
 from anisosample.progress import progress
 
@@ -70,9 +70,7 @@ class HemisphereEdge(eqx.Module):
 
 
 def grid_of(f, size: int) -> np.ndarray:
-    c = (np.arange(size) + 0.5) / size
-    xy = np.stack(np.meshgrid(c, c, indexing="xy"), -1).astype(np.float32)
-    # values[i, j] = f((j+.5)/w, (i+.5)/h)
+    xy = metrics.midpoint_grid(size)  # values[i, j] = f((j+.5)/w, (i+.5)/h)
     return np.asarray(eqx.filter_jit(lambda g, x: g(x))(f, jnp.asarray(xy)))
 
 
@@ -85,7 +83,7 @@ def spread(values: np.ndarray, window_deg: float = 3.0) -> dict:
     total = float(hist.sum())
     centres = np.arange(hist.size, dtype=float)
     top = float(centres[int(np.argmax(hist))])
-    dist = np.minimum(np.abs(centres - top) % 180.0, 180.0 - np.abs(centres - top) % 180.0)
+    dist = metrics.axial_distance_deg(centres, top, xp=np)
     share = float(hist[dist <= window_deg].sum() / total) if total > 0 else 0.0
     cum = np.cumsum(np.sort(hist)[::-1]) / max(total, 1e-30)
     return {"histogram": hist.tolist(), "top_deg": top, "share_within_deg": window_deg,

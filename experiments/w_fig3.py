@@ -18,9 +18,8 @@ from pathlib import Path
 
 import jax
 import numpy as np
-from scipy.spatial import cKDTree
 
-from anisosample import io, losses, plot, spectrum, synthesis
+from anisosample import io, losses, metrics, plot, spectrum, synthesis
 from anisosample.progress import progress
 
 SCALES = {"small": dict(n=512, steps=300), "paper": dict(n=4096, steps=1500)}
@@ -33,10 +32,7 @@ VARIANTS = {
 
 
 def nn_distances(points) -> np.ndarray:
-    x = np.asarray(points, np.float64)
-    tree = cKDTree(x, boxsize=1.0)
-    d, _ = tree.query(x, k=2)
-    return d[:, 1] * np.sqrt(x.shape[0])
+    return metrics.nearest_neighbour_distance(points) * np.sqrt(np.shape(points)[0])
 
 
 def main(argv=None):

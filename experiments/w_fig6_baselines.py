@@ -97,8 +97,7 @@ def integrand_figure(cases, out, radius=48, m=256):
     import jax.numpy as jnp
 
     fig, axes = plot.new_figure(2, len(cases), size=2.2)
-    u = (jnp.arange(m, dtype=jnp.float32) + 0.5) / m
-    xy = jnp.stack(jnp.meshgrid(u, u, indexing="xy"), axis=-1)  # values[i, j] = f(x_j, y_i)
+    xy = asp.metrics.midpoint_grid(m, xp=jnp)  # values[i, j] = f(x_j, y_i)
     r = np.arange(-radius, radius + 1)
     v = np.stack(np.meshgrid(r, r, indexing="xy"), axis=-1)  # rows = v_y
     for j, (label, (f, dirs)) in enumerate(cases.items()):

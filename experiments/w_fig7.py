@@ -55,7 +55,7 @@ import numpy as np
 import w_fig9
 
 import anisosample as asp
-from anisosample import directions, plot, render
+from anisosample import metrics, plot, render
 from anisosample.render import pixel_classes as pc
 
 NAME = "w_fig7"
@@ -103,7 +103,7 @@ def block_errors(blocks, est_d, est_v, fc, pixels, cfg):
         sel = px[fc.classes[px[:, 1], px[:, 0]] == one]
         true = fc.directions_deg[sel[:, 1], sel[:, 0], 0].astype(float)
         est = float(est_d[a, b, 0]) if est_v[a, b, 0] else None
-        err = ([float(directions.axial_distance_deg(est, t)) for t in true]
+        err = ([float(metrics.axial_distance_deg(est, t)) for t in true]
                if est is not None else [])
         rows.append({"block": [a, b], "pixels_classified": len(px),
                      "one_edge_pixels": sel.tolist(), "true_directions_deg": true.round(3).tolist(),
@@ -168,7 +168,7 @@ def run_scene(name, cfg, key, out, fresh):
         _, d9 = w_fig9.block_estimate(scene, base, (b * cfg["block_px"], a * cfg["block_px"]),
                                       cfg, cache)
         if est_v[a, b, 0] and len(d9):
-            recheck.append(float(directions.axial_distance_deg(est_d[a, b, 0], d9[0])))
+            recheck.append(float(metrics.axial_distance_deg(est_d[a, b, 0], d9[0])))
         elif bool(est_v[a, b, 0]) != bool(len(d9)):
             recheck.append(180.0)
     sq = W.SCENES[name]["square_aperture"]

@@ -57,7 +57,7 @@ import jax
 import numpy as np
 
 import anisosample as asp
-from anisosample import directions, plot, samplers, tables
+from anisosample import directions, metrics, plot, samplers, tables
 from anisosample import variance as V
 from anisosample.progress import progress
 from anisosample.render import aligned
@@ -268,10 +268,10 @@ def add_beyond(full, base, cname, rows, ns, cfg, key):
             if true_dirs:
                 found = e.directions_deg[:, 0]
                 ok = np.isfinite(found)
-                errs.extend(directions.axial_distance_deg(found[ok], true_dirs[0]).tolist()
+                errs.extend(metrics.axial_distance_deg(found[ok], true_dirs[0]).tolist()
                             if cname != "corner" else
-                            np.minimum(directions.axial_distance_deg(found[ok], true_dirs[0]),
-                                       directions.axial_distance_deg(found[ok], true_dirs[-1]))
+                            np.minimum(metrics.axial_distance_deg(found[ok], true_dirs[0]),
+                                       metrics.axial_distance_deg(found[ok], true_dirs[-1]))
                             .tolist())
                 errs.extend([90.0] * int((~ok).sum()))  # no edge found: counted as missed
         for m in ("aligned (window)", "aligned 4-dir (window)", "aligned (pixel)"):
@@ -309,7 +309,7 @@ def summarize(rows, ns=None) -> dict:
     gate = [r["gate_discontinuous"] for r in rows if "gate_discontinuous" in r]
     if gate:
         out["gate_discontinuous_share"] = float(np.mean(gate))
-    err = [directions.axial_distance_deg(r["block_directions_deg"][0], r["true_directions_deg"][0])
+    err = [metrics.axial_distance_deg(r["block_directions_deg"][0], r["true_directions_deg"][0])
            for r in rows if r["block_directions_deg"] and r["true_directions_deg"]]
     if err:
         err = np.asarray(err, float)
@@ -318,7 +318,7 @@ def summarize(rows, ns=None) -> dict:
             "pixels_with_estimate": int(len(err)), "pixels": len(rows)}
         out["by_block_error"] = by_block_error(rows)
     for key, name in (("window_directions_deg", "window_direction_error_deg"),):
-        e = [directions.axial_distance_deg(r[key][0], r["true_directions_deg"][0])
+        e = [metrics.axial_distance_deg(r[key][0], r["true_directions_deg"][0])
              for r in rows if r.get(key) and r["true_directions_deg"]]
         if e:
             out[name] = {"median": float(np.median(e)), "pixels_with_estimate": len(e),
@@ -343,7 +343,7 @@ def by_block_error(rows) -> list[dict]:
     err, idx = [], []
     for i, r in enumerate(rows):
         if r["block_directions_deg"] and r["true_directions_deg"]:
-            err.append(directions.axial_distance_deg(r["block_directions_deg"][0],
+            err.append(metrics.axial_distance_deg(r["block_directions_deg"][0],
                                                      r["true_directions_deg"][0]))
             idx.append(i)
     err = np.asarray(err, float)

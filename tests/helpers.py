@@ -27,14 +27,6 @@ def brute_force_spectrum(points, freqs) -> np.ndarray:
     return (np.cos(ph).sum(1) ** 2 + np.sin(ph).sum(1) ** 2) / n**2
 
 
-def toroidal_nn_distance(points) -> np.ndarray:
-    from scipy.spatial import cKDTree
-
-    p = np.asarray(points, dtype=np.float64)
-    d, _ = cKDTree(p, boxsize=1.0).query(p, k=2)
-    return d[:, 1]
-
-
 def free_port() -> int:
     """A TCP port on localhost that nothing listens on now (for a jax.distributed coordinator)."""
     import socket

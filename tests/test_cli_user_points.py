@@ -7,12 +7,11 @@ import struct
 import numpy as np
 import pytest
 
-from anisosample import cli, io
+from anisosample import cli, io, metrics
 
 
 def _grid_set(m: int) -> np.ndarray:
-    g = (np.arange(m) + 0.5) / m
-    return np.stack(np.meshgrid(g, g), -1).reshape(-1, 2).astype(np.float32)
+    return metrics.midpoint_grid(m).reshape(-1, 2)
 
 
 def test_points_writes_utk_text_and_binary_as_utk_lays_them_out(tmp_path):

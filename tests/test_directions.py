@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from anisosample import directions, integrands
+from anisosample.metrics import axial_distance_deg
 
 
 def grid(f, n=96):
@@ -36,7 +37,7 @@ def test_histogram_convention_matches_edge_normal(phi):
     # y grows with the row index and angles run from +x to +y: 30 and 150 must not be confused
     hist = directions.orientation_histogram(grid(step(phi)))
     assert hist.shape == (180,) and bool(jnp.all(hist >= 0))
-    assert directions.axial_distance_deg(doubled_angle_mean_deg(hist), phi) < 1.0
+    assert axial_distance_deg(doubled_angle_mean_deg(hist), phi) < 1.0
 
 
 def test_matrix_filters_equal_shifted_slice_filters():
@@ -51,7 +52,7 @@ def test_matrix_filters_equal_shifted_slice_filters():
 def test_histogram_bins_are_centred_and_configurable():
     h2 = directions.orientation_histogram(grid(step(40.0)), bin_deg=2.0)
     assert h2.shape == (90,)
-    assert directions.axial_distance_deg(doubled_angle_mean_deg(h2), 40.0) < 1.0
+    assert axial_distance_deg(doubled_angle_mean_deg(h2), 40.0) < 1.0
     h = directions.orientation_histogram(grid(step(0.0)))
     assert int(jnp.argmax(h)) == 0  # an edge at exactly 0 lands in the bin centred on 0
     assert float(jnp.sum(directions.orientation_histogram(np.ones((32, 32), np.float32)))) == 0
@@ -61,14 +62,14 @@ def test_histogram_bins_are_centred_and_configurable():
 def test_single_edge_found_within_1p5_degrees(phi):
     got = directions.estimate(grid(step(phi, (0.47, 0.53))), k=2)
     assert len(got) == 1, got
-    assert directions.axial_distance_deg(got[0], phi) <= 1.5
+    assert axial_distance_deg(got[0], phi) <= 1.5
 
 
 def test_near_axis_edges_are_pushed_away_from_the_axis_but_found():
     # documented limitation: the zeroed +-3 deg window truncates the mode of a near-axis edge
     for phi in [4.0, 86.0, 95.0, 175.0]:
         got = directions.estimate(grid(step(phi, (0.47, 0.53))), k=1)
-        assert len(got) == 1 and float(directions.axial_distance_deg(got[0], phi)) <= 5.0
+        assert len(got) == 1 and float(axial_distance_deg(got[0], phi)) <= 5.0
 
 
 def test_axis_aligned_curved_smooth_and_constant_give_no_direction():
@@ -86,7 +87,7 @@ def test_two_edges_both_found():
     got = directions.estimate(grid(f), k=2)
     assert len(got) == 2
     for t in (35.0, 125.0):
-        assert min(float(directions.axial_distance_deg(g, t)) for g in got) <= 1.5
+        assert min(float(axial_distance_deg(g, t)) for g in got) <= 1.5
     # k = 1 keeps the strongest only; k = 0 returns nothing
     assert len(directions.estimate(grid(f), k=1)) == 1
     assert directions.estimate(grid(f), k=0) == ()
@@ -98,7 +99,7 @@ def test_gradient_method_agrees_with_fixed_kappa_search():
     grad = directions.estimate(grid(f), k=2, method="gradient", details=True)
     assert bool(jnp.all(fixed.valid)) and bool(jnp.all(grad.valid))
     for a, b in zip(np.sort(fixed.directions_deg), np.sort(grad.directions_deg), strict=True):
-        assert float(directions.axial_distance_deg(a, b)) <= 1.5
+        assert float(axial_distance_deg(a, b)) <= 1.5
     assert bool(jnp.all(jnp.isfinite(grad.kappa))) and bool(jnp.all(grad.kappa > 0))
 
 
@@ -140,7 +141,7 @@ def test_blocks_array_and_callable_agree_with_per_block_estimates():
                 assert not bool(jnp.any(est.valid[a, b]))
             else:
                 assert bool(est.valid[a, b, 0])
-                assert float(directions.axial_distance_deg(est.directions_deg[a, b, 0],
+                assert float(axial_distance_deg(est.directions_deg[a, b, 0],
                                                            phis[a, b])) <= 2.0
     table = jnp.asarray(phis)
 
@@ -203,7 +204,7 @@ def test_cli_directions_per_grid_and_per_block(tmp_path, capsys):
     assert cli.main(["directions", str(tmp_path / "g.npy")]) == 0
     out = capsys.readouterr().out
     got = float(out.split(" deg")[0])
-    assert float(directions.axial_distance_deg(got, 40.0)) <= 2.0
+    assert float(axial_distance_deg(got, 40.0)) <= 2.0
     png = tmp_path / "maps.png"
     assert cli.main(["directions", str(tmp_path / "big.npy"), "--block", "32", "-o",
                      str(png)]) == 0

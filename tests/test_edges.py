@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from anisosample import edges, prefix, samplers
-from anisosample.directions import axial_distance_deg
+from anisosample.metrics import axial_distance_deg
 
 
 class _Cut(eqx.Module):

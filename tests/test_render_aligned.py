@@ -23,6 +23,7 @@ from render.test_directions import LIGHT_HALF, LIGHT_Y, _box_edges
 
 import anisosample.render as R
 from anisosample import _table_build, cli, io, samplers, scenes, selection, tables
+from anisosample.metrics import midpoint_grid
 from anisosample.render import aligned
 from anisosample.render.camera import generate_ray
 from anisosample.render.geometry import intersect
@@ -226,8 +227,7 @@ def test_aligned_render_matches_converged_pixel_values(scene, renders):
     use = _aligned_pixels(sampler)
     rows, cols = np.nonzero(use & (al.variance[..., 1] > 0))
     pick = np.linspace(0, rows.size - 1, 8).astype(int)
-    g = (np.arange(512) + 0.5) / 512
-    x = jnp.asarray(np.stack(np.meshgrid(g, g), -1).astype(np.float32))
+    x = jnp.asarray(midpoint_grid(512))
     diffs, vars_ = [], []
     for r, c in zip(rows[pick], cols[pick], strict=True):
         f = R.pixel_integrand(scene, (int(c), int(r)), channel="g")

@@ -10,6 +10,7 @@ import pytest
 
 import anisosample.render as R
 from anisosample import scenes, warps
+from anisosample.metrics import midpoint_grid
 from anisosample.render import patch as P
 from anisosample.render.geometry import intersect
 from anisosample.render.lights import light_pdf, sample_light
@@ -169,8 +170,7 @@ def test_area_pdf_is_the_inverse_jacobian_and_integrates_to_one(method):
     assert abs(inv.mean() - area) < 4.5 * inv.std(ddof=1) / np.sqrt(inv.size) + 1e-5
     # midpoint rule of pdf(p(u, v)) |p_u x p_v| over [0, 1]^2
     m = 256
-    g = (np.arange(m) + 0.5) / m
-    uv = jnp.asarray(np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2), jnp.float32)
+    uv = jnp.asarray(midpoint_grid(m, indexing="ij").reshape(-1, 2))
     bil = warps.Bilinear(warps.BilinearPatch(c).corner_area_elements())
 
     def patch_pdf(a):  # the area pdf at the point with parameters a
@@ -229,8 +229,7 @@ def test_planar_patch_irradiance_matches_the_closed_form(technique):
                                            [p00, p10, p11, p01])
     f = R.pixel_integrand(scene, (4, 4), channel="r", technique=technique)
     m = 256  # smooth integrand: the midpoint rule errs by O(1/m^2)
-    g = (np.arange(m) + 0.5) / m
-    grid = jnp.asarray(np.stack(np.meshgrid(g, g), -1).reshape(-1, 2), jnp.float32)
+    grid = jnp.asarray(midpoint_grid(m).reshape(-1, 2))
     assert float(jnp.mean(f(grid))) == pytest.approx(exact, rel=1e-3)
 
 
@@ -258,8 +257,7 @@ def test_shipped_scene_loads_and_all_techniques_agree():
     f = R.pixel_integrand(scene, (6, 9), channel="r", technique="parametric")
     g = R.pixel_integrand(scene, (6, 9), channel="r", technique="area")
     m = 256
-    gg = (np.arange(m) + 0.5) / m
-    grid = jnp.asarray(np.stack(np.meshgrid(gg, gg), -1).reshape(-1, 2), jnp.float32)
+    grid = jnp.asarray(midpoint_grid(m).reshape(-1, 2))
     a, b = float(jnp.mean(f(grid))), float(jnp.mean(g(grid)))
     assert a > 0.05
     assert b == pytest.approx(a, rel=5e-3)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from anisosample import integrands as I
-from anisosample import samplers, spectrum
+from anisosample import metrics, samplers, spectrum
 from anisosample import variance as V
 
 SQUARES = [4**k for k in range(2, 7)]  # 16 .. 4096: square jitter grids, powers of two
@@ -265,8 +265,7 @@ def test_randomizations_and_fixed_sets(getkey):
 
 
 def _grid_set(m: int) -> np.ndarray:
-    g = (np.arange(m) + 0.5) / m
-    return np.stack(np.meshgrid(g, g), -1).reshape(-1, 2).astype(np.float32)
+    return metrics.midpoint_grid(m).reshape(-1, 2)
 
 
 def test_convergence_takes_a_fixed_set_per_size(getkey):

@@ -38,6 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._validate import check_int, check_positive_float
+from ..metrics import midpoint_grid
 from .integrator import PixelIntegrand, pixel_integrand
 from .scene import Scene
 
@@ -120,8 +121,7 @@ def _films_eval(base, films, x):
 
 
 def _cell_centres(samples: int) -> np.ndarray:
-    c = (np.arange(samples) + 0.5) / samples
-    return np.stack(np.meshgrid(c, c, indexing="xy"), -1).reshape(-1, 2).astype(np.float32)
+    return midpoint_grid(samples).reshape(-1, 2)
 
 
 def _bar(iterable, desc, progress, unit):

@@ -34,6 +34,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Float
 
+from ..metrics import midpoint_grid
 from .bsdf import ggx_d, ggx_g1, sample_ggx_vndf
 from .scene import CONDUCTOR
 
@@ -131,8 +132,7 @@ def fit_ggx_table(n_theta: int = 16, n_alpha: int = 16, *, probes: int = 32,
     cores, compilation included."""
     theta = jnp.asarray(np.radians(np.linspace(0.0, THETA_MAX_DEG, int(n_theta))), jnp.float32)
     alpha = jnp.asarray(np.linspace(1.0, ALPHA_MIN, int(n_alpha)), jnp.float32)
-    g = (np.arange(int(probes)) + 0.5) / int(probes)
-    u = jnp.asarray(np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2), jnp.float32)
+    u = jnp.asarray(midpoint_grid(int(probes), indexing="ij").reshape(-1, 2))
 
     @jax.jit
     def column(th):

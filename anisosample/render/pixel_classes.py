@@ -34,6 +34,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .._validate import check_int, check_positive_float
+from ..metrics import axial_distance_deg
 from .scene import Scene
 
 __all__ = [
@@ -110,11 +111,6 @@ def _axial_deg(normal: np.ndarray) -> float:
     return float(np.degrees(math.atan2(normal[1], normal[0])) % 180.0)
 
 
-def _axial_gap(a: float, b: float) -> float:
-    d = abs(a - b) % 180.0
-    return min(d, 180.0 - d)
-
-
 def _local_angles(p: np.ndarray, k: int) -> np.ndarray:
     """Each point's local spectral direction: the normal of the line through its k nearest."""
     d2 = ((p[:, None, :] - p[None, :, :]) ** 2).sum(-1)
@@ -134,7 +130,7 @@ def _two_lines(p: np.ndarray, tol: float, min_angle_deg: float, min_points: int)
     # the staircase of a digitised line spreads local directions over about +-5 degrees
     hist = np.bincount(np.round(ang).astype(int) % 180, minlength=180).astype(float)
     first = int(np.argmax(sum(np.roll(hist, s) for s in range(-5, 6))))
-    near = np.array([_axial_gap(a, first) <= 10.0 for a in ang])
+    near = axial_distance_deg(ang, first, xp=np) <= 10.0
     if near.sum() < 2:
         return None
     c, n, _ = _line_fit(p[near])
@@ -153,7 +149,7 @@ def _two_lines(p: np.ndarray, tol: float, min_angle_deg: float, min_points: int)
     counts = (int(assign.sum()), int((~assign).sum()))
     dirs = [_axial_deg(fits[0][1]), _axial_deg(fits[1][1])]
     if (min(counts) < min_points or resid.max() > tol
-            or _axial_gap(dirs[0], dirs[1]) < min_angle_deg):
+            or axial_distance_deg(dirs[0], dirs[1], xp=np) < min_angle_deg):
         return None
     if counts[1] > counts[0]:
         dirs = dirs[::-1]

@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
+from ..metrics import midpoint_grid
 from ._base import AbstractWarp, Compose
 from .planar import Bilinear, Biquadratic
 from .tabulated import Tabulated
@@ -105,8 +106,7 @@ def fit_pointwise(
 
 
 def _probes(probes: int):
-    g = (np.arange(probes, dtype=np.float32) + 0.5) / probes
-    return jnp.asarray(np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2))
+    return jnp.asarray(midpoint_grid(probes, indexing="ij").reshape(-1, 2))
 
 
 def fit_least_squares(
@@ -170,9 +170,8 @@ def fit_tabulated(f: Callable, later: Sequence[AbstractWarp] | AbstractWarp, *, 
     rest = later_chain(later)
     if rest is None:
         raise ValueError("later must hold at least the base warp")
-    g = (np.arange(res, dtype=np.float32) + 0.5) / res
     # DESIGN grid convention: values[i, j] at x = (j + .5)/res, y = (i + .5)/res.
-    pts = jnp.asarray(np.stack(np.meshgrid(g, g, indexing="xy"), -1))
+    pts = jnp.asarray(midpoint_grid(res))
     x, p = jax.vmap(jax.vmap(rest.sample_and_pdf))(pts)
     fx = jax.vmap(jax.vmap(f))(x)
     v = jnp.where(p > 0, fx / jnp.where(p > 0, p, 1.0), 0.0)

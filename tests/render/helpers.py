@@ -58,12 +58,6 @@ def lambert_clipped(v):
     return abs(phi) / 2
 
 
-def midpoint_grid(m):
-    g = (np.arange(m) + 0.5) / m
-    xx, yy = np.meshgrid(g, g)
-    return np.stack([xx, yy], axis=-1).astype(np.float32)  # [i, j] = ((j+.5)/m, (i+.5)/m)
-
-
 def mitsuba_render(path, spp, seed=0, **params):
     import mitsuba as mi
 

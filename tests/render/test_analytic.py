@@ -8,8 +8,9 @@ import pytest
 import anisosample.render as R
 import anisosample.render.integrator  # noqa: F401  (R.integrator.LUMINANCE)
 from anisosample import samplers
+from anisosample.metrics import midpoint_grid
 
-from .helpers import SCENES, form_factor_parallel, midpoint_grid, plane_under_light
+from .helpers import SCENES, form_factor_parallel, plane_under_light
 
 
 @pytest.mark.parametrize("technique", ["area", "solid_angle"])

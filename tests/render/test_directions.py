@@ -6,11 +6,12 @@ import numpy as np
 
 import anisosample.render as R
 from anisosample import directions
+from anisosample.metrics import axial_distance_deg, midpoint_grid
 from anisosample.render.camera import generate_ray
 from anisosample.render.geometry import intersect
 from anisosample.render.xml import _rotation
 
-from .helpers import SCENES, midpoint_grid
+from .helpers import SCENES
 
 LIGHT_Y, LIGHT_HALF = 0.98, 0.25  # cornell.xml: the light spans [-0.25, 0.25]^2 in x, z
 
@@ -56,4 +57,4 @@ def test_cornell_pixel_shadow_edge_direction():
     assert 0.05 < (values > 0).mean() < 0.99  # a real shadow edge inside [0, 1)^2
     found = directions.estimate(values, k=2)
     assert len(found) >= 1
-    assert directions.axial_distance_deg(found[0], expected[0]) < 3.0, (found, expected)
+    assert axial_distance_deg(found[0], expected[0]) < 3.0, (found, expected)

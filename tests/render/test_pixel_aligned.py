@@ -9,8 +9,8 @@ import pytest
 import anisosample.render as R
 from anisosample import samplers
 from anisosample import variance as V
-from anisosample.directions import axial_distance_deg
 from anisosample.integrands import GaussianBump, HalfPlane
+from anisosample.metrics import axial_distance_deg
 from anisosample.render import pixel_aligned as PA
 from anisosample.render.integrator import render_chunk
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from anisosample.metrics import axial_distance_deg
 from anisosample.render import SceneBuilder
 from anisosample.render import pixel_classes as pc
 
@@ -23,7 +24,7 @@ def _half_plane(normal_deg, through):
 def test_one_edge_direction_is_the_edge_normal(normal_deg):
     r = pc.classify_grid(_half_plane(normal_deg, (0.45, 0.55)) * SMOOTH)
     assert r.name == "one-edge"
-    assert pc._axial_gap(r.directions_deg[0], normal_deg) < 1.0
+    assert axial_distance_deg(r.directions_deg[0], normal_deg, xp=np) < 1.0
     assert r.residual_cells <= 1.0
 
 
@@ -32,7 +33,7 @@ def test_random_edges_and_corners():
     for _ in range(40):
         a = rng.uniform(0, 180)
         r = pc.classify_grid(_half_plane(a, rng.uniform(0.25, 0.75, 2)) * SMOOTH)
-        assert r.name == "one-edge" and pc._axial_gap(r.directions_deg[0], a) < 1.0
+        assert r.name == "one-edge" and axial_distance_deg(r.directions_deg[0], a, xp=np) < 1.0
     for _ in range(40):
         a = rng.uniform(0, 180)
         b = (a + rng.uniform(25, 155)) % 180
@@ -40,8 +41,8 @@ def test_random_edges_and_corners():
         r = pc.classify_grid((_half_plane(a, q) & _half_plane(b, q)) * SMOOTH)
         assert r.name == "corner", (a, b, q, r)
         d = r.directions_deg
-        err = min(pc._axial_gap(d[0], a) + pc._axial_gap(d[1], b),
-                  pc._axial_gap(d[1], a) + pc._axial_gap(d[0], b))
+        err = min(axial_distance_deg(d[0], a, xp=np) + axial_distance_deg(d[1], b, xp=np),
+                  axial_distance_deg(d[1], a, xp=np) + axial_distance_deg(d[0], b, xp=np))
         assert err < 2.0, (a, b, r)
 
 
@@ -125,7 +126,7 @@ def test_penumbra_directions_match_exact_geometry():
             m = np.cross(a - s, b - s)
             truth.append(np.degrees(np.arctan2(m @ e2, m @ e1)) % 180.0)
         k = int(classes.num_directions[row, col])
-        e = [min(pc._axial_gap(classes.directions_deg[row, col, i], t) for t in truth)
+        e = [min(axial_distance_deg(classes.directions_deg[row, col, i], t, xp=np) for t in truth)
              for i in range(k)]
         (errs if k == 1 else corner_errs).extend(e)
     assert np.max(errs) < 1.5, np.max(errs)

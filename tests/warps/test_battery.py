@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import anisosample.warps as W
+from anisosample.metrics import midpoint_grid
 
 from .helpers import ALL, ROUND_TRIP_TOL
 
@@ -20,8 +21,7 @@ EPS = 2.0**-24
 
 
 def _grid(n):
-    g = (np.arange(n, dtype=np.float32) + 0.5) / n
-    return jnp.asarray(np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2))
+    return jnp.asarray(midpoint_grid(n, indexing="ij").reshape(-1, 2))
 
 
 def _jac_measure(fn, u):

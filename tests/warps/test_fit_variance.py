@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import anisosample.warps as W
+from anisosample.metrics import midpoint_grid
 from anisosample.warps import tuning
 
 VERTS = np.array([[-0.4, 0.2, 1.0], [0.9, -0.3, 1.3], [0.2, 0.8, 0.6]])
@@ -74,8 +75,7 @@ def test_gradient_equals_finite_differences(kind):
 
 @functools.partial(jax.jit, static_argnums=(1, 2))
 def _estimates(warp, f, res):
-    g = (jnp.arange(res, dtype=jnp.float32) + 0.5) / res
-    u = jnp.stack(jnp.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+    u = midpoint_grid(res, indexing="ij", xp=jnp).reshape(-1, 2)
     x, pdf = jax.vmap(warp.sample_and_pdf)(u)
     return jax.vmap(f)(x) / pdf
 
