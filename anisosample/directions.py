@@ -79,6 +79,7 @@ __all__ = [
     "estimate_from_histogram",
     "estimate_blocks",
     "block_grid",
+    "default_options",
 ]
 
 METHODS = ("fixed", "gradient")
@@ -116,6 +117,12 @@ class _Params:
     @property
     def min_size(self) -> int:
         return 2 * self.radius + 3
+
+
+def default_options() -> dict:
+    """The estimator's options (the keyword arguments of :func:`estimate` and its relatives)
+    with their default values, in declaration order."""
+    return dict(_Params().__dict__)
 
 
 def _params(**kw) -> _Params:

@@ -17,8 +17,7 @@ pixel's squared error by ``ref^2 + 0.01``), time (one whole-image realization th
 
 from __future__ import annotations
 
-import time
-
+import common
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -80,15 +79,8 @@ def make_render(scene, tech: tuple, spp: int, *, mis: bool = True):
 
 def best_time(fn, *args, repeats: int = 9, calls: int = 4) -> float:
     """Seconds per call: the best of ``repeats`` timings of ``calls`` back-to-back calls (the
-    minimum is the least disturbed by the other processes on a shared machine)."""
-    best = np.inf
-    for _ in range(repeats):
-        t = time.perf_counter()
-        for _ in range(calls):
-            out = fn(*args)
-        jax.block_until_ready(out)
-        best = min(best, (time.perf_counter() - t) / calls)
-    return best
+    minimum is the least disturbed by the other processes on a shared machine); no warm-up."""
+    return common.best_time(fn, *args, repeats=repeats, calls=calls, warmup=False)
 
 
 def reference(scene, tech: tuple, spp_total: int, key, *, chunk_spp: int = 64):

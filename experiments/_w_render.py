@@ -171,6 +171,22 @@ def pick_block(est, *, strength=None, exclude=(), min_axis_deg: float = 10.0):
     return None
 
 
+def off_axis_deg(d) -> np.ndarray:
+    """Distance (degrees) of each direction ``d`` to the nearer of the two axes."""
+    d = np.asarray(d) % 90.0
+    return np.minimum(d, 90.0 - d)
+
+
+def block_estimate(full, base, pixel, cfg, cache):
+    """W's estimate (Sec. 5.3) of the block holding ``pixel``: directions, strongest first.
+    ``cfg``: ``block_px`` and ``samples``; ``cache``: a dict of the blocks estimated so far."""
+    b = (int(pixel[1]) // cfg["block_px"], int(pixel[0]) // cfg["block_px"])
+    if b not in cache:
+        grid = aligned.block_grid_values(full, b, cfg["block_px"], cfg["samples"], integrand=base)
+        cache[b] = asp.directions.estimate(grid, k=2)
+    return b, cache[b]
+
+
 def direction_rgb(directions_deg, valid) -> np.ndarray:
     """Per-block colour maps ``(rows, cols, k, 3)``: hue = direction / 180, grey = none."""
     return _direction_rgb(directions_deg, valid)

@@ -25,6 +25,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import common
 import jax
 import numpy as np
 
@@ -32,15 +33,6 @@ from anisosample import render, scenes
 
 SCENE = scenes.path("cornell")
 DEBIAN_LLVM19 = "/usr/lib/x86_64-linux-gnu/libLLVM-19.so"  # apt-get install libllvm19
-
-
-def _best(fn, repeats):
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
 
 
 def main(argv=None):
@@ -110,10 +102,11 @@ def cornell(args):
         if v not in scenes:
             scenes[v] = mi.load_file(str(SCENE), **size)
             mi.render(scenes[v], spp=args.spp)  # warm-up (JIT for llvm)
-        theirs[v].append(_best(lambda: np.asarray(mi.render(scenes[v], spp=args.spp)), 1))
+        theirs[v].append(common.best_time(lambda: np.asarray(mi.render(scenes[v], spp=args.spp)),
+                                          repeats=1, warmup=False))
 
     for _ in range(args.repeats):
-        ours_times.append(_best(ours_fn, 1))
+        ours_times.append(common.best_time(ours_fn, repeats=1, warmup=False))
         if "scalar_rgb" in variants:
             mitsuba_run("scalar_rgb")
     for v in variants:
@@ -133,7 +126,7 @@ def mesh_scene(triangles: int):
     """A ``sphere_mesh`` of about ``triangles`` faces (diffuse) on a floor under a square light,
     seen from above at an angle: ``(builder, camera to_world, mesh triangles)``."""
     from anisosample.render.builder import sphere_mesh
-    from anisosample.render.xml import _lookat
+    from anisosample.render.xml import look_at
 
     b = render.SceneBuilder()
     b.rectangle(np.diag([3.0, 3.0, 1.0, 1.0]), b.diffuse(0.6))
@@ -142,7 +135,7 @@ def mesh_scene(triangles: int):
     t = np.diag([0.4, 0.4, -1.0, 1.0])
     t[:3, 3] = (0.5, 0.4, 2.2)
     b.rectangle(t, b.diffuse(0.0), radiance=15.0)
-    cam = _lookat(np.array([2.0, -2.5, 1.8]), np.array([0, 0, 0.4]), np.array([0, 0, 1.0]))
+    cam = look_at(np.array([2.0, -2.5, 1.8]), np.array([0, 0, 0.4]), np.array([0, 0, 1.0]))
     return b, cam, len(f)
 
 
@@ -164,7 +157,7 @@ def prims_table(counts, size, spp, brute_max, repeats):
             scene = b.build(bvh=bvh)
             fn = lambda s=scene: render.render(s, key, spp=spp, progress=False)  # noqa: E731
             fn()
-            row[bvh] = _best(fn, repeats) / n * 1e9
+            row[bvh] = common.best_time(fn, repeats=repeats, warmup=False) / n * 1e9
         brute = f"{row[False]:12.0f}" if False in row else f"{'-':>12}"
         ratio = f"{row[False] / row[True]:10.2f}" if False in row else f"{'-':>10}"
         print(f"{tris:>10} {row[True]:10.0f} {brute} {ratio}", flush=True)

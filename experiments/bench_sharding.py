@@ -21,20 +21,11 @@ import tempfile
 import time
 from pathlib import Path
 
+import common
 import jax
 import numpy as np
 
 from anisosample import io, render, scenes
-
-
-def _best(fn, repeats):
-    fn()  # compiles
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t)
-    return min(times), out
 
 
 def main(argv=None):
@@ -56,11 +47,13 @@ def main(argv=None):
     local = jax.local_devices()
     print(f"{args.scene} {args.size}^2 x {args.spp} spp, {args.sampler}; load average "
           f"{os.getloadavg()[0]:.2f}; {len(local)} local device(s): {local[0].platform}")
-    t1, one = _best(lambda: render.render(scene, jax.random.key(0), **opts), args.repeats)
+    t1, one = common.best_time(lambda: render.render(scene, jax.random.key(0), **opts),
+                              repeats=args.repeats, with_output=True)
     print(f"  1 device : {t1:.3f} s  {samples / t1 / 1e6:.2f} M samples/s")
     if len(local) > 1:
-        tn, many = _best(lambda: render.render(scene, jax.random.key(0), devices=local, **opts),
-                         args.repeats)
+        tn, many = common.best_time(
+            lambda: render.render(scene, jax.random.key(0), devices=local, **opts),
+            repeats=args.repeats, with_output=True)
         same = np.array_equal(one.mean, many.mean)
         print(f"  {len(local)} devices: {tn:.3f} s  {samples / tn / 1e6:.2f} M samples/s  "
               f"speed-up {t1 / tn:.2f}x  same bits: {same}")

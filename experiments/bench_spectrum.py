@@ -8,24 +8,14 @@ than the direct sum on a 2-core CPU.
 from __future__ import annotations
 
 import argparse
-import time
 
+import common
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 import anisosample as asp
 from anisosample import spectrum
-
-
-def best_time(fn, repeats):
-    fn()  # compile / warm caches
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
 
 
 def main(argv=None):
@@ -95,9 +85,9 @@ def main(argv=None):
                 )
             )
             # jax-finufft's rules need standard promotion; the benchmark runs with defaults.
-            sec = best_time(
+            sec = common.best_time(
                 lambda vg=vg: jax.block_until_ready(vg(pts)),
-                1 if method == "direct" else args.repeats,
+                repeats=1 if method == "direct" else args.repeats,
             )
             note = ""
             if scale != 1.0:
@@ -120,7 +110,7 @@ def main(argv=None):
         def gen(s=s, counter=counter):
             jax.block_until_ready(s(jax.random.key(next(counter)), n))
 
-        print(f"  {name:11s} {best_time(gen, args.repeats):8.4f} s")
+        print(f"  {name:11s} {common.best_time(gen, repeats=args.repeats):8.4f} s")
 
 
 if __name__ == "__main__":

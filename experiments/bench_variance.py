@@ -13,22 +13,12 @@ from __future__ import annotations
 
 import argparse
 import os
-import time
 
+import common
 import jax
 
 from anisosample import integrands
 from anisosample import variance as V
-
-
-def best_time(fn, repeats):
-    fn()  # compile and warm up
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
 
 
 def main(argv=None):
@@ -52,7 +42,7 @@ def main(argv=None):
             return V.estimator_variance(f, sampler, n, key, r, f.integral, randomization=mode,
                                         chunk_elements=args.chunk_elements)
 
-        dt = best_time(run, args.repeats)
+        dt = common.best_time(run, repeats=args.repeats)
         print(f"  {label:34s} {dt:7.3f} s   {r * n / dt:10.3g} evaluations/s")
 
 

@@ -50,21 +50,21 @@ from __future__ import annotations
 import re
 import time
 
+import common
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import cached_json, parser, reuse_or_compute, write_record
-from h_shading_points import (
+from _h_shading import (
     NORMAL,
     TRIANGLE,
-    _best_time,
-    _patch_factors,
     lambert_irradiance,
+    patch_factors,
     patch_irradiance,
     patch_three_warp,
     triangle_methods,
 )
+from common import cached_json, parser, reuse_or_compute, write_record
 
 import anisosample as asp
 import anisosample.warps as W
@@ -135,25 +135,25 @@ def patch_methods():
     approximate-area warp; "+ biquadratic" warps fitted to it in front of that."""
 
     def area(p):
-        patch = _patch_factors(p)[0]
+        patch = patch_factors(p)[0]
         return [W.Bilinear(patch.corner_area_elements()), patch]
 
     def pw(p):
-        f = _patch_factors(p)[3]
+        f = patch_factors(p)[3]
         return W.compose(W.fit_pointwise(W.Biquadratic, f, area(p)), *area(p))
 
     def ls(p):
-        f = _patch_factors(p)[3]
+        f = patch_factors(p)[3]
         init = W.fit_pointwise(W.Biquadratic, f, area(p))
         return W.compose(W.fit_least_squares(W.Biquadratic, f, area(p), init=init), *area(p))
 
     def mv(p):
-        f = _patch_factors(p)[3]
+        f = patch_factors(p)[3]
         init = W.fit_pointwise(W.Biquadratic, f, area(p))
         return W.compose(W.fit_min_variance(W.Biquadratic, f, area(p), init=init), *area(p))
 
     return {
-        "uniform parametric": lambda p: _patch_factors(p)[0],
+        "uniform parametric": lambda p: patch_factors(p)[0],
         "bilinear approx. area": lambda p: W.compose(*area(p)),
         "three-warp approx. cosine": patch_three_warp,
         "+ biquadratic (point-wise)": pw,
@@ -194,7 +194,7 @@ def measure(make, integrand, points, exact, keys, res):
 
     est = np.asarray(estimates(warps, points, keys), np.float64)
     err = est - exact[:, None]
-    seconds = _best_time(fit, points) / points.shape[0]
+    seconds = common.best_time(fit, points, repeats=5, clock=time.process_time) / points.shape[0]
     return dict(
         variance=(var - bias_grid**2).tolist(),
         mse=np.mean(err**2, axis=1).tolist(),
@@ -249,7 +249,7 @@ def run(settings, out, fresh):
     keys = jax.random.split(jax.random.key(settings["seed"]), (g * g, settings["realizations"]))
     cases = (
         ("triangle", methods(), lambda p: _cos, lambert_irradiance, ""),
-        ("patch", patch_methods(), lambda p: _patch_factors(p)[3], patch_irradiance, "patch_"),
+        ("patch", patch_methods(), lambda p: patch_factors(p)[3], patch_irradiance, "patch_"),
     )
     data = {}
     for light, table, integrand, reference, prefix in cases:

@@ -57,6 +57,28 @@ def reuse_or_compute(path: Path, settings: dict, fresh: bool, compute, *, field:
     return value
 
 
+def best_time(fn, *args, repeats: int, calls: int = 1, warmup: bool = True,
+              clock=time.perf_counter, with_output: bool = False):
+    """Seconds per call of ``fn(*args)``: the best of ``repeats`` timings of ``calls``
+    back-to-back calls, each batch waited for (``jax.block_until_ready``), after one untimed
+    call when ``warmup`` (compilation, caches). The minimum is the timing least disturbed by the
+    other processes on a shared machine; ``clock=time.process_time`` measures this process's CPU
+    time instead of wall time. ``with_output``: ``(seconds, the last call's result)``."""
+    import jax
+
+    if repeats < 1 or calls < 1:
+        raise ValueError(f"repeats and calls must be >= 1, got {repeats} and {calls}")
+    out = jax.block_until_ready(fn(*args)) if warmup else None
+    best = float("inf")
+    for _ in range(repeats):
+        t = clock()
+        for _ in range(calls):
+            out = fn(*args)
+        jax.block_until_ready(out)
+        best = min(best, (clock() - t) / calls)
+    return (best, out) if with_output else best
+
+
 def portable_path(value):
     """A path as a record may keep it: relative to the repository (``results/demo``) when it lies
     inside, else ``<outside>/<name>``; never an absolute path of the machine that wrote it.

@@ -212,7 +212,7 @@ def main(argv=None):
             "settings": {"scale": args.scale, "instances_per_case": n, "sizes": SIZES,
                          "tol_deg": TOL_DEG, "seed": SEED, "k": 2,
                          "estimator": "anisosample.directions defaults (fixed kappa)",
-                         "defaults": directions._Params().__dict__},
+                         "defaults": directions.default_options()},
             "provenance": asp.io.provenance(),
             "table": table,
             "table_gradient": {"96": table_g},

@@ -24,8 +24,15 @@ import common
 import jax
 import jax.numpy as jnp
 import numpy as np
-from w_fig6 import our_sets, variance_of_sets
-from w_fig6_baselines import JITTABLE, SCALES, Memo, measure, summarize
+from _w_variance import (
+    BASELINE_SCALES,
+    JITTABLE,
+    Memo,
+    measure,
+    our_sets,
+    summarize,
+    variance_of_sets,
+)
 
 import anisosample as asp
 from anisosample import integrands, plot
@@ -50,7 +57,7 @@ def integrand_cases():
 def main(argv=None):
     args = common.parser(NAME, __doc__.splitlines()[0]).parse_args(argv)
     started = time.time()
-    cfg = SCALES[args.scale]
+    cfg = BASELINE_SCALES[args.scale]
     ns = [2**k for k in cfg["log2_ns"]]
     out = args.out
     (out / "curves").mkdir(parents=True, exist_ok=True)

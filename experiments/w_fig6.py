@@ -36,6 +36,7 @@ from pathlib import Path
 
 import jax
 import numpy as np
+from _w_variance import our_sets, variance_of_sets
 
 from anisosample import integrands, io, synthesis
 from anisosample import variance as V
@@ -55,32 +56,6 @@ SCALES = {
     ),
 }
 BASELINES = {"pmj02bn": "shift", "sobol-owen": "fresh+shift"}
-
-
-def our_sets(out: Path, dirs, ns, seeds, bar, frequency_options=None):
-    sets = {}
-    for n in ns:
-        for s in range(seeds):
-            name = "_".join(f"{d:g}" for d in dirs) + f"_n{n}_s{s}.npz"
-            pts = synthesis.load_or_synthesize(out / "sets" / name, jax.random.key(1000 + s),
-                                               n, dirs, show_progress=False,
-                                               frequency_options=frequency_options).points
-            sets[(n, s)] = pts
-            bar.update(1)
-    return sets
-
-
-def variance_of_sets(f, sets, ns, seeds, realizations, key):
-    rows = []
-    for n in ns:
-        est = np.concatenate([
-            V.realization_estimates(f, sets[(n, s)], n, jax.random.fold_in(key, s),
-                                    realizations // seeds, randomization="shift",
-                                    center=f.integral)
-            for s in range(seeds)
-        ])
-        rows.append(V.variance_from_estimates(est, f.integral, n=n, randomization="shift"))
-    return rows
 
 
 def variance_of_baseline(f, name, ns, realizations, key):

@@ -20,35 +20,20 @@ from __future__ import annotations
 import json
 import time
 
+import _w_variance as WV
 import common
 import jax
 import numpy as np
+from _w_variance import Memo, measure
 
 import anisosample as asp
 from anisosample import integrands, plot
-from anisosample import variance as V
 from anisosample.progress import progress
 
 NAME = "w_fig6_baselines"
-SCALES = {
-    "small": dict(log2_ns=list(range(4, 15, 2)), realizations=256, patterns=4, fit_min_n=64),
-    "paper": dict(log2_ns=list(range(4, 17)), realizations=4096, patterns=16, fit_min_n=64),
-}
+SCALES = WV.BASELINE_SCALES
 EDGES = {1: [30.0], 2: [30.0, 110.0], 3: [30.0, 75.0, 140.0], 4: [30.0, 75.0, 115.0, 150.0]}
-JITTABLE = ["random", "jittered", "cmj", "sobol-owen"]
-
-
-class Memo:
-    """Remember the fixed sets a slow (NumPy) sampler made, across integrands."""
-
-    def __init__(self, sampler):
-        self.sampler, self.sets = sampler, {}
-
-    def __call__(self, key, n):
-        k = (np.asarray(jax.random.key_data(key)).tobytes(), int(n))
-        if k not in self.sets:
-            self.sets[k] = self.sampler(key, n)
-        return self.sets[k]
+JITTABLE = WV.JITTABLE
 
 
 def integrand_cases():
@@ -70,26 +55,6 @@ def sampler_table(dirs, memo_pmj, memo_sheared):
                                                     direction_deg=theta))
     table[f"sheared pmj02bn {theta:g}"] = (memo_sheared[theta], "shift")
     return table
-
-
-def measure(f, sampler, mode, ns, key, cfg):
-    patterns = cfg["patterns"] if mode == "shift" else 1
-    rows = [V.estimate_variance(f, sampler, n, key, cfg["realizations"], f.integral,
-                                randomization=mode, patterns=patterns) for n in ns]
-    return summarize(rows, ns, cfg, mode, patterns)
-
-
-def summarize(rows, ns, cfg, mode, patterns):
-    """The curve record of one sampler: variances with intervals, slope fitted from fit_min_n."""
-    fit_ns = [n for n in ns if n >= cfg["fit_min_n"]]
-    sel = [i for i, n in enumerate(ns) if n >= cfg["fit_min_n"]]
-    fit = V.fit_slope(fit_ns, [rows[i].variance for i in sel], [rows[i].std_error for i in sel])
-    return {
-        "randomization": mode, "patterns": patterns,
-        "variance": [r.variance for r in rows], "std_error": [r.std_error for r in rows],
-        "ci_low": [r.ci_low for r in rows], "ci_high": [r.ci_high for r in rows],
-        "fit": fit.as_dict(),
-    }
 
 
 def integrand_figure(cases, out, radius=48, m=256):

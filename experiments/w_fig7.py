@@ -6,7 +6,7 @@ block of ``16 x 16`` pixels of the ``1280^2`` image (W's resolution and blocks) 
 grid of 96^2 samples of the pixels' light-sample (or lens-sample) integrands (W Sec. 5.3; each
 pixel fills a 6x6 tile, ``experiments/_w_render.py``), with the library's
 ``render.estimation.estimate_blocks`` -- the same estimation as W Fig. 9 (``w_fig9``), whose
-per-block call (``w_fig9.block_estimate``) is rerun on every sampled block as a check: the two
+per-block call (``_w_render.block_estimate``) is rerun on every sampled block as a check: the two
 must give the same first direction (``max_recheck_deg`` in the record).
 
 The error of the estimate: in sampled blocks, sampled pixels are classified from a dense
@@ -52,7 +52,6 @@ import _w_render as W
 import common
 import jax
 import numpy as np
-import w_fig9
 
 import anisosample as asp
 from anisosample import metrics, plot, render
@@ -134,7 +133,7 @@ def summarize(rows, min_axis_deg):
     off_block, off_px = [], []
     for r in with_est:
         e = [e for e, t in zip(r["errors_deg"], r["true_directions_deg"], strict=True)
-             if w_fig9._off_axis(t) >= min_axis_deg]
+             if W.off_axis_deg(t) >= min_axis_deg]
         if e:
             off_block.append(np.median(e))
             off_px += e
@@ -165,7 +164,7 @@ def run_scene(name, cfg, key, out, fresh):
     # The same estimation as W Fig. 9: its per-block call on every sampled block.
     cache, recheck = {}, []
     for a, b in blocks:
-        _, d9 = w_fig9.block_estimate(scene, base, (b * cfg["block_px"], a * cfg["block_px"]),
+        _, d9 = W.block_estimate(scene, base, (b * cfg["block_px"], a * cfg["block_px"]),
                                       cfg, cache)
         if est_v[a, b, 0] and len(d9):
             recheck.append(float(metrics.axial_distance_deg(est_d[a, b, 0], d9[0])))

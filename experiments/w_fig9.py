@@ -60,7 +60,6 @@ import anisosample as asp
 from anisosample import directions, metrics, plot, samplers, tables
 from anisosample import variance as V
 from anisosample.progress import progress
-from anisosample.render import aligned
 from anisosample.render import pixel_classes as pc
 
 NAME = "w_fig9"
@@ -78,11 +77,6 @@ CLASS_NAMES = ("one-edge", "corner", "lit", "lit-aligned-block")
 SCENES = ("cornell", "dof")
 
 
-def _off_axis(d) -> np.ndarray:
-    d = np.asarray(d) % 90.0
-    return np.minimum(d, 90.0 - d)
-
-
 def pick_pixels(name, cfg, rng):
     """Pixels of each class at the full resolution (module docstring), with their classes."""
     sq = W.SCENES[name]["square_aperture"]
@@ -94,7 +88,7 @@ def pick_pixels(name, cfg, rng):
     for cname in CLASS_NAMES[:3]:
         cand = cl.pixels(cname)
         if cname == "one-edge":
-            cand = cand[_off_axis(cl.directions_deg[cand[:, 1], cand[:, 0], 0])
+            cand = cand[W.off_axis_deg(cl.directions_deg[cand[:, 1], cand[:, 0], 0])
                         >= cfg["min_axis_deg"]]
         cand = cand[rng.permutation(len(cand))][: 4 * cfg["per_class"]]
         if len(cand) == 0:
@@ -105,7 +99,7 @@ def pick_pixels(name, cfg, rng):
         keep = fc.classes[fine[:, 1], fine[:, 0]] == pc.CLASSES.index(cname)
         d = fc.directions_deg[fine[:, 1], fine[:, 0]]
         if cname == "one-edge":
-            keep &= _off_axis(d[:, 0]) >= cfg["min_axis_deg"]
+            keep &= W.off_axis_deg(d[:, 0]) >= cfg["min_axis_deg"]
         sel = np.nonzero(keep)[0][: cfg["per_class"]]
         picked[cname] = (fine[sel], d[sel], fc.num_directions[fine[sel, 1], fine[sel, 0]])
     return full, cl.counts(), picked
@@ -127,7 +121,7 @@ def lit_in_aligned_blocks(name, cfg, key, full, base, cache):
     for s in range(0, len(cand), 4 * cfg["per_class"]):
         part = cand[s:s + 4 * cfg["per_class"]]
         part = [p for p in part if selection.table_directions(
-            block_estimate(full, base, p, cfg, cache)[1], k=1)]
+            W.block_estimate(full, base, p, cfg, cache)[1], k=1)]
         if part:
             fc = pc.pixel_classes(full, np.array(part), grid=cfg["grid"], square_aperture=sq)
             chosen += [p for p in part if fc.classes[p[1], p[0]] == pc.CLASSES.index("lit")]
@@ -135,15 +129,6 @@ def lit_in_aligned_blocks(name, cfg, key, full, base, cache):
             break
     px = np.array(chosen[: cfg["per_class"]], int).reshape(-1, 2)
     return px, np.zeros((len(px), 2)), np.zeros(len(px), int)
-
-
-def block_estimate(full, base, pixel, cfg, cache):
-    """W's estimate (Sec. 5.3) of the block holding ``pixel``: directions, strongest first."""
-    b = (int(pixel[1]) // cfg["block_px"], int(pixel[0]) // cfg["block_px"])
-    if b not in cache:
-        grid = aligned.block_grid_values(full, b, cfg["block_px"], cfg["samples"], integrand=base)
-        cache[b] = directions.estimate(grid, k=2)
-    return b, cache[b]
 
 
 def _lookup(extra, n):
@@ -177,7 +162,7 @@ def measure_class(full, base, cname, pixels, dirs, num, cfg, key, cache):
     rows = []
     for q, pix in enumerate(progress(pixels, desc=cname, leave=False)):
         true_dirs = [float(x) for x in dirs[q][: int(num[q])]]
-        block, block_dirs = block_estimate(full, base, pix, cfg, cache)
+        block, block_dirs = W.block_estimate(full, base, pix, cfg, cache)
         f = W.pixel_f(base, full, (int(pix[0]), int(pix[1])))
         per = {}
         for n in ns:

@@ -151,3 +151,118 @@ def test_the_private_name_check_finds_both_forms(tmp_path, monkeypatch):
     monkeypatch.setitem(MODULES, "anisosample.fake", fake)
     assert _private_uses("anisosample.fake") == [
         "from anisosample.vmf import _y", "vmf._check (line 4)"]
+
+
+# --- experiments and tests (issue 26) -------------------------------------------------------------
+# An experiment is a script in experiments/; ``common.py`` and the ``_*.py`` modules are the
+# harness the scripts share. Tests mirror the package; ``helpers.py`` and ``conftest.py`` hold
+# what tests share. Neither experiments nor tests take a private name (``_x``) out of a module
+# (a private *module* may be imported, as inside the package), and no experiment imports another
+# experiment, no test another test module.
+
+REPO = ROOT.parent
+EXPERIMENTS = REPO / "experiments"
+TESTS = REPO / "tests"
+HARNESS = {"common"} | {p.stem for p in EXPERIMENTS.glob("_*.py")}
+SCRIPTS = {p.stem for p in EXPERIMENTS.glob("*.py")} - HARNESS
+
+# A private module's own tests may reach into it (test file -> the modules it may open).
+OWN_TESTS: dict[str, set[str]] = {}
+
+# What is still to be moved (issue 26): each entry must disappear when its use is fixed; a new
+# use fails the test. Experiments: w_fig10 runs w_fig9's main (and reads its SCALES);
+# h_fig2_defect --before loads an archived copy of h_fig2 / _h_render (git show 74f13ac).
+KNOWN_EXPERIMENT_IMPORTS = {
+    "w_fig10": {"import w_fig9"},
+    "h_fig2_defect": {"import h_fig2", "_h_render._emission_along"},
+}
+
+
+def _imported(path: Path, known: set[str]):
+    """(what was imported, module it names or None, alias, line) for every import in ``path``;
+    ``known`` lists the dotted module names that ``from X import Y`` can name as modules."""
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                yield a.name, None, a.asname or a.name.split(".")[0], node.lineno
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            for a in node.names:
+                sub = f"{node.module}.{a.name}"
+                if sub in known:
+                    yield sub, None, a.asname or a.name, node.lineno
+                else:
+                    yield node.module, a.name, a.asname or a.name, node.lineno
+        elif isinstance(node, ast.ImportFrom) and node.level:  # tests' ".helpers", ".test_x"
+            for a in node.names:
+                mod = node.module or a.name
+                yield "." * node.level + mod, None if node.module is None else a.name, \
+                    a.asname or a.name, node.lineno
+
+
+def _dotted(node) -> str | None:
+    if isinstance(node, ast.Name):
+        return node.id
+    if isinstance(node, ast.Attribute):
+        base = _dotted(node.value)
+        return None if base is None else f"{base}.{node.attr}"
+    return None
+
+
+def _is_private(name: str) -> bool:
+    return name.startswith("_") and not name.startswith("__")
+
+
+def _private_names_taken(path: Path, known: set[str]) -> set[str]:
+    """``from M import _x`` and ``M._x`` (``M`` bound to a module of ``known``, through any
+    alias or attribute chain) where ``M._x`` is not itself a module."""
+    found, aliases = set(), {}
+    for target, name, alias, _ in _imported(path, known):
+        if name is None:
+            if target in known or target.split(".")[0] in {t.split(".")[0] for t in known}:
+                # "import anisosample.render as R" binds R; "import anisosample.render" binds
+                # the top package anisosample
+                aliases[alias] = target if alias != target.split(".")[0] else target.split(".")[0]
+        elif _is_private(name) and f"{target}.{name}" not in known:
+            found.add(f"from {target} import {name}")
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Attribute) and _is_private(node.attr):
+            base = _dotted(node.value)
+            if base is None or base.split(".")[0] not in aliases:
+                continue
+            head, *rest = base.split(".")
+            module = ".".join([aliases[head], *rest])
+            if module in known and f"{module}.{node.attr}" not in known:
+                found.add(f"{module}.{node.attr}")
+    return found
+
+
+def _experiment_findings(folder: Path = EXPERIMENTS) -> dict[str, set[str]]:
+    known = set(MODULES) | HARNESS | SCRIPTS | {PKG}
+    out = {}
+    for path in sorted(folder.glob("*.py")):
+        found = _private_names_taken(path, known)
+        for target, name, _, _ in _imported(path, known):
+            top = target.removeprefix("experiments.")
+            if top in SCRIPTS and top != path.stem and name is None:
+                found.add(f"import {top}")
+            elif top in SCRIPTS and top != path.stem:
+                found.add(f"from {top} import {name}")
+        if found:
+            out[path.stem] = found
+    return out
+
+
+def test_no_experiment_imports_another_or_a_private_name():
+    assert _experiment_findings() == KNOWN_EXPERIMENT_IMPORTS
+
+
+def test_the_experiment_check_finds_both_rules(tmp_path):
+    text = ("import w_fig6\nfrom w_fig6_baselines import Memo\nimport _w_render as W\n"
+            "from anisosample import directions\nfrom anisosample.render.xml import _lookat\n"
+            "import anisosample as asp\ndirections._Params()\nasp.directions._params()\n"
+            "W._private()\nW.block_estimate()\n")
+    (tmp_path / "w_fig9.py").write_text(text)  # a real script's name, a fake script's text
+    assert _experiment_findings(tmp_path) == {"w_fig9": {
+        "import w_fig6", "from w_fig6_baselines import Memo",
+        "from anisosample.render.xml import _lookat", "anisosample.directions._Params",
+        "anisosample.directions._params", "_w_render._private"}}

@@ -25,7 +25,7 @@ SIZE, BLOCK, S, SPP, R_ = 32, 8, 96, 4096, 8
 
 
 def _scene():
-    from anisosample.render.xml import _lookat
+    from anisosample.render.xml import look_at
 
     b = R.SceneBuilder()
     b.rectangle(np.diag([4.0, 4.0, 1.0, 1.0]), b.diffuse(0.5))
@@ -37,7 +37,7 @@ def _scene():
     m = np.eye(4)  # the occluder covers n . (x, y) in [0, 6] at z = Z_OCC
     m[:2, 0], m[:2, 1], m[:2, 3], m[2, 3] = 3 * n, 6 * np.array([-n[1], n[0]]), 3 * n, Z_OCC
     b.rectangle(m, b.diffuse(0.0))
-    cam = _lookat(np.array([0, 0, 0.9 * Z_OCC]), np.zeros(3), np.array([0, 1.0, 0]))
+    cam = look_at(np.array([0, 0, 0.9 * Z_OCC]), np.zeros(3), np.array([0, 1.0, 0]))
     b.camera(cam, width=SIZE, height=SIZE, fov=90)
     return b.build()
 

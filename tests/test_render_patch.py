@@ -57,9 +57,9 @@ def _patch_scene(corners, *, flip=False, radiance=None, floor=False):
     b.bilinear_patch(corners, b.diffuse(0.0), radiance=radiance, flip_normals=flip)
     if radiance is None:
         b.point_light((0, 0, 5.0), 1.0)
-    from anisosample.render.xml import _lookat
+    from anisosample.render.xml import look_at
 
-    b.camera(_lookat(np.array([0, 0, 1.0]), np.zeros(3), np.array([0, 1.0, 0])), width=9,
+    b.camera(look_at(np.array([0, 0, 1.0]), np.zeros(3), np.array([0, 1.0, 0])), width=9,
              height=9, fov=10)
     return b.build()
 
@@ -220,9 +220,9 @@ def test_planar_patch_irradiance_matches_the_closed_form(technique):
     b = R.SceneBuilder()
     b.rectangle(np.diag([4.0, 4.0, 1.0, 1.0]), b.diffuse(rho))
     b.bilinear_patch(corners, b.diffuse(0.0), radiance=L)
-    from anisosample.render.xml import _lookat
+    from anisosample.render.xml import look_at
 
-    b.camera(_lookat(np.array([0, 0, 1.0]), np.zeros(3), np.array([0, 1.0, 0])), width=9,
+    b.camera(look_at(np.array([0, 0, 1.0]), np.zeros(3), np.array([0, 1.0, 0])), width=9,
              height=9, fov=10)
     scene = b.build()
     exact = rho * L * _lambert_form_factor(np.zeros(3), np.array([0, 0, 1.0]),

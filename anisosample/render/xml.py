@@ -176,7 +176,11 @@ def _rotation(axis, angle_deg) -> np.ndarray:
     return m
 
 
-def _lookat(origin, target, up) -> np.ndarray:
+def look_at(origin, target, up) -> np.ndarray:
+    """The ``4 x 4`` matrix of Mitsuba's ``<lookat origin target up>`` (NumPy arrays of shape
+    ``(3,)``): columns ``left = up x d``, ``d x left``, the unit view direction ``d`` and
+    ``origin``. ``ValueError`` when ``origin`` and ``target`` coincide or ``up`` is parallel to
+    the view direction."""
     d = target - origin
     if np.linalg.norm(d) == 0:
         raise ValueError("lookat origin and target coincide")
@@ -189,6 +193,9 @@ def _lookat(origin, target, up) -> np.ndarray:
     m = np.eye(4)
     m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = left, new_up, d, origin
     return m
+
+
+_lookat = look_at  # the old private name, for callers not yet moved
 
 
 def _transform(ctx: _Ctx, node: _Node) -> np.ndarray:
@@ -218,7 +225,7 @@ def _transform(ctx: _Ctx, node: _Node) -> np.ndarray:
             t = _floats(ctx, c, ctx.attr(c, "target", required=True), 3)
             up = _floats(ctx, c, ctx.attr(c, "up", "0 1 0"), 3)
             try:
-                op = _lookat(o, t, up)
+                op = look_at(o, t, up)
             except ValueError as exc:
                 raise ctx.err(c, str(exc)) from None
         else:

@@ -153,7 +153,8 @@ class BilinearPatch(AbstractWarp):
         u, v = uv[0], uv[1]
         return (1 - u) * ((1 - v) * c[0, 0] + v * c[0, 1]) + u * ((1 - v) * c[1, 0] + v * c[1, 1])
 
-    def _partials(self, uv):
+    def partials(self, uv):
+        """``(dp/du, dp/dv)`` at parameters ``uv``."""
         c = self.corners
         u, v = uv[0], uv[1]
         du = (1 - v) * (c[1, 0] - c[0, 0]) + v * (c[1, 1] - c[0, 1])
@@ -162,7 +163,7 @@ class BilinearPatch(AbstractWarp):
 
     def area_element(self, uv):
         """``|dp/du x dp/dv|`` at parameters ``uv``."""
-        du, dv = self._partials(uv)
+        du, dv = self.partials(uv)
         return norm(jnp.cross(du, dv))
 
     def corner_area_elements(self):
@@ -185,13 +186,13 @@ class BilinearPatch(AbstractWarp):
 
     def normal(self, uv):
         """Unit normal ``p_u x p_v / |p_u x p_v|`` at parameters ``uv`` (the front side)."""
-        du, dv = self._partials(uv)
+        du, dv = self.partials(uv)
         n = jnp.cross(du, dv)
         return n / jnp.maximum(norm(n), 1e-30)
 
     def _invert(self, x):
         def step(_, uv):
-            du, dv = self._partials(uv)
+            du, dv = self.partials(uv)
             r = x - self.point(uv)
             a, b = _solve2(du, dv, r)
             return jnp.clip(uv + jnp.stack([a, b]), -0.5, 1.5)

@@ -174,7 +174,7 @@ def test_render_with_and_without_bvh_agree():
     """A tessellated sphere over a floor under an area light, light sampling and MIS: the same
     image with and without the BVH (float32 rounding: the same primitives are hit)."""
     from anisosample.render.builder import sphere_mesh
-    from anisosample.render.xml import _lookat
+    from anisosample.render.xml import look_at
 
     b = R.SceneBuilder()
     b.rectangle(np.diag([3.0, 3.0, 1.0, 1.0]), b.diffuse(0.6))
@@ -183,7 +183,7 @@ def test_render_with_and_without_bvh_agree():
     t = np.diag([0.3, 0.3, -1.0, 1.0])
     t[:3, 3] = (0.4, 0.3, 2.0)
     b.rectangle(t, b.diffuse(0.0), radiance=20.0)
-    b.camera(_lookat(np.array([2.0, -2.5, 1.8]), np.array([0, 0, 0.4]), np.array([0, 0, 1.0])),
+    b.camera(look_at(np.array([2.0, -2.5, 1.8]), np.array([0, 0, 0.4]), np.array([0, 0, 1.0])),
              width=12, height=10, fov=45)
     with_bvh, brute = _pair(b.build(bvh=True))
     key = jax.random.key(3)

@@ -45,7 +45,7 @@ UNIT_TRI = np.array([[-0.6, -0.5, 0.0], [0.7, -0.3, 0.0], [0.0, 0.7, 0.0]])  # a
 def _scene(light, material="diffuse"):
     """A floor (z = 0, normal +z) and one light: ``("triangle", (3, 3) vertices)`` or
     ``("rectangle", 4x4 to_world)``; returns ``(scene, floor material)``."""
-    from anisosample.render.xml import _lookat
+    from anisosample.render.xml import look_at
 
     b = R.SceneBuilder()
     if material == "diffuse":
@@ -58,7 +58,7 @@ def _scene(light, material="diffuse"):
         b.triangles(geometry, [[0, 1, 2]], b.diffuse(0.0), radiance=1.0)
     else:
         b.rectangle(geometry, b.diffuse(0.0), radiance=1.0)
-    b.camera(_lookat(np.array([0.3, -2.0, 2.5]), np.zeros(3), np.array([0, 0, 1.0])),
+    b.camera(look_at(np.array([0.3, -2.0, 2.5]), np.zeros(3), np.array([0, 0, 1.0])),
              width=4, height=4, fov=40)
     return b.build(), m
 
