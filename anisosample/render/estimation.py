@@ -17,7 +17,7 @@
   whose own integrand is smooth (fully lit, fully occluded) then get an aligned set, which
   converges more slowly than pmj02bn on smooth integrands. A pixel's tile covers only ``1/B^2``
   of its sample domain, so it cannot tell whether the pixel's integrand has an edge elsewhere
-  (on the occluder-edge scene of ``tests/test_render_gate.py``, 8-pixel blocks: the jump test
+  (on the occluder-edge scene of ``tests/render/test_gate.py``, 8-pixel blocks: the jump test
   on each pixel's own tile flags 10 % of the penumbra pixels, on the probe 85 %, with no lit or
   umbra pixel flagged by either); the gate therefore looks at a *probe*: ``m x m`` midpoint
   samples of the pixel's integrand over the whole domain (default ``m = 6``, as many samples as

@@ -160,7 +160,9 @@ def _xyz(ctx, node, default=0.0) -> np.ndarray:
     return np.array(out)
 
 
-def _rotation(axis, angle_deg) -> np.ndarray:
+def rotation(axis, angle_deg) -> np.ndarray:
+    """The ``4 x 4`` matrix of Mitsuba's ``<rotate>``: ``angle_deg`` degrees about ``axis`` (a
+    NumPy array of shape ``(3,)``, normalised here), counter-clockwise seen from its tip."""
     axis = axis / np.linalg.norm(axis)
     x, y, z = axis
     c, s = np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))
@@ -212,7 +214,7 @@ def _transform(ctx: _Ctx, node: _Node) -> np.ndarray:
             axis = _xyz(ctx, c)
             if np.linalg.norm(axis) == 0:
                 raise ctx.err(c, "rotation axis must be non-zero")
-            op = _rotation(axis, angle)
+            op = rotation(axis, angle)
         elif c.tag == "matrix":
             v = _floats(ctx, c, ctx.attr(c, "value", required=True), (9, 16))
             if v.size == 9:

@@ -21,7 +21,7 @@ import pytest
 from anisosample.render import ltc
 from anisosample.render.bsdf import sample_ggx_vndf
 
-from .test_light_warps import _zero_variance, plane_under_light
+from .helpers import plane_under_triangle, zero_variance
 
 
 @pytest.fixture(scope="module")
@@ -69,4 +69,4 @@ def test_fitted_ltc_helps_visible_normal_sampling(table):
 
 
 def test_ltc_on_a_diffuse_receiver_is_zero_variance():
-    _zero_variance(plane_under_light("triangle"), "ltc")
+    zero_variance(plane_under_triangle(), "ltc")

@@ -2,15 +2,15 @@
 estimates and per-block point sets in the renderer (W Sec. 5.3-5.4), ``render(sampler="aligned")``
 and ``anisosample render --sampler aligned``. W's own method (3-direction sets, no gate) is
 ``k=1, gate=False``; the defaults (4-direction sets for two directions, the per-pixel gate) are
-checked here on the selection and in tests/test_render_gate.py on the variance.
+checked here on the selection and in tests/render/test_gate.py on the variance.
 
 Truth: the box-edge shadow directions predicted from the Cornell geometry (central projection
-onto the light plane, ``tests/render/test_directions.py``), the pixel integrands evaluated one
-by one, the table sets looked up directly, converged pixel values (512^2-point quadrature of the
-pixel integrand), and the ordinary pmj02bn render of the same scene and key (an unbiased
-estimator of the same pixel values, with the same per-pixel shifts). Where only the choice of
-set is tested, 4-direction tables are stand-ins of random points (the selection does not look
-at the points).
+onto the light plane, ``tests/render/test_shadow_directions.py``), the pixel integrands
+evaluated one by one, the table sets looked up directly, converged pixel values (512^2-point
+quadrature of the pixel integrand), and the ordinary pmj02bn render of the same scene and key
+(an unbiased estimator of the same pixel values, with the same per-pixel shifts). Where only the
+choice of set is tested, 4-direction tables are stand-ins of random points (the selection does
+not look at the points).
 """
 
 import dataclasses
@@ -19,7 +19,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from render.test_directions import LIGHT_HALF, LIGHT_Y, _box_edges
 
 import anisosample.render as R
 from anisosample import _table_build, cli, io, samplers, scenes, selection, tables
@@ -27,6 +26,8 @@ from anisosample.metrics import midpoint_grid
 from anisosample.render import aligned
 from anisosample.render.camera import generate_ray
 from anisosample.render.geometry import intersect
+
+from .helpers import LIGHT_HALF, LIGHT_Y, box_edges
 
 CORNELL = scenes.path("cornell")
 SIZE, BLOCK, S, SPP, R_ = 32, 8, 96, 256, 8  # 4x4 blocks of 8x8 px, 12x12 samples per pixel
@@ -87,7 +88,7 @@ def _predicted_directions(p):
     out = set()
     for box in BOXES:
         pts = []
-        for a, b in _box_edges(*box):
+        for a, b in box_edges(*box):
             lo = p[1] + 1e-3
             if max(a[1], b[1]) <= lo:
                 continue

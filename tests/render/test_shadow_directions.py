@@ -9,19 +9,8 @@ from anisosample import directions
 from anisosample.metrics import axial_distance_deg, midpoint_grid
 from anisosample.render.camera import generate_ray
 from anisosample.render.geometry import intersect
-from anisosample.render.xml import _rotation
 
-from .helpers import SCENES
-
-LIGHT_Y, LIGHT_HALF = 0.98, 0.25  # cornell.xml: the light spans [-0.25, 0.25]^2 in x, z
-
-
-def _box_edges(scale, angle_deg, translate):
-    m = _rotation(np.array([0.0, 1.0, 0.0]), angle_deg) @ np.diag(np.append(scale, 1.0))
-    m[:3, 3] = translate
-    c = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
-    w = c @ m[:3, :3].T + m[:3, 3]
-    return [(w[i], w[j]) for i in range(8) for j in range(i + 1, 8) if np.sum(c[i] != c[j]) == 1]
+from .helpers import LIGHT_HALF, LIGHT_Y, SCENES, box_edges
 
 
 def _predicted_directions(p):
@@ -32,7 +21,7 @@ def _predicted_directions(p):
     plane ``y = 0.98`` maps each box edge to a segment there.
     """
     out = set()
-    for a, b in _box_edges([0.3, 0.6, 0.3], 20, [-0.35, -0.4, -0.3]):
+    for a, b in box_edges([0.3, 0.6, 0.3], 20, [-0.35, -0.4, -0.3]):
         if min(a[1], b[1]) <= p[1] + 1e-9:
             continue
         pa = p + (a - p) * (LIGHT_Y - p[1]) / (a[1] - p[1])
