@@ -42,7 +42,7 @@ def _triangle_t(scene: Scene, o, d):
     return plane_test(scene.tri_soa, o, d)
 
 
-def _closest_planar(scene: Scene, o, d, tmin, tmax):
+def closest_planar(scene: Scene, o, d, tmin, tmax):
     """``(t, index, b1, b2)`` of the nearest planar primitive (``t = inf``, index 0: none)."""
     if scene.bvh is not None:
         return closest_hit(scene.bvh, o, d, tmin, tmax)
@@ -76,7 +76,7 @@ def intersect(
     tmax: float | Array = jnp.inf,
 ) -> Hit:
     """Closest hit with ``tmin < t < tmax``; ``d`` must be a unit vector."""
-    t_tri, it, w1, w2 = _closest_planar(scene, o, d, tmin, tmax)
+    t_tri, it, w1, w2 = closest_planar(scene, o, d, tmin, tmax)
     attr = scene.tri_attr[it]  # n, uv0, uv1, uv2: one gather
     ids = scene.tri_ids[it]  # material, light
     uv_tri = (1 - w1 - w2) * attr[3:5] + w1 * attr[5:7] + w2 * attr[7:9]

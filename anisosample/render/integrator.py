@@ -50,7 +50,7 @@ from .scene import LUMINANCE, THINLENS, Scene
 DIMENSIONS = ("light", "lens")
 
 
-def _uniform(key, n: int) -> Float[Array, "n 2"]:
+def hashed_uniforms(key, n: int) -> Float[Array, "n 2"]:
     """``n`` independent uniform 2D points from one key: a counter hashed with lowbias32.
 
     One threefry draw seeds the pixel; each coordinate is then ``hash(seed ^ hash(counter))``,
@@ -336,7 +336,7 @@ def pixel_samples(scene: Scene, g, x, key, q, spp: int, start: int, *, mis: bool
     _, k_film, k_other, k_bsdf = jax.random.split(jax.random.fold_in(key, q), 4)
 
     def stream(kk):
-        return jax.lax.dynamic_slice_in_dim(_uniform(kk, spp), start, k)
+        return jax.lax.dynamic_slice_in_dim(hashed_uniforms(kk, spp), start, k)
 
     col = (q % w).astype(jnp.float32)
     row = (q // w).astype(jnp.float32)

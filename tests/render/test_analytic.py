@@ -169,11 +169,11 @@ def test_hashed_uniforms_are_uniform_and_independent():
     no correlation between the coordinates or between two pixels' streams."""
     from scipy import stats
 
-    from anisosample.render.integrator import _uniform
+    from anisosample.render.integrator import hashed_uniforms
 
     n = 1 << 16
-    a = np.asarray(_uniform(jax.random.key(1), n), np.float64)
-    b = np.asarray(_uniform(jax.random.key(2), n), np.float64)
+    a = np.asarray(hashed_uniforms(jax.random.key(1), n), np.float64)
+    b = np.asarray(hashed_uniforms(jax.random.key(2), n), np.float64)
     assert a.shape == (n, 2) and a.min() >= 0 and a.max() < 1
     se = np.sqrt(1 / 12 / n)
     for u in (a[:, 0], a[:, 1], b[:, 0]):

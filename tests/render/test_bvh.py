@@ -15,7 +15,7 @@ import pytest
 
 import anisosample.render as R
 from anisosample.render import bvh as B
-from anisosample.render.geometry import _closest_planar, intersect, occluded
+from anisosample.render.geometry import closest_planar, intersect, occluded
 
 
 def _soup(n, seed, parallelograms=0, **build):
@@ -53,7 +53,7 @@ def _pair(scene):
     return scene, dataclasses.replace(scene, bvh=None)
 
 
-_closest = jax.jit(jax.vmap(_closest_planar, in_axes=(None, 0, 0, 0, 0)))
+_closest = jax.jit(jax.vmap(closest_planar, in_axes=(None, 0, 0, 0, 0)))
 _occluded = jax.jit(jax.vmap(occluded, in_axes=(None, 0, 0)))
 
 
