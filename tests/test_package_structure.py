@@ -190,7 +190,6 @@ KNOWN_TEST_USES = {
     "test_prefix.py": {"anisosample.synthesis._evaluate", "anisosample.synthesis._objective"},
     "test_samplers.py": {"anisosample.samplers._cmj", "anisosample.samplers._jittered"},
     "test_vmf.py": {"anisosample.vmf._fit_mle_jit", "anisosample.vmf._fit_reverse_kl_jit"},
-    "warps/helpers.py": {"from anisosample.warps.patch import _solve2"},
     "warps/test_fit_variance.py": {"anisosample.warps.tuning._target"},
 }
 

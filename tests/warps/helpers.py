@@ -126,10 +126,14 @@ SURFACE = [
 def _affine_chart(origin, e1, e2):
     import jax.numpy as jnp
 
-    from anisosample.warps.patch import _solve2
-
     o, a, b = (jnp.asarray(v, jnp.float32) for v in (origin, e1, e2))
-    return (lambda s: o + s[0] * a + s[1] * b), (lambda x: jnp.stack(_solve2(a, b, x - o)))
+    gram_inv = jnp.linalg.inv(jnp.array([[a @ a, a @ b], [a @ b, b @ b]]))  # normal equations
+
+    def inverse(x):
+        d = x - o
+        return gram_inv @ jnp.stack([a @ d, b @ d])
+
+    return (lambda s: o + s[0] * a + s[1] * b), inverse
 
 
 def _patch_chart(corners):
