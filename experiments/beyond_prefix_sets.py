@@ -7,8 +7,10 @@ prefix, with the symmetric ``dihedral-<m>`` prefixes (m = 16, 32, 64; the kind t
 and, for comparison, the first 32 points of pmj02bn; for n = 256..4096 we measure
 
 * the variance of the half-plane integrand whose edge is perpendicular to the extra direction
-  (``integrands.edges([a])``), over toroidal shifts, its slope over n, and the ratio at the
-  largest n to the set without a prefix;
+  (``integrands.edges([a])``), over toroidal shifts (16384 at ``--scale small``: the shift
+  noise is then a few per cent), its slope over n, and the ratio at the largest n to the sets
+  without a prefix (the mean of three keys' sets: one set's variance differs from another's of
+  the same size by up to about 10 %, which a ratio to one set would count as cost);
 * the mean ``n P_S`` within one unit of every requested line, ``0 < |v| <= 32``, for n >= 1024
   (white noise = 1);
 * the prefixes alone as estimators (the estimation samples a renderer would reuse): variance of
@@ -46,7 +48,7 @@ def main(argv=None):
     out = args.out
     small = args.scale == "small"
     ns = [256, 512, 1024, 2048, 4096]
-    realizations = 512 if small else 4096
+    realizations = 16384 if small else 65536
     n_dirs = 3 if small else 8
     rng = np.random.default_rng(args.seed)
     extra = [int(a) for a in rng.choice([a for a in range(5, 176) if abs(a - 90) >= 5], n_dirs,
@@ -79,8 +81,15 @@ def main(argv=None):
             print(f"extra {a:3d} deg, prefix {spec:12s}: slope {fit.slope:+.2f}, variance at "
                   f"{ns[-1]} {var[-1]:.3e}, max band n P_S "
                   f"{max(max(b) for b in bands.values()):.3f}", flush=True)
+        more = [asp.synthesis.load_or_synthesize(
+            out / "sets" / f"a{a}_none_n{ns[-1]}_k{k}.npz", jax.random.key(k), ns[-1], dirs,
+            show_progress=False).points for k in (1, 2)]
+        nones = [rows[f"{a}/none"]["variance"][-1]] + [asp.variance.estimator_variance(
+            f, shifted(np.asarray(p)), ns[-1], jax.random.fold_in(key, ns[-1]), realizations,
+            f.integral) for p in more]
+        base = float(np.mean(nones))
+        rows[f"{a}/none"]["none_variance_at_n_max"] = nones
         for spec in PREFIXES:
-            base = rows[f"{a}/none"]["variance"][-1]
             rows[f"{a}/{spec}"]["ratio_to_none"] = rows[f"{a}/{spec}"]["variance"][-1] / base
 
     # the prefixes as estimators on their own: m points, edges at several angles
