@@ -179,7 +179,6 @@ KNOWN_EXPERIMENT_IMPORTS = {
 # Tests: private helpers that want a public name or a test through the public API; test_prefix
 # and render/test_light_warps were being edited elsewhere when this list was made.
 KNOWN_TEST_USES = {
-    "render/test_light_warps.py": {"from anisosample.render.xml import _lookat"},
     "render/test_ltc.py": {"anisosample.render.ltc._lobe"},
     "render/test_plastic.py": {"from anisosample.render.bsdf import _plastic_row"},
     "render/test_sharding.py": {"anisosample.cli._render_worker_argv"},

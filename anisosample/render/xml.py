@@ -197,7 +197,6 @@ def look_at(origin, target, up) -> np.ndarray:
     return m
 
 
-_lookat = look_at  # the old private name, for callers not yet moved
 
 
 def _transform(ctx: _Ctx, node: _Node) -> np.ndarray:

@@ -27,23 +27,11 @@ from anisosample.render.camera import generate_ray
 from anisosample.render.geometry import intersect, offset_origin
 from anisosample.render.light_warps import APPLIES_TO, LIGHT_WARPS, Receiver
 from anisosample.render.lights import light_pdf
+from anisosample.render.xml import look_at
 
-from .helpers import SCENES, lambert_clipped
+from .helpers import SCENES, TRIANGLE_ABOVE, lambert_clipped, plane_under_triangle, zero_variance
 
-TRIANGLE = np.array([[-0.6, -0.5, 1.0], [0.7, -0.3, 1.0], [0.0, 0.7, 1.0]])  # facing down
-
-
-def plane_under_triangle(width=16, height=16, albedo=0.5, radiance=4.0):
-    """A diffuse floor (z = 0, normal +z) under one triangle light 1 above it, facing down
-    (every vertex above every floor point's horizon), seen from above; no occluder."""
-    b = R.SceneBuilder()
-    b.rectangle(np.diag([4.0, 4.0, 1.0, 1.0]), b.diffuse(albedo))
-    b.triangles(TRIANGLE[[0, 2, 1]], [[0, 1, 2]], b.diffuse(0.0), radiance=radiance)
-    from anisosample.render.xml import _lookat
-
-    cam = _lookat(np.array([0.3, -2.0, 2.5]), np.array([0.0, 0.0, 0.0]), np.array([0, 0, 1.0]))
-    b.camera(cam, width=width, height=height, fov=40)
-    return b.build()
+TRIANGLE = TRIANGLE_ABOVE
 
 
 # A triangle light that pierces the floor (its lowest edge 0.4 below it), facing the floor in
@@ -65,9 +53,7 @@ def plane_under_light(kind="triangle", width=16, height=16, albedo=0.5, radiance
         b.rectangle(m, b.diffuse(0.0), radiance=radiance)
     else:
         b.triangles(CROSSING, [[0, 1, 2]], b.diffuse(0.0), radiance=radiance)
-    from anisosample.render.xml import _lookat
-
-    cam = _lookat(np.array([0.3, -2.0, 2.5]), np.array([0.0, 0.0, 0.0]), np.array([0, 0, 1.0]))
+    cam = look_at(np.array([0.3, -2.0, 2.5]), np.array([0.0, 0.0, 0.0]), np.array([0, 0, 1.0]))
     b.camera(cam, width=width, height=height, fov=40)
     return b.build()
 
@@ -80,18 +66,6 @@ def _light_polygon(scene):
     return np.stack([p0, p0 + e1, p0 + e2])
 
 
-def _zero_variance(scene, light_warp, min_floor=0.6):
-    res = R.render(scene, jax.random.key(3), spp=4, realizations=16, pixel_center=True,
-                   technique="solid_angle", light_warp=light_warp, mis=False, progress=False)
-    lum = res.mean @ np.array([0.2126, 0.7152, 0.0722])
-    lit = lum > 0  # the lit floor and the light's front (emission, 4)
-    rel = res.variance[lit] / np.maximum(res.mean[lit] ** 2, 1e-30)
-    assert rel.max() <= 1e-6, rel.max()
-    floor = lit & (lum < 3.0)  # rho/pi L Phi <= 2 on the floor
-    assert floor.mean() > min_floor  # the lit floor fills much of the image
-    return floor
-
-
 @pytest.mark.parametrize("kind", ["triangle", "parallelogram", "crossing"])
 def test_projected_solid_angle_is_zero_variance_on_an_unoccluded_plane(kind):
     """Peters 2021 is exact cosine-weighted sampling of the clipped polygon: every pixel's
@@ -99,7 +73,7 @@ def test_projected_solid_angle_is_zero_variance_on_an_unoccluded_plane(kind):
     floor's horizon; and the value is rho/pi L_e Phi with Phi from Lambert's formula on the
     polygon clipped in float64 NumPy at the ray origin (an independent clip)."""
     scene = plane_under_light(kind)
-    floor = _zero_variance(scene, "projected-solid-angle", 0.3 if kind == "crossing" else 0.6)
+    floor = zero_variance(scene, "projected-solid-angle", 0.3 if kind == "crossing" else 0.6)
     verts = _light_polygon(scene)
     rows, cols = np.nonzero(floor)
     pick = np.linspace(0, len(rows) - 1, 5).astype(int)
@@ -121,7 +95,7 @@ def test_arvo2001_is_zero_variance_on_an_unoccluded_plane():
     assert np.asarray(scene.lights.normal)[0, 2] < 0  # the light faces the floor
     # Exact sampling: the 4-spp estimate of every pixel does not vary over realizations
     # (the spread over 16 realizations of 4 samples, each a constant: only float32 rounding).
-    floor = _zero_variance(scene, "arvo2001")
+    floor = zero_variance(scene, "arvo2001")
     # And no light sample misses: every sample of a pixel is the same value (checked at the
     # pixel level on 1024 light samples, where a sample that missed would be 0).
     q = np.argwhere(floor)[:: max(1, floor.sum() // 6)][:6]
