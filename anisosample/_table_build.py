@@ -379,10 +379,9 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
     out = Path(out) if out is not None else _t.cache_table_path(kind, n, prefix, seq)
     existing = _existing_synthesis(out, kind)  # an existing table keeps its own choices
     if seq:  # a sequence table's steps and learning rate: its own, else the sequence defaults
-        from .synthesis import SEQUENCE_LEARNING_RATE, SEQUENCE_STEPS
+        from .synthesis import SEQUENCE_DEFAULTS
 
-        for name, default in (("steps", SEQUENCE_STEPS),
-                              ("learning_rate", SEQUENCE_LEARNING_RATE)):
+        for name, default in SEQUENCE_DEFAULTS.items():
             if name in synth:
                 continue
             if existing is None:

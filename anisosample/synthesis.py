@@ -85,7 +85,7 @@ from .progress import progress as _progress
 __all__ = ["RECIPES", "BOUNDARIES", "Recipe", "make_recipe", "recipe_defaults",
            "SynthesisResult", "synthesize", "synthesize_batch", "synthesize_sequence",
            "sequence_levels", "SEQUENCE_WEIGHTS", "SEQUENCE_STEPS", "SEQUENCE_LEARNING_RATE",
-           "adam_update", "save_result",
+           "SEQUENCE_DEFAULTS", "adam_update", "save_result",
            "load_result", "load_or_synthesize", "max_directions", "usable_cpus", "usable_cores"]
 
 RECIPES = ("rate", "paper")
@@ -105,6 +105,9 @@ given, in units of the full sequence's point spacing (a set's default is 0.5). M
 N = 4096, 600 steps, extra directions 81 and 96, each prefix's edge variance over the mean of
 three standalone sets (16384 shifts; the sets' own max/min spread 1.02-1.09): the worst prefix
 ratio was 1.34 / 1.41 at 0.5, 1.26 / 1.24 at 1.0, 1.22 / 1.23 at 1.5 and 1.30 / 1.22 at 2.0."""
+SEQUENCE_DEFAULTS = {"steps": SEQUENCE_STEPS, "learning_rate": SEQUENCE_LEARNING_RATE}
+"""What a sequence takes unless given, where a sequence is asked for (:func:`synthesize_sequence`,
+a new sequence table): the one list both apply."""
 SEQUENCE_WEIGHTS = ("equal", "size")
 """Named weights of the nested prefixes' losses in a sequence (:func:`synthesize_sequence`):
 ``"equal"`` (each prefix's normalized loss counts once) or ``"size"`` (prefix ``n_k`` weighs
@@ -767,8 +770,8 @@ def synthesize_sequence(key, n: int = 4096, directions_deg=(0.0, 90.0, 45.0), *,
     """
     if sequence_weights is not None:
         options["sequence_weights"] = sequence_weights
-    options["steps"] = SEQUENCE_STEPS if steps is None else steps
-    options["learning_rate"] = SEQUENCE_LEARNING_RATE if learning_rate is None else learning_rate
+    given = {"steps": steps, "learning_rate": learning_rate}
+    options.update({k: SEQUENCE_DEFAULTS[k] if v is None else v for k, v in given.items()})
     n = check_int("n", n, minimum=2)
     sequence_from = check_int("sequence_from", sequence_from, minimum=2)
     if sequence_from > n:

@@ -70,9 +70,8 @@ def main(argv=None):
             name = label.replace(" ", "").replace("+", "_").replace(",", "_")
             seq = np.asarray(asp.synthesis.load_or_synthesize(
                 out / "sets" / f"a{a}_seq_{name}.npz", jax.random.key(0), length, dirs,
-                sequence_from=start, steps=synthesis.SEQUENCE_STEPS,
-                show_progress=False, **({"learning_rate": synthesis.SEQUENCE_LEARNING_RATE}
-                                        | opts)).points)
+                sequence_from=start, show_progress=False,
+                **(synthesis.SEQUENCE_DEFAULTS | opts)).points)
             sec = time.time() - t0
             var = [edge_variance(f, seq[:n], n) for n in ns]
             ratio = [v / float(np.mean(standalone[n])) for v, n in zip(var, ns, strict=True)]

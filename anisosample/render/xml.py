@@ -197,8 +197,6 @@ def look_at(origin, target, up) -> np.ndarray:
     return m
 
 
-
-
 def _transform(ctx: _Ctx, node: _Node) -> np.ndarray:
     m = np.eye(4)
     for c in node.children:
