@@ -12,55 +12,23 @@ ray origin. This module holds what is specific to the experiments:
 MSE (H: mean over pixels of the squared error against a converged reference; MRSE divides each
 pixel's squared error by ``ref^2 + 0.01``), time (one whole-image realization through
 ``render``, after compilation; min over 9 round-robin rounds) and Monte Carlo efficiency
-``1 / (MSE x time)`` (H Sec. 4) are computed by :func:`measure`; tables and plots.
+``1 / (MSE x time)`` (H Sec. 4) are measured by :func:`measure` (the measures themselves, with
+their standard errors, are the library's ``anisosample.metrics.image_error``, ``mse_ratio`` and
+``efficiency``); tables and plots.
 """
 
 from __future__ import annotations
 
 import common
-import equinox as eqx
 import jax
-import jax.numpy as jnp
 import numpy as np
 from common import cached_json
 
 import anisosample as asp
+from anisosample import metrics
 from anisosample.progress import progress
-from anisosample.render.camera import generate_ray
-from anisosample.render.geometry import intersect
 
 _LUM = np.asarray(asp.render.integrator.LUMINANCE, np.float64)
-
-
-class Shading(eqx.Module):
-    """The primary hit of one pixel centre (batched over pixels by :func:`shading_points`);
-    ``n`` is the geometric normal flipped to the side of ``wi``."""
-
-    p: jax.Array
-    n: jax.Array
-    wi: jax.Array
-    mat: jax.Array
-    valid: jax.Array  # a non-emitting surface was hit
-
-
-def shading_points(scene) -> Shading:
-    """Primary hits of all pixel centres, row-major (``scene.height * scene.width``), for
-    experiments that fit warps per pixel outside the renderer (``beyond_warped_aligned``)."""
-    w, h = scene.width, scene.height
-    cols, rows = np.meshgrid(np.arange(w), np.arange(h), indexing="xy")
-    films = jnp.asarray(
-        np.stack([(cols.ravel() + 0.5) / w, (rows.ravel() + 0.5) / h], -1), jnp.float32
-    )
-    half = jnp.full(2, 0.5, jnp.float32)
-
-    def one(film):
-        o, d = generate_ray(scene.camera, film, half)
-        hit = intersect(scene, o, d)
-        wi = -d
-        n = jnp.where(jnp.dot(hit.n, wi) > 0, hit.n, -hit.n)
-        return Shading(p=hit.p, n=n, wi=wi, mat=hit.material, valid=hit.valid & (hit.light < 0))
-
-    return jax.jit(jax.vmap(one))(films)
 
 
 def make_render(scene, tech: tuple, spp: int, *, mis: bool = True):
@@ -104,26 +72,14 @@ def measure(scene, techniques: dict, ref, spp: int, realizations: int, key, *,
     warps change what the numbers mean).
     """
     keys = jax.random.split(key, realizations)
-    rows, images, renders, per = {}, {}, {}, {}
-    denom = ref**2 + 0.01 if relative else np.ones_like(ref)
+    rows, images, renders, errors = {}, {}, {}, {}
     for name, tech in progress(techniques.items(), desc="techniques", total=len(techniques)):
         render = make_render(scene, tech, spp, mis=mis)
         est = np.stack([np.asarray(render(k), np.float64) for k in keys])  # (R, P)
         renders[name] = render
-        err = est - ref[None, :]
-        mse_img = np.mean(err**2 / denom[None, :], axis=0)
-        var_img = np.var(est, axis=0, ddof=1) / denom
-        mean_err = float(np.mean(err))
-        per_real = np.mean(err**2 / denom[None, :], axis=1)  # (R,) image MSE per realization
-        per[name] = per_real
-        rows[name] = dict(
-            mse=float(np.mean(mse_img)),
-            mse_stderr=float(np.std(per_real, ddof=1) / np.sqrt(len(keys))),
-            mse_from_variance=float(np.mean(var_img)),
-            mean_error=mean_err,
-            mean_error_stderr=float(np.std(np.mean(err, axis=1), ddof=1) / np.sqrt(len(keys))),
-        )
-        images[name] = mse_img
+        errors[name] = metrics.image_error(est, ref, relative=relative)
+        rows[name] = errors[name].as_dict()
+        images[name] = errors[name].image
     # Timing round-robin over the techniques (min over rounds), so that load from other
     # processes on a shared machine hits every technique alike.
     best = dict.fromkeys(renders, np.inf)
@@ -137,12 +93,11 @@ def measure(scene, techniques: dict, ref, spp: int, realizations: int, key, *,
     base_name = next(iter(rows))
     base = rows[base_name]
     for name, r in rows.items():
-        r["mse_factor"] = r["mse"] / base["mse"]
         # paired (same keys) standard error of the ratio, delta method
-        resid = per[name] - r["mse_factor"] * per[base_name]
-        r["mse_factor_stderr"] = float(np.std(resid, ddof=1) / np.sqrt(len(keys)) / base["mse"])
+        r["mse_factor"], r["mse_factor_stderr"] = metrics.mse_ratio(errors[name],
+                                                                    errors[base_name])
         r["time_factor"] = r["seconds_per_image"] / base["seconds_per_image"]
-        r["efficiency"] = 1.0 / (r["mse"] * r["seconds_per_image"])
+        r["efficiency"] = metrics.efficiency(r["mse"], r["seconds_per_image"])
         r["efficiency_factor"] = r["efficiency"] / base["efficiency"]
     return rows, images
 

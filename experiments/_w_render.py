@@ -171,12 +171,6 @@ def pick_block(est, *, strength=None, exclude=(), min_axis_deg: float = 10.0):
     return None
 
 
-def off_axis_deg(d) -> np.ndarray:
-    """Distance (degrees) of each direction ``d`` to the nearer of the two axes."""
-    d = np.asarray(d) % 90.0
-    return np.minimum(d, 90.0 - d)
-
-
 def block_estimate(full, base, pixel, cfg, cache):
     """W's estimate (Sec. 5.3) of the block holding ``pixel``: directions, strongest first.
     ``cfg``: ``block_px`` and ``samples``; ``cache``: a dict of the blocks estimated so far."""

@@ -136,7 +136,7 @@ def arvo_mis_analysis(scene, images):
     light warp changes. Returns that closed form's mean next to the measured MSE, and per bin of
     ``Phi / pi`` each technique's MSE factor and the bin's share of the uniform-solid-angle MSE.
     """
-    sp = H.shading_points(scene)
+    sp = asp.render.camera.primary_hits(scene)
     lights = scene.lights
     a = lights.p0[0]
     b, c = a + lights.e1[0], a + lights.e2[0]
@@ -148,7 +148,7 @@ def arvo_mis_analysis(scene, images):
     phi = np.asarray(jax.vmap(phi_at)(sp.p, sp.n), np.float64)
     valid = np.asarray(sp.valid)
     lum = np.asarray(asp.render.integrator.LUMINANCE, np.float64)
-    rho = np.asarray(scene.materials.reflectance, np.float64)[np.asarray(sp.mat)]
+    rho = np.asarray(scene.materials.reflectance, np.float64)[np.asarray(sp.material)]
     rho_l = (rho * np.asarray(lights.radiance[0], np.float64)) @ lum
     r = np.pi / np.maximum(phi, 1e-12)
     var = np.where(valid, rho_l**2 * (r - 1) / (r**2 * (1 + r**2) ** 2), 0.0)

@@ -69,11 +69,6 @@ class HemisphereEdge(eqx.Module):
         return jax.vmap(one)(x.reshape(-1, 2)).reshape(x.shape[:-1])
 
 
-def grid_of(f, size: int) -> np.ndarray:
-    xy = metrics.midpoint_grid(size)  # values[i, j] = f((j+.5)/w, (i+.5)/h)
-    return np.asarray(eqx.filter_jit(lambda g, x: g(x))(f, jnp.asarray(xy)))
-
-
 def spread(values: np.ndarray, window_deg: float = 3.0) -> dict:
     """How concentrated the edge directions of ``g`` are: W Sec. 5.1's gradient-orientation
     histogram (``anisosample.directions.orientation_histogram``, the +-2 degree windows at the
@@ -116,9 +111,9 @@ def main(argv=None):
     results = {}
     for mi, (mname, cls) in enumerate(progress(list(MAPS.items()), desc=NAME)):
         f = HemisphereEdge(cls(), normal, exact)
-        values = grid_of(f, cfg["grid"])
+        values = metrics.grid_values(f, cfg["grid"])
         sp = spread(values)
-        est = directions.estimate(grid_of(f, 96), k=2)
+        est = directions.estimate(metrics.grid_values(f, 96), k=2)
         rounded = [W.aligned_usable(d) for d in est]
         d0 = next((d for d in rounded if d is not None), None)
         path = out / "curves" / f"{mname}.json"

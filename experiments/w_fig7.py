@@ -9,14 +9,15 @@ pixel fills a 6x6 tile, ``experiments/_w_render.py``), with the library's
 per-block call (``_w_render.block_estimate``) is rerun on every sampled block as a check: the two
 must give the same first direction (``max_recheck_deg`` in the record).
 
-The error of the estimate: in sampled blocks, sampled pixels are classified from a dense
-``grid^2`` sample of their own integrand (``render.pixel_classes``); for every pixel classified
-``one-edge`` the axial distance (mod 180) between its true spectral direction and the block's
-first estimated direction (the one W's aligned sampler uses). Per block the median over its
-one-edge pixels; per scene the median over those blocks and the share within 3 degrees, also
-pixel-weighted (over all one-edge pixels), and both again for pixels at least 10 degrees from
-both axes (``w_fig9``'s one-edge region, whose block error is 1.1 / 3.3 degrees median on
-cornell / dof). Blocks with one-edge pixels but no estimated direction are counted apart.
+The error of the estimate (``anisosample.render.direction_error``): in sampled blocks, sampled
+pixels are classified from a dense ``grid^2`` sample of their own integrand
+(``render.pixel_classes``); for every pixel classified ``one-edge`` the axial distance (mod 180)
+between its true spectral direction and the block's first estimated direction (the one W's
+aligned sampler uses). Per block the median over its one-edge pixels; per scene the median over
+those blocks and the share within 3 degrees, also pixel-weighted (over all one-edge pixels), and
+both again for pixels at least 10 degrees from both axes (``w_fig9``'s one-edge region, whose
+block error is 1.1 / 3.3 degrees median on cornell / dof). Blocks with one-edge pixels but no
+estimated direction are counted apart.
 
 Which pixels are classified (classifying all 1.6 million pixels of a 1280^2 image on a 64^2 grid
 takes hours on 2 cores):
@@ -55,6 +56,7 @@ import numpy as np
 
 import anisosample as asp
 from anisosample import metrics, plot, render
+from anisosample.render import direction_error
 from anisosample.render import pixel_classes as pc
 
 NAME = "w_fig7"
@@ -84,63 +86,6 @@ def proposed_blocks(name, cfg, nb, rng):
     return blocks, extra
 
 
-def sample_pixels(block, cfg, extra):
-    """The pixels classified in ``block``: its lattice plus the coarse-proposed ones."""
-    bp, step = cfg["block_px"], cfg["lattice"]
-    a, b = block
-    offs = range(step // 2, bp, step)
-    px = {(b * bp + j, a * bp + i) for i in offs for j in offs} | set(extra.get(block, ()))
-    return np.array(sorted(px), int)
-
-
-def block_errors(blocks, est_d, est_v, fc, pixels, cfg):
-    """Per sampled block: its one-edge pixels, their true directions and errors (module doc)."""
-    rows = []
-    one = pc.CLASSES.index("one-edge")
-    for blk, px in zip(blocks, pixels, strict=True):
-        a, b = blk
-        sel = px[fc.classes[px[:, 1], px[:, 0]] == one]
-        true = fc.directions_deg[sel[:, 1], sel[:, 0], 0].astype(float)
-        est = float(est_d[a, b, 0]) if est_v[a, b, 0] else None
-        err = ([float(metrics.axial_distance_deg(est, t)) for t in true]
-               if est is not None else [])
-        rows.append({"block": [a, b], "pixels_classified": len(px),
-                     "one_edge_pixels": sel.tolist(), "true_directions_deg": true.round(3).tolist(),
-                     "block_direction_deg": est, "errors_deg": np.round(err, 3).tolist()})
-    return rows
-
-
-def _stats(per_block, per_pixel):
-    def one(x):
-        x = np.asarray(x, float)
-        if len(x) == 0:
-            return {"median": None, "within_3_deg": None, "n": 0}
-        return {"median": float(np.median(x)), "within_3_deg": float(np.mean(x <= 3.0)),
-                "n": int(len(x))}
-    return {"blocks": one(per_block), "pixels": one(per_pixel)}
-
-
-def summarize(rows, min_axis_deg):
-    """Scene summary: counts, per-block and pixel-weighted medians and 3-degree shares."""
-    edge = [r for r in rows if r["one_edge_pixels"]]
-    with_est = [r for r in edge if r["block_direction_deg"] is not None]
-    out = {"blocks_sampled": len(rows), "blocks_with_one_edge_pixels": len(edge),
-           "blocks_with_one_edge_pixels_and_estimate": len(with_est),
-           "blocks_with_one_edge_pixels_no_estimate": len(edge) - len(with_est),
-           "one_edge_pixels": sum(len(r["one_edge_pixels"]) for r in edge)}
-    out["all"] = _stats([np.median(r["errors_deg"]) for r in with_est],
-                        [e for r in with_est for e in r["errors_deg"]])
-    off_block, off_px = [], []
-    for r in with_est:
-        e = [e for e, t in zip(r["errors_deg"], r["true_directions_deg"], strict=True)
-             if W.off_axis_deg(t) >= min_axis_deg]
-        if e:
-            off_block.append(np.median(e))
-            off_px += e
-    out["off_axis"] = _stats(off_block, off_px)
-    return out
-
-
 def run_scene(name, cfg, key, out, fresh):
     settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist()),
                 "estimation_layout": "tiles", "error": "first direction vs one-edge classes"}
@@ -155,12 +100,13 @@ def run_scene(name, cfg, key, out, fresh):
     est_d, est_v = np.asarray(est.directions_deg), np.asarray(est.valid)
     rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).astype(np.uint32))
     blocks, extra = proposed_blocks(name, cfg, est_v.shape[:2], rng)
-    pixels = [sample_pixels(b, cfg, extra) for b in blocks]
+    pixels = [direction_error.block_pixels(b, cfg["block_px"], cfg["lattice"], extra.get(b, ()))
+              for b in blocks]
     rows = []
     if blocks:  # none: no coarse one-edge pixel (e.g. blinds' pattern is "other")
         fc = pc.pixel_classes(scene, np.concatenate(pixels), grid=cfg["grid"],
                               square_aperture=W.SCENES[name]["square_aperture"], progress=True)
-        rows = block_errors(blocks, est_d, est_v, fc, pixels, cfg)
+        rows = direction_error.block_errors(blocks, est_d, est_v, fc, pixels)
     # The same estimation as W Fig. 9: its per-block call on every sampled block.
     cache, recheck = {}, []
     for a, b in blocks:
@@ -190,7 +136,7 @@ def run_scene(name, cfg, key, out, fresh):
         "estimation_ms_per_block": 1e3 * seconds / max(1, est_v.shape[0] * est_v.shape[1]),
         "max_recheck_deg": max(recheck, default=0.0),
         "sampled_blocks": rows,
-        "summary": summarize(rows, cfg["min_axis_deg"]),
+        "summary": direction_error.summarize_errors(rows, cfg["min_axis_deg"]),
         "seconds": time.time() - started,
     }
     asp.io.save_json(path, rec, overwrite=True)

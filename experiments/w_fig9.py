@@ -88,7 +88,7 @@ def pick_pixels(name, cfg, rng):
     for cname in CLASS_NAMES[:3]:
         cand = cl.pixels(cname)
         if cname == "one-edge":
-            cand = cand[W.off_axis_deg(cl.directions_deg[cand[:, 1], cand[:, 0], 0])
+            cand = cand[metrics.off_axis_deg(cl.directions_deg[cand[:, 1], cand[:, 0], 0])
                         >= cfg["min_axis_deg"]]
         cand = cand[rng.permutation(len(cand))][: 4 * cfg["per_class"]]
         if len(cand) == 0:
@@ -99,7 +99,7 @@ def pick_pixels(name, cfg, rng):
         keep = fc.classes[fine[:, 1], fine[:, 0]] == pc.CLASSES.index(cname)
         d = fc.directions_deg[fine[:, 1], fine[:, 0]]
         if cname == "one-edge":
-            keep &= W.off_axis_deg(d[:, 0]) >= cfg["min_axis_deg"]
+            keep &= metrics.off_axis_deg(d[:, 0]) >= cfg["min_axis_deg"]
         sel = np.nonzero(keep)[0][: cfg["per_class"]]
         picked[cname] = (fine[sel], d[sel], fc.num_directions[fine[sel, 1], fine[sel, 0]])
     return full, cl.counts(), picked

@@ -95,3 +95,95 @@ def test_midpoint_grid_in_jax_is_the_jax_quotient():
 def test_midpoint_grid_rejects_bad_parameters(kw, name):
     with pytest.raises(ValueError, match=name):
         metrics.midpoint_grid(**kw)
+
+
+# --- image errors and efficiency, off_axis_deg, grid_values (issue 26) ----------------------------
+
+
+def test_off_axis_distance_brute_force():
+    d = np.random.default_rng(1).uniform(-400, 400, 500)
+    brute = np.min(np.abs(d[:, None] - 90.0 * np.arange(-6, 7)), axis=1)
+    np.testing.assert_allclose(metrics.off_axis_deg(d), brute, atol=1e-9)
+    assert metrics.off_axis_deg(45.0) == 45.0 and metrics.off_axis_deg(179.0) == 1.0
+
+
+def test_grid_values_is_the_convention_point_by_point():
+    f = lambda x: x[..., 0] + 10.0 * x[..., 1] ** 2  # noqa: E731
+    n = 5
+    v = metrics.grid_values(f, n)
+    assert v.shape == (n, n) and isinstance(v, np.ndarray)
+    for i, j in itertools.product(range(n), repeat=2):
+        x, y = np.float32((j + 0.5) / n), np.float32((i + 0.5) / n)
+        assert v[i, j] == pytest.approx(float(x) + 10.0 * float(y) ** 2, rel=1e-6)
+
+
+def test_image_error_closed_forms():
+    ref = np.array([1.0, 2.0, 0.0])
+    est = np.array([[1.5, 2.0, 1.0],    # errors 0.5, 0, 1
+                    [0.5, 3.0, -1.0]])  # errors -0.5, 1, -1
+    e = metrics.image_error(est, ref)
+    np.testing.assert_allclose(e.image, [0.25, 0.5, 1.0])
+    np.testing.assert_allclose(e.per_realization, [1.25 / 3, 2.25 / 3])
+    assert e.mse == pytest.approx(1.75 / 3)
+    assert e.mse_stderr == pytest.approx(np.sqrt(2 * (0.5 / 3) ** 2) / np.sqrt(2))  # |a-b|/2
+    # variance (ddof 1) per pixel: 0.5, 0.5, 2
+    assert e.mse_from_variance == pytest.approx(1.0)
+    assert e.mean_error == pytest.approx((0.5 + 0 + 1 - 0.5 + 1 - 1) / 6)
+    assert e.mean_error_stderr == pytest.approx(abs(1.5 / 3 - (-0.5 / 3)) / 2)
+    r = metrics.image_error(est, ref, relative=True)
+    denom = ref**2 + 0.01
+    np.testing.assert_allclose(r.image, [0.25, 0.5, 1.0] / denom)
+    assert r.mse == pytest.approx(np.mean([0.25, 0.5, 1.0] / denom))
+    assert set(e.as_dict()) == {"mse", "mse_stderr", "mse_from_variance", "mean_error",
+                                "mean_error_stderr"}
+
+
+def test_image_error_standard_errors_match_the_spread_over_experiments():
+    """Gaussian pixel noise of known sigma: mse and mse_from_variance estimate sigma^2, and each
+    standard error is the spread of its estimate over independent experiments (to 20 %)."""
+    rng = np.random.default_rng(2)
+    sigma, r, p, trials = 0.3, 16, 8, 400
+    ref = rng.uniform(0, 1, p)
+    runs = [metrics.image_error(ref + rng.normal(0, sigma, (r, p)), ref) for _ in range(trials)]
+    mse = np.array([e.mse for e in runs])
+    assert mse.mean() == pytest.approx(sigma**2, rel=0.02)
+    assert np.mean([e.mse_from_variance for e in runs]) == pytest.approx(sigma**2, rel=0.02)
+    assert np.mean([e.mse_stderr for e in runs]) == pytest.approx(mse.std(ddof=1), rel=0.2)
+    me = np.array([e.mean_error for e in runs])
+    assert np.mean([e.mean_error_stderr for e in runs]) == pytest.approx(me.std(ddof=1), rel=0.2)
+    assert abs(me.mean()) < 4 * me.std(ddof=1) / np.sqrt(trials)
+
+
+def test_mse_ratio_paired_and_its_standard_error():
+    rng = np.random.default_rng(3)
+    ref = rng.uniform(0, 1, 6)
+    noise = rng.normal(0, 0.2, (12, 6))
+    base = metrics.image_error(ref + noise, ref)
+    half = metrics.image_error(ref + noise / np.sqrt(2), ref)  # the same realizations, scaled
+    ratio, se = metrics.mse_ratio(half, base)
+    assert ratio == pytest.approx(0.5) and se == pytest.approx(0.0, abs=1e-12)
+    # Spread of the ratio over independent paired experiments (delta method, to 25 %).
+    ratios, ses = [], []
+    for _ in range(300):
+        n1 = rng.normal(0, 0.2, (24, 6))
+        n2 = 0.7 * n1 + rng.normal(0, 0.1, (24, 6))
+        a, b = metrics.image_error(ref + n2, ref), metrics.image_error(ref + n1, ref)
+        q, s = metrics.mse_ratio(a, b)
+        ratios.append(q)
+        ses.append(s)
+    assert np.mean(ses) == pytest.approx(np.std(ratios, ddof=1), rel=0.25)
+    with pytest.raises(ValueError, match="paired"):
+        metrics.mse_ratio(metrics.image_error(ref + noise[:3], ref), base)
+
+
+def test_efficiency_and_its_standard_error():
+    assert metrics.efficiency(0.25, 2.0) == pytest.approx(2.0)
+    eff, se = metrics.efficiency(0.25, 2.0, mse_stderr=0.025)
+    assert eff == pytest.approx(2.0) and se == pytest.approx(0.2)  # 10 % of the MSE -> 10 %
+
+
+def test_image_error_rejects_bad_shapes():
+    with pytest.raises(ValueError, match="estimates"):
+        metrics.image_error(np.zeros((1, 3)), np.zeros(3))
+    with pytest.raises(ValueError, match="estimates"):
+        metrics.image_error(np.zeros((4, 3)), np.zeros(2))

@@ -14,6 +14,7 @@ through a BVH (:mod:`anisosample.render.bvh`, built by :meth:`SceneBuilder.build
 
 from . import aligned as aligned
 from . import bvh as bvh
+from . import direction_error as direction_error
 from . import estimation as estimation
 from . import light_warps as light_warps
 from . import mitsuba_compat as mitsuba_compat

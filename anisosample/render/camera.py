@@ -5,16 +5,25 @@ forward, +y up, +x left, Mitsuba's ``lookat``) the point on the plane ``z = 1`` 
 ``((1 - 2s) tan(fov_x / 2), (1 - 2t) tan(fov_x / 2) / aspect, 1)``. The thin lens samples its
 aperture with the concentric disk map (Shirley & Chiu 1997), as Mitsuba does, or a square
 aperture (W Sec. 6.2, depth-of-field scene) and focuses at ``z = focus_distance``.
+
+:func:`primary_hits`: what the rays through all pixel centres (lens centre) hit first, for work
+that shades every pixel's primary hit outside the renderer (fitting warps per pixel, H Sec. 4).
 """
 
 from __future__ import annotations
 
+import equinox as eqx
+import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Float
+import numpy as np
+from jaxtyping import Array, Bool, Float, Int
 
 from ..warps import ConcentricDisk
 from ._vec import matvec, norm
-from .scene import THINLENS, Camera
+from .geometry import intersect
+from .scene import THINLENS, Camera, Scene
+
+__all__ = ["PrimaryHit", "generate_ray", "primary_hits"]
 
 
 def generate_ray(
@@ -46,3 +55,39 @@ def generate_ray(
     o = matvec(m, ap) + m[:3, 3]
     d = matvec(m, d_local)
     return o, d / norm(d)
+
+
+class PrimaryHit(eqx.Module):
+    """The first hits of the rays through pixel centres (:func:`primary_hits`), one row per
+    pixel: position ``p``, geometric normal ``n`` flipped to the side of ``wi`` (the unit
+    direction back to the camera), ``material`` index, and ``valid``: a surface that emits no
+    light was hit (the rest hold whatever :func:`~anisosample.render.geometry.intersect`
+    returns for a miss or an emitter)."""
+
+    p: Float[Array, "m 3"]
+    n: Float[Array, "m 3"]
+    wi: Float[Array, "m 3"]
+    material: Int[Array, " m"]
+    valid: Bool[Array, " m"]
+
+
+def primary_hits(scene: Scene) -> PrimaryHit:
+    """The primary hits of all ``scene.height * scene.width`` pixel centres, row-major (row 0 at
+    the image top), through the lens centre (film ``((col + .5) / w, (row + .5) / h)``, lens
+    ``(0.5, 0.5)``)."""
+    w, h = scene.width, scene.height
+    cols, rows = np.meshgrid(np.arange(w), np.arange(h), indexing="xy")
+    films = jnp.asarray(
+        np.stack([(cols.ravel() + 0.5) / w, (rows.ravel() + 0.5) / h], -1), jnp.float32
+    )
+    half = jnp.full(2, 0.5, jnp.float32)
+
+    def one(film):
+        o, d = generate_ray(scene.camera, film, half)
+        hit = intersect(scene, o, d)
+        wi = -d
+        n = jnp.where(jnp.dot(hit.n, wi) > 0, hit.n, -hit.n)
+        return PrimaryHit(p=hit.p, n=n, wi=wi, material=hit.material,
+                          valid=hit.valid & (hit.light < 0))
+
+    return jax.jit(jax.vmap(one))(films)
