@@ -1010,7 +1010,7 @@ def _run_render(args):
                          "every device of every process renders")
     if args.processes != 1:
         _check_processes(args)
-        _run_local_processes(args.processes, lambda pid, port: _render_worker_argv(
+        _run_local_processes(args.processes, lambda pid, port: render_worker_argv(
             args, pid, port), quiet_others=True)
         return
     _init_distributed(args, collectives=True)
@@ -1053,7 +1053,7 @@ def _run_render(args):
     print(f"wrote {', '.join(str(w) for w in written)}")
 
 
-def _render_worker_argv(args, pid: int, port: int) -> list[str]:
+def render_worker_argv(args, pid: int, port: int) -> list[str]:
     """Worker ``pid``'s ``render`` command line under ``--processes``: the caller's own, without
     ``--processes``, joined to the localhost coordinator."""
     argv, skip = [], False

@@ -75,6 +75,8 @@ __all__ = [
     "Estimate",
     "orientation_histogram",
     "zero_axes",
+    "fill_zeroed_bins",
+    "gradients",
     "estimate",
     "estimate_from_histogram",
     "estimate_blocks",
@@ -184,37 +186,8 @@ def _gaussian_taps(sigma: float) -> np.ndarray:
     return (t / t.sum()).astype(np.float32)
 
 
-def _filter_axis(v, taps, axis):
-    """Correlate the last two axes of ``v`` with 1D ``taps`` along ``axis`` (-1 or -2), replicate
-    borders. Shifted slices rather than a convolution: XLA fuses them into one pass."""
-    r = (len(taps) - 1) // 2
-    pad = [(0, 0)] * v.ndim
-    pad[axis] = (r, r)
-    vp = jnp.pad(v, pad, mode="edge")
-    n = v.shape[axis]
-    out = None
-    for k, t in enumerate(taps):
-        if t == 0.0:
-            continue
-        sl = jax.lax.slice_in_dim(vp, k, k + n, axis=axis % v.ndim)
-        term = sl * float(t)
-        out = term if out is None else out + term
-    return out
-
-
 _SOBEL_SMOOTH = np.array([0.25, 0.5, 0.25])
 _SOBEL_DIFF = np.array([-0.5, 0.0, 0.5])
-
-
-def _gradients_reference(values, sigma):
-    """Gaussian smoothing then Sobel by shifted slices (the readable definition; tests compare
-    :func:`_gradients` with it)."""
-    g = _gaussian_taps(sigma)
-    s = _filter_axis(_filter_axis(values, g, -1), g, -2)
-    smooth, diff = _SOBEL_SMOOTH.astype(np.float32), _SOBEL_DIFF.astype(np.float32)
-    gx = _filter_axis(_filter_axis(s, diff, -1), smooth, -2)
-    gy = _filter_axis(_filter_axis(s, smooth, -1), diff, -2)
-    return gx, gy
 
 
 @functools.lru_cache(maxsize=32)
@@ -232,6 +205,17 @@ def _filter_matrices(n: int, sigma: float) -> tuple[np.ndarray, np.ndarray]:
 
     g = op(_gaussian_taps(sigma).astype(np.float64))
     return (op(_SOBEL_SMOOTH) @ g).astype(np.float32), (op(_SOBEL_DIFF) @ g).astype(np.float32)
+
+
+def gradients(values, *, sigma_px: float = 2.0):
+    """The gradients W Sec. 5.1 bins: Gaussian smoothing (``sigma_px`` grid cells, radius
+    ``ceil(3 sigma_px)``) then Sobel, replicate borders, ``(gx, gy)`` per grid cell (x = columns,
+    y = rows) as a derivative per grid cell, each of the grid's shape ``(..., h, w)``."""
+    params = _params(sigma_px=sigma_px)
+    values = jnp.asarray(values, jnp.float32)
+    if values.ndim < 2 or min(values.shape[-2:]) < 1:
+        raise ValueError(f"values must be (..., h, w) grids, got shape {values.shape}")
+    return _gradients(values, params.sigma_px)
 
 
 def _gradients(values, sigma):
@@ -303,6 +287,24 @@ def _histogram_jit(values, params):
     return _histogram(values, params)
 
 
+def fill_zeroed_bins(hist, *, bin_deg: float = 1.0, zero_window_deg: float = 2.0):
+    """The histogram the vMF objective fits (module docstring, "Near the axes"): the bins
+    :func:`zero_axes` zeroes take their nearest kept neighbour's value, the mean of the two
+    where both are equally near (a window's centre); kept bins are unchanged."""
+    params = _params(bin_deg=bin_deg, zero_window_deg=zero_window_deg)
+    hist = jnp.asarray(hist)
+    if hist.shape[-1:] != (params.nbins,):
+        raise ValueError(
+            f"hist must have {params.nbins} bins for bin_deg={bin_deg}, got shape {hist.shape}"
+        )
+    return _fill(hist, params)
+
+
+def _fill(p, params: _Params):
+    src_a, src_b = _fill_sources(params)
+    return 0.5 * (p[..., src_a] + p[..., src_b])
+
+
 def _keep_mask(params: _Params):
     centres = np.arange(params.nbins) * params.bin_deg
     d0 = np.minimum(centres, 180.0 - centres)
@@ -353,8 +355,7 @@ def _estimate_hist(hist, k: int, params: _Params) -> Estimate:
     # Normalised pmf; a uniform stand-in where nothing is left (those slots are invalid anyway).
     p = jnp.where(has_mass, h / jnp.where(has_mass, mass, 1.0), 1.0 / nbins)
     kappa = jnp.float32(params.kappa)
-    src_a, src_b = _fill_sources(params)
-    p_fit = 0.5 * (p[src_a] + p[src_b])  # zeroed windows continue their kept neighbours
+    p_fit = _fill(p, params)  # zeroed windows continue their kept neighbours
     obj = vmf.reverse_kl_all_mu(p_fit, kappa, floor=params.floor, nodes=params.nodes)
     available = keep
     mus, valids, confs, kappas = [], [], [], []

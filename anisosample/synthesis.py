@@ -84,8 +84,8 @@ from .progress import progress as _progress
 
 __all__ = ["RECIPES", "BOUNDARIES", "Recipe", "make_recipe", "recipe_defaults",
            "SynthesisResult", "synthesize", "synthesize_batch", "synthesize_sequence",
-           "sequence_levels", "SEQUENCE_WEIGHTS", "SEQUENCE_STEPS", "SEQUENCE_LEARNING_RATE",
-           "SEQUENCE_DEFAULTS", "adam_update", "save_result",
+           "sequence_levels", "loss_value", "SEQUENCE_WEIGHTS", "SEQUENCE_STEPS",
+           "SEQUENCE_LEARNING_RATE", "SEQUENCE_DEFAULTS", "adam_update", "save_result",
            "load_result", "load_or_synthesize", "max_directions", "usable_cpus", "usable_cores"]
 
 RECIPES = ("rate", "paper")
@@ -484,6 +484,22 @@ def _evaluate(objectives, xs) -> list:
         k += len(js)
         out.append((tuple(r[0] for r in part), tuple(r[1] for r in part)))
     return out
+
+
+def loss_value(points, fset, directions_deg, recipe: Recipe) -> float:
+    """The loss the synthesis loop minimizes, at ``points`` ``(n, 2)``: ``recipe``'s terms on
+    the frequency design ``fset`` (:func:`anisosample.frequencies.design`) for
+    ``directions_deg``, plus, for a sequence (``recipe.sequence_from``), every nested prefix's
+    weighted loss (:func:`sequence_levels`). Computed as the loop does (float64, its terms in
+    their order)."""
+    directions_deg = tuple(float(d) for d in directions_deg)
+    with jax.enable_x64(True):
+        x = jnp.asarray(points, jnp.float64)
+        if x.ndim != 2 or x.shape[1] != 2:
+            raise ValueError(f"points must have shape (n, 2), got {x.shape}")
+        obj = _objective(fset, directions_deg, recipe, x.shape[0])
+        values, _ = _evaluate([obj], [x])[0]
+        return float(functools.reduce(jnp.add, values))
 
 
 def _hyper(recipe: Recipe, n: int) -> tuple:

@@ -176,21 +176,9 @@ KNOWN_EXPERIMENT_IMPORTS = {
     "w_fig10": {"import w_fig9"},
     "h_fig2_defect": {"import h_fig2", "_h_render._emission_along"},
 }
-# Tests: private helpers that want a public name or a test through the public API; test_prefix
-# and render/test_light_warps were being edited elsewhere when this list was made.
-KNOWN_TEST_USES = {
-    "render/test_ltc.py": {"anisosample.render.ltc._lobe"},
-    "render/test_plastic.py": {"from anisosample.render.bsdf import _plastic_row"},
-    "render/test_sharding.py": {"anisosample.cli._render_worker_argv"},
-    "test_directions.py": {"anisosample.directions._fill_sources",
-                           "anisosample.directions._gradients",
-                           "anisosample.directions._gradients_reference",
-                           "anisosample.directions._keep_mask", "anisosample.directions._params"},
-    "test_prefix.py": {"anisosample.synthesis._evaluate", "anisosample.synthesis._objective"},
-    "test_samplers.py": {"anisosample.samplers._cmj", "anisosample.samplers._jittered"},
-    "test_vmf.py": {"anisosample.vmf._fit_mle_jit", "anisosample.vmf._fit_reverse_kl_jit"},
-    "warps/test_fit_variance.py": {"anisosample.warps.tuning._target"},
-}
+# Tests: none left (each private helper a test used got a public name or is tested through the
+# public API); a new use fails the test.
+KNOWN_TEST_USES: dict[str, set[str]] = {}
 
 
 def _imported(path: Path, known: set[str]):

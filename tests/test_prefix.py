@@ -221,10 +221,8 @@ def test_sequence_objective_sums_the_nested_prefixes_losses():
     x = np.asarray(asp.samplers.get("pmj02bn")(jax.random.key(4), 64), np.float64)
     dirs = (0.0, 90.0, 30.0)
     rec = synthesis.make_recipe(sequence_from=16, method="direct")
-    obj = synthesis._objective(frequencies.design(64, dirs, "rate"), dirs, rec, 64)
+    total = synthesis.loss_value(x, frequencies.design(64, dirs, "rate"), dirs, rec)
     with jax.enable_x64(True):
-        values, _ = synthesis._evaluate([obj], [jax.numpy.asarray(x)])[0]
-        total = float(sum(values))
         want = sum(float(losses.linear_spectrum_loss(x[:nk], frequencies.design(nk, dirs, "rate"),
                                                      method="direct"))
                    for nk in (16, 32, 64))
@@ -256,9 +254,8 @@ def test_explicit_sequence_weights_weigh_each_nested_prefix():
     x = np.asarray(asp.samplers.get("pmj02bn")(jax.random.key(4), 64), np.float64)
     w = (2.0, 0.5, 3.0)
     rec = synthesis.make_recipe(sequence_from=16, method="direct", sequence_weights=w)
-    obj = synthesis._objective(frequencies.design(64, dirs, "rate"), dirs, rec, 64)
+    total = synthesis.loss_value(x, frequencies.design(64, dirs, "rate"), dirs, rec)
     with jax.enable_x64(True):
-        total = float(sum(synthesis._evaluate([obj], [jax.numpy.asarray(x)])[0][0]))
         want = sum(wk * float(losses.linear_spectrum_loss(
             x[:nk], frequencies.design(nk, dirs, "rate"), method="direct"))
             for wk, nk in zip(w, (16, 32, 64), strict=True))

@@ -259,8 +259,8 @@ def test_extreme_jitter_stays_in_its_stratum(monkeypatch, name, n, u):
         return jnp.full(shape, u, dtype) if shape[-1] == 2 else real_uniform(key, shape, dtype)
 
     monkeypatch.setattr(jax.random, "uniform", constant)
-    fn = {"jittered": samplers._jittered, "cmj": samplers._cmj}[name].__wrapped__
-    pts = np.asarray(fn(jax.random.key(0), n), dtype=np.float64)
+    with jax.disable_jit():  # the jitted construction would not see the patched uniform
+        pts = np.asarray(samplers.get(name)(jax.random.key(0), n), dtype=np.float64)
     assert pts.min() >= 0.0 and pts.max() < 1.0
     nx, ny = samplers.grid_shape(n)
     cells = np.floor(pts[:, 0] * nx).astype(int) * ny + np.floor(pts[:, 1] * ny).astype(int)

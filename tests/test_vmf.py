@@ -1,5 +1,6 @@
 """von Mises-Fisher machinery (anisosample.vmf) against scipy, quadrature and closed forms."""
 
+import logging
 import math
 
 import jax
@@ -341,16 +342,35 @@ def test_fit_and_objective_options_are_validated():
             call()
 
 
+class _LogRecords(logging.Handler):
+    """The records logged under ``name`` while in the ``with`` block."""
+
+    def __init__(self, name):
+        super().__init__(logging.DEBUG)
+        self.logger, self.records = logging.getLogger(name), []
+
+    def emit(self, record):
+        self.records.append(record)
+
+    def __enter__(self):
+        self.logger.addHandler(self)
+        return self.records
+
+    def __exit__(self, *exc):
+        self.logger.removeHandler(self)
+
+
 def test_fits_compile_once_per_shape_and_settings():
     """fit_reverse_kl re-traced optimistix's BFGS on every call (seconds each) and fit_mle ran
     op by op; both are jitted now: a second histogram of the same shape reuses the program."""
     h = np.asarray(vmf.bin_masses(1.0, 20.0, 90))
     vmf.fit_reverse_kl(h, 0.9, 10.0)
     vmf.fit_mle(h)
-    sizes = (vmf._fit_reverse_kl_jit._cache_size(), vmf._fit_mle_jit._cache_size())
-    a = vmf.fit_reverse_kl(h[::-1].copy(), 2.0, 5.0)
-    vmf.fit_mle(h[::-1].copy())
-    assert (vmf._fit_reverse_kl_jit._cache_size(), vmf._fit_mle_jit._cache_size()) == sizes
+    with jax.log_compiles(), _LogRecords("jax") as records:
+        a = vmf.fit_reverse_kl(h[::-1].copy(), 2.0, 5.0)
+        vmf.fit_mle(h[::-1].copy())
+    compiled = [r.getMessage() for r in records if r.getMessage().startswith("Compiling")]
+    assert compiled == []
     assert float(a.kappa) == pytest.approx(20.0, rel=0.05)  # still the right fit
 
 

@@ -70,7 +70,9 @@ def fresnel_conductor(cos_i, eta, k):
     return 0.5 * (rs + rp)
 
 
-def _plastic_row(materials: Materials, mat) -> dict:
+def plastic_parameters(materials: Materials, mat) -> dict:
+    """Material ``mat``'s roughplastic parameters as :mod:`anisosample.render.plastic`'s
+    ``eval_plastic``, ``pdf_plastic`` and ``sample_plastic`` take them (a dict of arrays)."""
     return dict(
         alpha=materials.alpha[mat],
         eta=materials.eta[mat, 0],
@@ -108,8 +110,8 @@ def eval_bsdf(materials: Materials, mat, n, wi, wo) -> Float[Array, "3"]:
     cond = materials.specular[mat] * f * (d * g / (4 * jnp.maximum(li[2], 1e-20)))
     val = jnp.where(kind == DIFFUSE, diffuse, jnp.where(kind == CONDUCTOR, cond, 0.0))
     if materials.has_plastic:
-        val = jnp.where(kind == PLASTIC, plastic.eval_plastic(_plastic_row(materials, mat), li, lo),
-                        val)
+        val = jnp.where(kind == PLASTIC,
+                        plastic.eval_plastic(plastic_parameters(materials, mat), li, lo), val)
     return jnp.where(ok, val, 0.0)
 
 
@@ -131,7 +133,7 @@ def pdf_bsdf(materials: Materials, mat, n, wi, wo) -> Float[Array, ""]:
     p = jnp.where(materials.kind[mat] == DIFFUSE, lo[2] / jnp.pi, cond)
     if materials.has_plastic:
         p = jnp.where(materials.kind[mat] == PLASTIC,
-                      plastic.pdf_plastic(_plastic_row(materials, mat), li, lo), p)
+                      plastic.pdf_plastic(plastic_parameters(materials, mat), li, lo), p)
     return jnp.where(ok, p, 0.0)
 
 
@@ -182,7 +184,7 @@ def sample_bsdf(materials: Materials, mat, n, wi, u: Float[Array, "2"]):
     lo_c = 2 * dot(li, m) * m - li
     lo = jnp.where(materials.kind[mat] == DIFFUSE, lo_d, lo_c)
     if materials.has_plastic:
-        lo_p = plastic.sample_plastic(_plastic_row(materials, mat), li, u, _sample_ggx_vndf)
+        lo_p = plastic.sample_plastic(plastic_parameters(materials, mat), li, u, _sample_ggx_vndf)
         lo = jnp.where(materials.kind[mat] == PLASTIC, lo_p, lo)
     wo = lo[0] * s + lo[1] * t + lo[2] * n
     p = pdf_bsdf(materials, mat, n, wi, wo)

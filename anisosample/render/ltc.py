@@ -59,8 +59,11 @@ class LTCTable(eqx.Module):
     vndf: Float[Array, "nt na"]
 
 
-def _lobe(wi, wo, alpha):
-    """GGX ``rho cos`` with Fresnel 1 and its visible-normal sampling density (local frame)."""
+def ggx_lobe(wi, wo, alpha):
+    """The lobe the LTC tables fit: GGX ``rho cos`` with Fresnel 1 for unit ``wi`` and ``wo``
+    in the local frame (``z`` the normal), and the density of sampling ``wo`` by visible
+    normals (Heitz 2014); both 0 unless ``wi`` and ``wo`` are above the surface.
+    Returns ``(f, pdf)``."""
     h = wi + wo
     h = h / jnp.maximum(jnp.sqrt(jnp.sum(h * h)), 1e-30)
     d = ggx_d(h, alpha)
@@ -97,7 +100,7 @@ def _probe_directions(wi, alpha, u):
     r, ph = jnp.sqrt(u[:, 0]), 2 * jnp.pi * u[:, 1]
     w2 = jnp.stack([r * jnp.cos(ph), r * jnp.sin(ph), jnp.sqrt(jnp.maximum(1 - u[:, 0], 0))], -1)
     w = jnp.concatenate([w1, w2])
-    f, q_vndf = jax.vmap(lambda x: _lobe(wi, x, alpha))(w)
+    f, q_vndf = jax.vmap(lambda x: ggx_lobe(wi, x, alpha))(w)
     q = 0.5 * q_vndf + 0.5 * jnp.maximum(w[:, 2], 0.0) / jnp.pi
     return w, f, q, q_vndf
 

@@ -78,8 +78,14 @@ def quadrature(grid: int, rule: str = "gauss"):
     return jnp.asarray(nodes, jnp.float32), jnp.asarray(weights, jnp.float32)
 
 
+def pss_target(f: Callable, later: Sequence[AbstractWarp] | AbstractWarp, y):
+    """``g(y) = f(x(y)) / p_rest(x(y))`` at PSS points ``y`` of shape ``(m, 2)``: the integrand
+    the first warp of ``compose(w_theta, *later)`` sees (module docstring), 0 where ``p_rest``
+    is 0 or ``g`` is not finite. ``later`` empty is the identity base (``g = f``)."""
+    return _target(f, _check_later(later), jnp.asarray(y))
+
+
 def _target(f: Callable, rest: AbstractWarp | None, y):
-    """``g = f(x(y)) / p_rest(x(y))`` at the nodes (0 where ``p_rest`` is 0 or ``g`` not finite)."""
     if rest is None:  # the identity base: x = y, p_rest = 1
         x, p = y, jnp.ones(y.shape[:1], y.dtype)
     else:

@@ -54,7 +54,7 @@ def test_fitted_ltc_helps_visible_normal_sampling(table):
             a = table.alpha[j]
             m = jax.vmap(lambda x, a=a, wi=wi: sample_ggx_vndf(wi, a, x))(u)
             w = 2 * jnp.sum(m * wi[None, :], -1)[:, None] * m - wi[None, :]
-            f, q = jax.vmap(lambda x, a=a, wi=wi: ltc._lobe(wi, x, a))(w)
+            f, q = jax.vmap(lambda x, a=a, wi=wi: ltc.ggx_lobe(wi, x, a))(w)
             _, m_inv = ltc.matrix(table.params[i, j])
             d = jax.vmap(lambda x, m=m_inv: ltc.ltc_density(m, x))(w)
             f, q, d = (np.asarray(v, np.float64) for v in (f, q, d))

@@ -207,11 +207,11 @@ def test_glossy_pdf_integrates_to_one(distribution, visible):
     away from ``wi`` are wasted), the textbook ``int_{wi.h > 0} D(h) cos h dh``. Quadrature
     over half vectors, leaving out the sliver ``wi.h < 1e-3`` where float32 cannot resolve
     ``1 / (wo.h)``."""
-    from anisosample.render.bsdf import _plastic_row
+    from anisosample.render.bsdf import plastic_parameters
 
     n = 192
     for alpha in (0.05, 0.3, 0.8):
-        m = _plastic_row(_materials(alpha=alpha, distribution=distribution,
+        m = plastic_parameters(_materials(alpha=alpha, distribution=distribution,
                                     diffuse_reflectance=0.0, sample_visible=visible), 0)
         x, w = np.polynomial.legendre.leggauss(n)
         psi, wpsi = (x + 1) * np.pi / 4, w * np.pi / 4

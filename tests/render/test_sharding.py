@@ -170,6 +170,6 @@ def test_worker_command_line_drops_processes_in_every_spelling():
                  ["render", "c", "--processes=2", "-o", "x.exr"],
                  ["render", "c", "--processe", "2", "-o", "x.exr"]):
         A.argv = argv
-        got = cli._render_worker_argv(A, 1, 999)
+        got = cli.render_worker_argv(A, 1, 999)
         assert got == ["render", "c", "-o", "x.exr", "--distributed", "--coordinator",
                        "127.0.0.1:999", "--num-processes", "2", "--process-id", "1"], got

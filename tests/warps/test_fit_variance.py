@@ -56,7 +56,7 @@ def test_gradient_equals_finite_differences(kind):
         jnp.asarray(values, jnp.float32)
     )
     y, w = (np.asarray(a, np.float64) for a in tuning.quadrature(16))
-    g = np.asarray(tuning._target(_cos, tri, jnp.asarray(y, jnp.float32)), np.float64)
+    g = np.asarray(tuning.pss_target(_cos, [tri], jnp.asarray(y, jnp.float32)), np.float64)
 
     def var(v):
         return np.sum(w * g**2 / _np_pdf(v, y)) - np.sum(w * g) ** 2
