@@ -228,8 +228,9 @@ def _add_spectrum(sub):
                         "rows v_y)")
     p.add_argument("--radius", type=int, default=None,
                    help="half-width of the frequency grid (default: 2 sqrt(n))")
-    p.add_argument("--method", default="auto", choices=["auto", "direct", "nufft"],
-                   help="spectrum engine: direct sum, NUFFT, or auto (by size)")
+    p.add_argument("--method", default="auto", choices=["auto", "direct", "nufft1", "nufft3"],
+                   help="spectrum engine: direct sum, type-1 NUFFT on lattice grids, type-3 "
+                        "NUFFT, or auto (by size)")
     p.add_argument("--scale", default=None, choices=["linear", "log"],
                    help="PNG colour scale of N P_S, white noise = 1 (default: linear)")
     p.add_argument("--clip", type=_clip_option, default=None, metavar="X",

@@ -13,24 +13,41 @@
 
 ``P_S`` comes from the one engine, :mod:`anisosample.spectrum` (direct sum, lattice-aligned
 type-1 NUFFT or rotated type-3 NUFFT per direction group, each with a closed-form VJP; ``method``
-and ``eps`` are passed through), as :func:`~anisosample.spectrum.spectrum_terms`: the spectrum
-losses are weighted sums taken on each type-1 box's grid. The losses are functions of the
-points and a :class:`~anisosample.frequencies.FrequencySet` only; ``*_terms`` give the same
-loss as data (what synthesis iterates on, one compilation per box shape).
+and ``eps`` are passed through), as :func:`spectrum_terms`: a weighted frequency set as data,
+one :class:`GridTerm` per type-1 box (the weighted sum taken on the box's grid,
+:func:`anisosample.spectrum.box_power`) and one :class:`ListTerm` per direct-sum or type-3
+group (:func:`anisosample.spectrum.power_at`), evaluated by :func:`terms_value`. Only box shapes
+are static, so one compilation serves every frequency set with boxes of those shapes. The
+losses are functions of the points and a :class:`~anisosample.frequencies.FrequencySet` only;
+``*_terms`` give the same loss as data (what synthesis iterates on).
 """
 
 from __future__ import annotations
 
+import math
+
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._validate import check_directions_deg, check_points, check_positive_float
+from . import spectrum
+from ._validate import (
+    check_choice,
+    check_directions_deg,
+    check_int,
+    check_points,
+    check_positive_float,
+)
 from .frequencies import FrequencySet, custom_set
-from .spectrum import METHODS as METHODS
-from .spectrum import grouped_power_spectrum as grouped_power_spectrum
-from .spectrum import power_spectrum_rotated as power_spectrum_rotated
-from .spectrum import spectrum_terms, terms_value
+
+PRECISIONS = ("double", "single")
+"""Precision of the type-1 transforms in :func:`spectrum_terms` (the synthesis loop's terms):
+``"double"`` (the default) in the points' dtype; ``"single"`` forms each box's points
+``M^T x mod 1`` and phases in the points' precision, rounds them to float32 and runs both
+NUFFTs in float32 (about 1.9 times as fast at n = 4096; see :func:`spectrum_terms`)."""
+SINGLE_EPS = 1e-6
+"""The finest NUFFT tolerance a ``"single"`` term asks for (float32 resolves about 6e-8)."""
 
 
 def as_frequency_set(freqs) -> FrequencySet:
@@ -44,6 +61,146 @@ def as_frequency_set(freqs) -> FrequencySet:
     if not np.all(f == np.round(f)):
         raise ValueError("freqs must hold integer frequency vectors")
     return custom_set(f, (0.0,))
+
+
+# --- a weighted frequency set as data: the losses' and synthesis's path -------------------------
+#
+# The losses are sums ``sum_v w_v f(P_S(v))`` over a frequency set. On a type-1 box that sum is
+# taken on the box's grid itself, the weights scattered onto it once (0 off the set), so neither
+# the forward pass nor the VJP gathers or scatters per frequency, and everything that differs
+# between two frequency sets of similar size -- the basis M, the centre, the weights -- is data:
+# only the box shapes are static, rounded up to a ladder of 16 sizes per octave
+# (:func:`_ladder`; grids up to 2^20 points), so one compilation per shape serves every set
+# with a box of that shape (of a table, of the on-demand lookups of a process).
+
+
+_LADDER = 4  # box half-widths round up to 16 sizes per octave (:func:`_ladder`) ...
+_LADDER_MAX_GRID = 1 << 20  # ... on grids up to 2^20 points; a larger grid's own FFT size is
+# worth more than a shared compilation (n = 2^16: one 1665x2945 type 1 took 499 ms, the
+# 1627x2903 box it was rounded up from 393 ms)
+
+
+def _ladder(k: int, floor: int = 16) -> int:
+    """``k`` rounded up to the next of 16 sizes per octave (``k`` itself below ``floor``)."""
+    if k < floor:
+        return int(k)
+    step = 1 << max(int(math.floor(math.log2(k))) - _LADDER, 0)
+    return int(-(-k // step) * step)
+
+
+class GridTerm(eqx.Module):
+    """One type-1 box of a weighted frequency set as data (see
+    :class:`anisosample.spectrum.Box`): it contributes ``sum_u weight[u] P_S(M u)`` (or
+    ``weight[u] (P_S(M u) - target[u])^2`` when ``squared``) over the box's grid
+    ``u - centre in [-half, half]^2``; ``weight`` is 0 off the set.
+    ``single``: the two NUFFTs run in float32 (see :data:`PRECISIONS`)."""
+
+    basis: jax.Array
+    centre: jax.Array
+    weight: jax.Array
+    target: jax.Array
+    half: tuple = eqx.field(static=True)
+    squared: bool = eqx.field(static=True)
+    eps: float = eqx.field(static=True)
+    single: bool = eqx.field(static=True, default=False)
+
+
+class ListTerm(eqx.Module):
+    """A group evaluated at its frequencies (``how``: ``"direct"`` or ``"nufft3"``, rotation
+    ``rot``), padded to a ladder size with ``v = 0`` at weight 0."""
+
+    freqs: jax.Array
+    weight: jax.Array
+    target: jax.Array
+    rot: jax.Array
+    how: str = eqx.field(static=True)
+    squared: bool = eqx.field(static=True)
+    eps: float = eqx.field(static=True)
+
+
+def spectrum_terms(fset: FrequencySet, n: int, *, weights=None, target=0.0,
+                   squared: bool = False, scale: float = 1.0, method: str = "auto", eps=None,
+                   dtype=jnp.float64, precision: str = "double") -> tuple:
+    """A weighted frequency set as data: the terms whose :func:`terms_value` is
+    ``scale * sum_v w_v P_S(v)`` (``squared``: ``scale * sum_v w_v (P_S(v) - t_v)^2``) for
+    ``n`` points of ``dtype``; ``w`` defaults to ``fset.weights``, ``target`` is a scalar or one
+    value per frequency. One :class:`GridTerm` per type-1 box (:func:`group_plan`), one
+    :class:`ListTerm` per direct-sum or type-3 group. ``precision`` (:data:`PRECISIONS`):
+    ``"single"`` runs the type-1 boxes' transforms in float32 at ``eps`` no finer than
+    :data:`SINGLE_EPS` (direct sums and type-3 groups stay in ``dtype``)."""
+    method = spectrum.check_method(method)
+    n = check_int("n", n, minimum=1)
+    precision = check_choice("precision", precision, PRECISIONS)
+    eps = spectrum.default_eps(dtype) if eps is None else check_positive_float("eps", eps)
+    grid_eps = max(eps, SINGLE_EPS) if precision == "single" else eps
+    w_all = fset.weights if weights is None else np.asarray(weights, np.float64).reshape(-1)
+    # a traced target (computed under jit/grad) is placed with jax.numpy, a concrete one with numpy
+    xp = jnp if isinstance(target, jax.core.Tracer) else np
+    t_all = xp.broadcast_to(xp.asarray(target, dtype if xp is jnp else np.float64), w_all.shape)
+    scalar_target = np.ndim(target) == 0
+    out, start = [], 0
+    for theta, size in zip(fset.group_directions_deg, fset.group_sizes, strict=True):
+        if not size:
+            continue
+        fg = fset.freqs[start:start + size]
+        wg = w_all[start:start + size] * scale
+        tg = t_all[start:start + size]
+        start += size
+        how, order, segs = spectrum.group_plan(method, n, fg, theta, dtype)
+        if how != "nufft1":
+            mp = _ladder(size, 64)
+            pad = ((0, mp - size),)
+            out.append(ListTerm(
+                jnp.asarray(np.pad(fg, pad + ((0, 0),)), dtype), jnp.asarray(np.pad(wg, pad),
+                                                                           dtype),
+                jnp.asarray(tg[0] if scalar_target else xp.pad(tg, pad), dtype),
+                spectrum.rotation(theta, dtype), how, squared, eps))
+            continue
+        spectrum.check_box_memory(segs, size)
+        for a, b, box in segs:
+            mat = np.asarray(box.m, np.int64).reshape(2, 2)
+            inv = np.round(np.linalg.inv(mat)).astype(np.int64)
+            half = box.r
+            if (2 * half[0] + 1) * (2 * half[1] + 1) <= _LADDER_MAX_GRID:
+                half = (_ladder(box.r[0]), _ladder(box.r[1]))
+            sel = order[a:b]
+            u = fg[sel].astype(np.int64) @ inv.T - np.asarray(box.c) + np.asarray(half)
+            shape = (2 * half[0] + 1, 2 * half[1] + 1)
+            wgrid = np.zeros(shape)
+            wgrid[u[:, 0], u[:, 1]] = wg[sel]
+            if scalar_target:
+                tgrid = tg[0]
+            elif xp is jnp:
+                tgrid = jnp.zeros(shape, dtype).at[u[:, 0], u[:, 1]].set(tg[sel])
+            else:
+                tgrid = np.zeros(shape)
+                tgrid[u[:, 0], u[:, 1]] = tg[sel]
+            out.append(GridTerm(jnp.asarray(mat, dtype), jnp.asarray(box.c, dtype),
+                                jnp.asarray(wgrid, dtype), jnp.asarray(tgrid, dtype), half,
+                                squared, grid_eps, precision == "single"))
+    return tuple(out)
+
+
+def term_value(points, term) -> jax.Array:
+    """One term's part of :func:`terms_value` (traceable; ``points`` finite float arrays)."""
+    if isinstance(term, GridTerm):
+        p = spectrum.box_power(points, term.basis, term.centre, term.half, term.eps, term.single)
+    else:
+        p = spectrum.power_at(points, term.freqs, term.rot, term.how, term.eps)
+    if term.squared:
+        d = p - term.target
+        return jnp.sum(term.weight * d * d)
+    return jnp.sum(term.weight * p)
+
+
+def terms_value(points, terms) -> jax.Array:
+    """``sum`` of :func:`term_value` over :func:`spectrum_terms`, in their order."""
+    pts = spectrum.as_points(points)
+    val = jnp.zeros((), pts.dtype)
+    for t in terms:
+        val = val + term_value(pts, t)
+    return val
+
 
 
 # --- losses ------------------------------------------------------------------------------------
@@ -80,7 +237,7 @@ def linear_spectrum_loss(points, freqs, weights=None, *, method="auto", eps=None
 def linear_spectrum_loss_terms(freqs, n, weights=None, *, scale=1.0, method="auto", eps=None,
                                dtype=jnp.float64, precision="double"):
     """:func:`linear_spectrum_loss` for ``n`` points as data
-    (:func:`anisosample.spectrum.spectrum_terms`; evaluate with ``terms_value(points, terms)``),
+    (:func:`spectrum_terms`; evaluate with ``terms_value(points, terms)``),
     times ``scale``: what synthesis iterates on (one compilation for every set whose boxes
     have the same shapes)."""
     fset = as_frequency_set(freqs)

@@ -26,17 +26,18 @@ time, by one of three methods (:data:`METHODS`):
 
 ``"auto"`` (the default everywhere) picks per group: the direct sum when ``n m <= 2^21``, else
 ``nufft1`` when its grids total at most ``8 m`` points (every wedge, disk or grid), else
-``nufft3``. ``"nufft"`` is accepted as the old name of ``"nufft1"``.
+``nufft3``. The old name ``"nufft"`` is refused with its new one, ``"nufft1"``.
 
 Accuracy policy (one for every caller, :func:`default_eps`): NUFFT tolerance ``1e-6`` in float32
 and ``1e-10`` in float64 unless a caller passes ``eps`` (synthesis uses ``1e-7``); every CPU
 FINUFFT call runs on :data:`NUFFT_THREADS` threads (deterministic, :func:`finufft_opts`). The
-synthesis terms may run their type-1 transforms in float32 instead (:data:`PRECISIONS`,
-``spectrum_terms(precision="single")``, at ``eps >= 1e-6``): the 4-direction tables' choice.
+synthesis terms may run their type-1 transforms in float32 instead
+(:data:`anisosample.losses.PRECISIONS`, at ``eps >= 1e-6``): the 4-direction tables' choice.
 
-The losses take the same transforms as data (:func:`spectrum_terms`: one :class:`GridTerm` per
-type-1 box, the weighted sum taken on the box's grid; :func:`terms_value`), so only box shapes
-are static and one compilation serves every frequency set with boxes of those shapes.
+The losses take the same transforms as data (:func:`anisosample.losses.spectrum_terms`): they
+plan with :func:`group_plan` and evaluate with the two primitives :func:`box_power` (``P_S`` on
+a type-1 box's whole grid, the basis and centre as data) and :func:`power_at` (``P_S`` at given
+frequencies by one method).
 
 Every method has a custom VJP with the closed-form gradient (``point_synthesis.md`` Sec. 2)
 ``dP(v)/dx_j = (4 pi / n) Im(conj(F(v)) exp(-2 pi i v.x_j)) v``, so the backward pass of any
@@ -71,8 +72,6 @@ from .frequencies import FrequencySet
 
 __all__ = [
     "METHODS",
-    "PRECISIONS",
-    "SINGLE_EPS",
     "NUFFT_THREADS",
     "default_eps",
     "finufft_opts",
@@ -82,11 +81,16 @@ __all__ = [
     "power_spectrum_grid",
     "grouped_power_spectrum",
     "power_spectrum_rotated",
-    "GridTerm",
-    "ListTerm",
-    "spectrum_terms",
-    "term_value",
-    "terms_value",
+    "power_at",
+    "box_power",
+    "as_points",
+    "check_method",
+    "group_plan",
+    "nufft1_plan",
+    "box_area",
+    "check_box_memory",
+    "rotation",
+    "Box",
     "frequency_grid",
     "expected_power_spectrum",
     "expected_power_spectrum_grid",
@@ -97,14 +101,7 @@ __all__ = [
 ]
 
 METHODS = ("auto", "direct", "nufft1", "nufft3")
-PRECISIONS = ("double", "single")
-"""Precision of the type-1 transforms in :func:`spectrum_terms` (the synthesis loop's terms):
-``"double"`` (the default) in the points' dtype; ``"single"`` forms each box's points
-``M^T x mod 1`` and phases in the points' precision, rounds them to float32 and runs both
-NUFFTs in float32 (about 1.9 times as fast at n = 4096; see :func:`spectrum_terms`)."""
-SINGLE_EPS = 1e-6
-"""The finest NUFFT tolerance a ``"single"`` term asks for (float32 resolves about 6e-8)."""
-_ALIASES = {"nufft": "nufft1"}  # the old name of the type-1 path (spectrum CLI, scripts)
+_RENAMED = {"nufft": "nufft1"}  # old method names, refused with the new one named
 
 _DIRECT_MAX_WORK = 2**21  # n * m up to which "auto" takes the direct sum
 _DIRECT_CHUNK_WORK = 2**21  # chunk * n elements per step of the direct sum
@@ -114,10 +111,6 @@ _MAX_SEGMENTS = 8
 # two-strength type-2 VJP) took about 1.8 ms + 0.08 us per grid point at n = 4096 (box shapes
 # 113x177 .. 289x209, eps 1e-7, one thread), so a call costs what ~5.5 n grid points cost.
 _CALL_COST = 6.0
-_LADDER = 4  # box half-widths round up to 16 sizes per octave (:func:`_ladder`) ...
-_LADDER_MAX_GRID = 1 << 20  # ... on grids up to 2^20 points; a larger grid's own FFT size is
-# worth more than a shared compilation (n = 2^16: one 1665x2945 type 1 took 499 ms, the
-# 1627x2903 box it was rounded up from 393 ms)
 
 
 def white_noise_level(n: int) -> float:
@@ -377,22 +370,44 @@ def box_area(segs) -> int:
     return sum((2 * b.r[0] + 1) * (2 * b.r[1] + 1) for _, _, b in segs)
 
 
-def _nufft1_setup(x, v, box: Box, eps):
-    """Points on the box's lattice, the centre's phase per point, grid indices, NUFFT options."""
-    m = jnp.asarray(np.asarray(box.m, np.float64).reshape(2, 2), x.dtype)
-    xp = x @ m  # x'_j = M^T x_j
+def check_box_memory(segs, m: int) -> None:
+    """Refuse a :func:`nufft1_plan` for ``m`` frequencies whose grids would take more than half
+    the memory, before allocating."""
+    if box_area(segs) * _GRID_BYTES_PER_FREQ > memory_bytes() // 2:
+        raise ValueError(f"method='nufft1' needs type-1 grids of {box_area(segs)} points for "
+                         f"{m} frequencies here, more than half the memory; use "
+                         "method='auto' or 'nufft3'")
+
+
+def _grid_setup(x, basis, centre, half, eps, single=False):
+    """The box's points ``2 pi (M^T x mod 1 - 1/2)``, the centre's phase per point, the grid
+    shape and the FINUFFT options; ``single``: the points and phases formed in ``x``'s
+    precision, then rounded to float32 / complex64 for the transforms."""
+    xp = x @ basis.astype(x.dtype)  # x'_j = M^T x_j
     xp = xp - jnp.floor(xp)
-    ph = xp @ jnp.asarray(box.c, x.dtype)
+    ph = xp @ centre.astype(x.dtype)
     ph = -2.0 * jnp.pi * (ph - jnp.round(ph))
     shift = jax.lax.complex(jnp.cos(ph), jnp.sin(ph))
-    inv = np.round(np.linalg.inv(np.asarray(box.m, np.float64).reshape(2, 2)))
-    u = jnp.round(v @ jnp.asarray(inv.T, v.dtype)).astype(jnp.int32)
-    idx = (u[:, 0] - box.c[0] + box.r[0], u[:, 1] - box.c[1] + box.r[1])
-    shape = (2 * box.r[0] + 1, 2 * box.r[1] + 1)
+    shape = (2 * half[0] + 1, 2 * half[1] + 1)
+    xs = (xp - 0.5) * (2.0 * jnp.pi)
     # sigma = 1.25 shrinks the fine grid 2.6x; type 1/2 only spread the n points, so the wider
     # kernel it needs costs little. CPU FINUFFT supports it down to eps ~ 1e-9; on a GPU the
     # library's own choice stands.
-    return (xp - 0.5) * (2.0 * jnp.pi), shift, idx, shape, finufft_opts(eps, upsampfac=1.25)
+    if single:
+        xs, shift = xs.astype(jnp.float32), shift.astype(jnp.complex64)
+    return xs, shift, shape, finufft_opts(eps, upsampfac=1.25)
+
+
+def _nufft1_setup(x, v, box: Box, eps):
+    """Points on the box's lattice, the centre's phase per point, grid indices, NUFFT options
+    (:func:`_grid_setup` with the box's basis and centre as constants)."""
+    m = np.asarray(box.m, np.float64).reshape(2, 2)
+    xs, shift, shape, opts = _grid_setup(x, jnp.asarray(m, x.dtype), jnp.asarray(box.c, x.dtype),
+                                         box.r, eps)
+    inv = np.round(np.linalg.inv(m))
+    u = jnp.round(v @ jnp.asarray(inv.T, v.dtype)).astype(jnp.int32)
+    idx = (u[:, 0] - box.c[0] + box.r[0], u[:, 1] - box.c[1] + box.r[1])
+    return xs, shift, idx, shape, opts
 
 
 def _nufft1_forward(x, v, box: Box, eps):
@@ -454,8 +469,11 @@ _power.defvjp(_power_fwd, _power_bwd)
 
 
 def check_method(method) -> str:
-    """One of :data:`METHODS` (``"nufft"`` is read as ``"nufft1"``), or a ``ValueError``."""
-    method = _ALIASES.get(method, method) if isinstance(method, str) else method
+    """One of :data:`METHODS`, or a ``ValueError`` (an old name, ``"nufft"``, names its new one,
+    ``"nufft1"``)."""
+    if isinstance(method, str) and method in _RENAMED:
+        raise ValueError(f"method={method!r} is now called {_RENAMED[method]!r}; the methods are "
+                         f"{', '.join(map(repr, METHODS))}")
     return check_choice("method", method, METHODS)
 
 
@@ -496,10 +514,7 @@ def _group_power(points, fg: np.ndarray, theta_deg: float, method: str, eps: flo
     rot = rotation(theta_deg, points.dtype)
     if how != "nufft1":
         return _power(points, jnp.asarray(fg, points.dtype), rot, how, eps)
-    if box_area(segs) * _GRID_BYTES_PER_FREQ > memory_bytes() // 2:
-        raise ValueError(f"method='nufft1' needs type-1 grids of {box_area(segs)} points for "
-                         f"{fg.shape[0]} frequencies here, more than half the memory; use "
-                         "method='auto' or 'nufft3'")
+    check_box_memory(segs, fg.shape[0])
     vs = fg[order]
     p = jnp.concatenate([_power(points, jnp.asarray(vs[a:b], points.dtype), rot, box, eps)
                          for a, b, box in segs])
@@ -508,11 +523,33 @@ def _group_power(points, fg: np.ndarray, theta_deg: float, method: str, eps: flo
     return p[jax.lax.optimization_barrier(jnp.asarray(np.argsort(order), jnp.int32))]
 
 
-def _float_points(points):
+def as_points(points):
+    """``points`` (checked: ``(n, 2)`` floats in ``[0, 1)^2``) as the engine takes them: a JAX
+    array of float32 or float64, refused if not finite (a ``ValueError``, ``equinox.error_if``
+    under ``jit``)."""
+    check_points("points", points)
     pts = jnp.asarray(points)
     if pts.dtype not in (jnp.float32, jnp.float64):
         pts = pts.astype(jnp.float32)
-    return pts
+    return _finite(pts)
+
+
+def power_at(points, freqs, rot, how, eps) -> jax.Array:
+    """``P_S`` at frequencies ``freqs`` (a float array of integer values) by ``how``:
+    ``"direct"``, ``"nufft3"`` (in the coordinates of the rotation ``rot``, :func:`rotation`) or
+    a :class:`Box` (type 1), with the closed-form VJP; traceable (``points`` a float array,
+    refused if not finite). The primitive behind :func:`power_spectrum` and the losses' list
+    terms."""
+    return _power(_finite(points), freqs, rot, how, eps)
+
+
+def box_power(points, basis, centre, half, eps, single=False) -> jax.Array:
+    """``P_S(M u)`` on a type-1 box's whole grid ``u - centre in [-half, half]^2`` (``M`` =
+    ``basis``, a unimodular integer matrix as a float array; ``half`` static), by one type-1
+    NUFFT with a one-type-2 VJP; ``single``: the transforms in float32. Traceable; ``points``
+    refused if not finite. The primitive of the losses' grid terms, where ``basis`` and
+    ``centre`` are data."""
+    return _grid_power(_finite(points), basis, centre, half, eps, single)
 
 
 def grouped_power_spectrum(points, fset: FrequencySet, *, method: str = "auto", eps=None):
@@ -522,78 +559,16 @@ def grouped_power_spectrum(points, fset: FrequencySet, *, method: str = "auto", 
     module docstring; ``"auto"`` chooses per group, :func:`group_plan`). ``eps``: the NUFFT
     tolerance (default :func:`default_eps`).
     """
-    check_points("points", points)
+    pts = as_points(points)
     if not isinstance(fset, FrequencySet):
         raise TypeError(f"fset must be a frequencies.FrequencySet, got {type(fset).__name__}")
     method = check_method(method)
-    pts = _finite(_float_points(points))
     eps = default_eps(pts.dtype) if eps is None else check_positive_float("eps", eps)
     return jnp.concatenate([_group_power(pts, fg, theta, method, eps)
                             for theta, fg, _ in fset.groups()])
 
 
-# --- a weighted frequency set as data: the losses' and synthesis's path -----------------------
-#
-# The losses are sums ``sum_v w_v f(P_S(v))`` over a frequency set. On a type-1 box that sum is
-# taken on the box's grid itself, the weights scattered onto it once (0 off the set), so neither
-# the forward pass nor the VJP gathers or scatters per frequency, and everything that differs
-# between two frequency sets of similar size -- the basis M, the centre, the weights -- is data:
-# only the box shapes are static, rounded up to a ladder of 16 sizes per octave
-# (:func:`_ladder`; grids up to 2^20 points), so one compilation per shape serves every set
-# with a box of that shape (of a table, of the on-demand lookups of a process).
-
-
-def _ladder(k: int, floor: int = 16) -> int:
-    """``k`` rounded up to the next of 16 sizes per octave (``k`` itself below ``floor``)."""
-    if k < floor:
-        return int(k)
-    step = 1 << max(int(math.floor(math.log2(k))) - _LADDER, 0)
-    return int(-(-k // step) * step)
-
-
-class GridTerm(eqx.Module):
-    """One type-1 box of a weighted frequency set as data (see :class:`Box`): it contributes
-    ``sum_u weight[u] P_S(M u)`` (or ``weight[u] (P_S(M u) - target[u])^2`` when ``squared``)
-    over the box's grid ``u - centre in [-half, half]^2``; ``weight`` is 0 off the set.
-    ``single``: the two NUFFTs run in float32 (see :data:`PRECISIONS`)."""
-
-    basis: jax.Array
-    centre: jax.Array
-    weight: jax.Array
-    target: jax.Array
-    half: tuple = eqx.field(static=True)
-    squared: bool = eqx.field(static=True)
-    eps: float = eqx.field(static=True)
-    single: bool = eqx.field(static=True, default=False)
-
-
-class ListTerm(eqx.Module):
-    """A group evaluated at its frequencies (``how``: ``"direct"`` or ``"nufft3"``, rotation
-    ``rot``), padded to a ladder size with ``v = 0`` at weight 0."""
-
-    freqs: jax.Array
-    weight: jax.Array
-    target: jax.Array
-    rot: jax.Array
-    how: str = eqx.field(static=True)
-    squared: bool = eqx.field(static=True)
-    eps: float = eqx.field(static=True)
-
-
-def _grid_setup(x, basis, centre, half, eps, single=False):
-    """The box's points ``2 pi (M^T x mod 1 - 1/2)``, the centre's phase per point, the grid
-    shape and the FINUFFT options; ``single``: the points and phases formed in ``x``'s
-    precision, then rounded to float32 / complex64 for the transforms."""
-    xp = x @ basis.astype(x.dtype)  # x'_j = M^T x_j
-    xp = xp - jnp.floor(xp)
-    ph = xp @ centre.astype(x.dtype)
-    ph = -2.0 * jnp.pi * (ph - jnp.round(ph))
-    shift = jax.lax.complex(jnp.cos(ph), jnp.sin(ph))
-    shape = (2 * half[0] + 1, 2 * half[1] + 1)
-    xs = (xp - 0.5) * (2.0 * jnp.pi)
-    if single:
-        xs, shift = xs.astype(jnp.float32), shift.astype(jnp.complex64)
-    return xs, shift, shape, finufft_opts(eps, upsampfac=1.25)
+# --- P_S on a type-1 box's whole grid (the losses' terms) ------------------------------------
 
 
 @functools.partial(jax.custom_vjp, nondiff_argnums=(3, 4, 5))
@@ -633,95 +608,6 @@ def _grid_power_bwd(half, eps, single, res, g):
 _grid_power.defvjp(_grid_power_fwd, _grid_power_bwd)
 
 
-def spectrum_terms(fset: FrequencySet, n: int, *, weights=None, target=0.0,
-                   squared: bool = False, scale: float = 1.0, method: str = "auto", eps=None,
-                   dtype=jnp.float64, precision: str = "double") -> tuple:
-    """A weighted frequency set as data: the terms whose :func:`terms_value` is
-    ``scale * sum_v w_v P_S(v)`` (``squared``: ``scale * sum_v w_v (P_S(v) - t_v)^2``) for
-    ``n`` points of ``dtype``; ``w`` defaults to ``fset.weights``, ``target`` is a scalar or one
-    value per frequency. One :class:`GridTerm` per type-1 box (:func:`group_plan`), one
-    :class:`ListTerm` per direct-sum or type-3 group. ``precision`` (:data:`PRECISIONS`):
-    ``"single"`` runs the type-1 boxes' transforms in float32 at ``eps`` no finer than
-    :data:`SINGLE_EPS` (direct sums and type-3 groups stay in ``dtype``)."""
-    method = check_method(method)
-    n = check_int("n", n, minimum=1)
-    precision = check_choice("precision", precision, PRECISIONS)
-    eps = default_eps(dtype) if eps is None else check_positive_float("eps", eps)
-    grid_eps = max(eps, SINGLE_EPS) if precision == "single" else eps
-    w_all = fset.weights if weights is None else np.asarray(weights, np.float64).reshape(-1)
-    # a traced target (computed under jit/grad) is placed with jax.numpy, a concrete one with numpy
-    xp = jnp if isinstance(target, jax.core.Tracer) else np
-    t_all = xp.broadcast_to(xp.asarray(target, dtype if xp is jnp else np.float64), w_all.shape)
-    scalar_target = np.ndim(target) == 0
-    out, start = [], 0
-    for theta, size in zip(fset.group_directions_deg, fset.group_sizes, strict=True):
-        if not size:
-            continue
-        fg = fset.freqs[start:start + size]
-        wg = w_all[start:start + size] * scale
-        tg = t_all[start:start + size]
-        start += size
-        how, order, segs = group_plan(method, n, fg, theta, dtype)
-        if how != "nufft1":
-            mp = _ladder(size, 64)
-            pad = ((0, mp - size),)
-            out.append(ListTerm(
-                jnp.asarray(np.pad(fg, pad + ((0, 0),)), dtype), jnp.asarray(np.pad(wg, pad),
-                                                                           dtype),
-                jnp.asarray(tg[0] if scalar_target else xp.pad(tg, pad), dtype),
-                rotation(theta, dtype), how, squared, eps))
-            continue
-        if box_area(segs) * _GRID_BYTES_PER_FREQ > memory_bytes() // 2:
-            raise ValueError(f"method='nufft1' needs type-1 grids of {box_area(segs)} points "
-                             f"for {size} frequencies here, more than half the memory; use "
-                             "method='auto' or 'nufft3'")
-        for a, b, box in segs:
-            mat = np.asarray(box.m, np.int64).reshape(2, 2)
-            inv = np.round(np.linalg.inv(mat)).astype(np.int64)
-            half = box.r
-            if (2 * half[0] + 1) * (2 * half[1] + 1) <= _LADDER_MAX_GRID:
-                half = (_ladder(box.r[0]), _ladder(box.r[1]))
-            sel = order[a:b]
-            u = fg[sel].astype(np.int64) @ inv.T - np.asarray(box.c) + np.asarray(half)
-            shape = (2 * half[0] + 1, 2 * half[1] + 1)
-            wgrid = np.zeros(shape)
-            wgrid[u[:, 0], u[:, 1]] = wg[sel]
-            if scalar_target:
-                tgrid = tg[0]
-            elif xp is jnp:
-                tgrid = jnp.zeros(shape, dtype).at[u[:, 0], u[:, 1]].set(tg[sel])
-            else:
-                tgrid = np.zeros(shape)
-                tgrid[u[:, 0], u[:, 1]] = tg[sel]
-            out.append(GridTerm(jnp.asarray(mat, dtype), jnp.asarray(box.c, dtype),
-                                jnp.asarray(wgrid, dtype), jnp.asarray(tgrid, dtype), half,
-                                squared, grid_eps, precision == "single"))
-    return tuple(out)
-
-
-def term_value(points, term) -> jax.Array:
-    """One term's part of :func:`terms_value` (traceable; ``points`` finite float arrays)."""
-    x = _finite(points)
-    if isinstance(term, GridTerm):
-        p = _grid_power(x, term.basis, term.centre, term.half, term.eps, term.single)
-    else:
-        p = _power(x, term.freqs, term.rot, term.how, term.eps)
-    if term.squared:
-        d = p - term.target
-        return jnp.sum(term.weight * d * d)
-    return jnp.sum(term.weight * p)
-
-
-def terms_value(points, terms) -> jax.Array:
-    """``sum`` of :func:`term_value` over :func:`spectrum_terms`, in their order."""
-    check_points("points", points)
-    pts = _finite(_float_points(points))
-    val = jnp.zeros((), pts.dtype)
-    for t in terms:
-        val = val + term_value(pts, t)
-    return val
-
-
 def _principal_angle(freqs: np.ndarray) -> float:
     """Direction (degrees, axial) of the frequencies' principal axis through 0."""
     f = freqs.astype(np.float64)
@@ -751,16 +637,15 @@ def power_spectrum(points, freqs, *, method: str = "auto", eps=None):
     Args:
         points: ``(n, 2)`` in ``[0, 1)^2`` (float32, or float64 under ``jax.enable_x64``).
         freqs: ``(m, 2)`` integer frequency vectors ``(v_x, v_y)`` with ``|v_x|, |v_y| < 2^24``.
-        method: ``"auto"``, ``"direct"``, ``"nufft1"`` (type 1 on lattice-aligned grids; also
-            ``"nufft"``) or ``"nufft3"`` (type 3 in rotated coordinates), the frequencies taken
-            as one group along their principal axis. All agree to ~1e-6 (float32) or ~1e-10
+        method: ``"auto"``, ``"direct"``, ``"nufft1"`` (type 1 on lattice-aligned grids) or
+            ``"nufft3"`` (type 3 in rotated coordinates), the frequencies taken as one group
+            along their principal axis. All agree to ~1e-6 (float32) or ~1e-10
             (float64) relative to ``P_S(0) = 1``, and all are differentiable in ``points``.
         eps: NUFFT tolerance (default :func:`default_eps`).
     """
     method = check_method(method)
-    points = check_points("points", points)
+    pts = as_points(points)
     freqs = check_frequencies("freqs", freqs)
-    pts = _finite(_float_points(points))
     eps = default_eps(pts.dtype) if eps is None else check_positive_float("eps", eps)
     if isinstance(freqs, jax.core.Tracer):  # no plan for traced frequencies: the direct sum
         if method not in ("auto", "direct"):
@@ -777,9 +662,8 @@ def power_spectrum(points, freqs, *, method: str = "auto", eps=None):
 def power_spectrum_rotated(points, freqs, direction_deg=0.0, *, method="nufft3", eps=None):
     """``P_S(v)`` for ``freqs`` ``(m, 2)`` as one group along ``direction_deg`` (the type-3 NUFFT
     rotated to that direction, or any other method); differentiable w.r.t. ``points``."""
-    check_points("points", points)
+    pts = as_points(points)
     f = np.asarray(check_frequencies("freqs", freqs), np.int64)
-    pts = _finite(_float_points(points))
     eps = default_eps(pts.dtype) if eps is None else check_positive_float("eps", eps)
     return _group_power(pts, f, float(direction_deg), check_method(method), eps)
 
@@ -792,9 +676,8 @@ def power_spectrum_grid(points, radius: int, *, method: str = "auto"):
     """
     r = check_int("radius", radius, minimum=1)
     method = check_method(method)
-    points = check_points("points", points)
+    pts = as_points(points)
     _check_grid_memory(r)
-    pts = _finite(_float_points(points))
     side = 2 * r + 1
     if method == "nufft1" or (method == "auto" and pts.shape[0] * side * side > _DIRECT_MAX_WORK):
         # the grid is one identity box: no plan search, no gather permutation

@@ -31,7 +31,7 @@ point wrapping from 1 to 0 would jump across the whole projected distribution: t
 therefore ``"clip"``s to ``[0, 1 - 2^-53]``.  Both can be chosen with ``boundary=``.
 
 Speed: a set's loss is data (:class:`_Objective`: the spectrum terms of
-:func:`anisosample.spectrum.spectrum_terms`, one per type-1 box), so a step is one compiled
+:func:`anisosample.losses.spectrum_terms`, one per type-1 box), so a step is one compiled
 value-and-gradient per box *shape* and one compiled Adam step: a set whose box shapes were seen
 before in the process (every later set of a table, every later on-demand lookup with shared
 shapes) compiles nothing, and the terms of a step run on the cores in parallel (one FINUFFT
@@ -162,7 +162,7 @@ class Recipe(eqx.Module):
     ``design`` and ``frequency_options`` choose the frequency set
     (:func:`anisosample.frequencies.design`); ``init`` names the sampler of the initial set;
     ``method``, ``nufft_eps`` and ``nufft_precision`` (``"double"``, or ``"single"``: the type-1
-    transforms in float32, :data:`anisosample.spectrum.PRECISIONS`; the 4-direction tables'
+    transforms in float32, :data:`anisosample.losses.PRECISIONS`; the 4-direction tables'
     choice) are the spectrum engine's (:mod:`anisosample.spectrum`). ``prefix`` (W Sec. 7;
     :mod:`anisosample.prefix`): ``"none"``, ``"dihedral-<m>"`` or ``"pmj02bn-<m>"``: the set's
     first ``m`` points are that fixed isotropic prefix, bit for bit, and only the others move.
@@ -208,7 +208,7 @@ class Recipe(eqx.Module):
         if self.init not in samplers.names():
             raise ValueError(f"init must be one of {samplers.names()}, got {self.init!r}")
         check_choice("method", self.method, _spectrum.METHODS)
-        check_choice("nufft_precision", self.nufft_precision, _spectrum.PRECISIONS)
+        check_choice("nufft_precision", self.nufft_precision, _losses.PRECISIONS)
         _prefix.check_prefix("prefix", self.prefix)
         check_int("sequence_from", self.sequence_from, minimum=0)
         if self.sequence_from and (self.sequence_from < 2
@@ -339,7 +339,7 @@ class SynthesisResult:
 
 class _Objective(eqx.Module):
     """One set's loss ``a L_spec + c L_SW`` (W Eq. 10; ``a = 0`` or ``c = 0`` drops a term, as in
-    W Fig. 3) as data: the spectrum terms (:func:`anisosample.spectrum.spectrum_terms`, scaled
+    W Fig. 3) as data: the spectrum terms (:func:`anisosample.losses.spectrum_terms`, scaled
     by ``a``) and the SW directions and targets. Nothing of the set is static but the terms'
     box shapes, so sets whose boxes have the same shapes share the compiled functions."""
 
@@ -396,13 +396,13 @@ def _objective(fset, directions_deg, recipe: Recipe, n: int) -> _Objective:
 
 # One compiled function per spectrum term shape (shared by every set, single or batched), one
 # for the SW term and one for the Adam step: a set of an already-seen size compiles nothing.
-_term_value_and_grad = jax.jit(jax.value_and_grad(_spectrum.term_value))
+_term_value_and_grad = jax.jit(jax.value_and_grad(_losses.term_value))
 
 
 @functools.partial(jax.jit, static_argnums=0)
 def _head_value_and_grad(nk, x, term):
     """A nested prefix's term: its value on ``x[:nk]`` and the gradient on all of ``x``."""
-    return jax.value_and_grad(lambda y: _spectrum.term_value(y[:nk], term))(x)
+    return jax.value_and_grad(lambda y: _losses.term_value(y[:nk], term))(x)
 
 
 @functools.partial(jax.jit, static_argnums=0)

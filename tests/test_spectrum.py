@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 from helpers import brute_force_spectrum
 
-from anisosample import samplers, spectrum
+import anisosample as asp
+from anisosample import frequencies, losses, samplers, spectrum
 
 
 @pytest.fixture(scope="module")
@@ -29,7 +30,7 @@ def test_direct_matches_float64_brute_force(pts4096):
     assert (np.abs(got - ref) / ref)[big].max() < 1e-3
 
 
-@pytest.mark.parametrize("method", ["nufft", "nufft3"])
+@pytest.mark.parametrize("method", ["nufft1", "nufft3"])
 def test_nufft_paths_equal_direct_sum_float64(pts4096, method):
     f = _freqs()
     with jax.enable_x64(True):
@@ -44,7 +45,7 @@ def test_nufft_paths_equal_direct_sum_float64(pts4096, method):
 def test_float32_nufft_close_to_white_noise_scale(pts4096):
     f = _freqs()
     ref = brute_force_spectrum(pts4096, f)
-    got = np.asarray(spectrum.power_spectrum(pts4096, f, method="nufft"))
+    got = np.asarray(spectrum.power_spectrum(pts4096, f, method="nufft1"))
     assert np.abs(got - ref).max() * 4096 < 1e-2
 
 
@@ -62,7 +63,7 @@ def test_gradients_agree_between_paths_and_with_finite_differences():
             m: np.asarray(
                 jax.grad(lambda q, m=m: jnp.sum(spectrum.power_spectrum(q, f, method=m)))(p)
             )
-            for m in ["direct", "nufft", "nufft3"]
+            for m in ["direct", "nufft1", "nufft3"]
         }
         loss = lambda q: float(jnp.sum(spectrum.power_spectrum(q, f, method="direct")))
         h = 1e-6
@@ -70,34 +71,8 @@ def test_gradients_agree_between_paths_and_with_finite_differences():
         e[7, 1] = h
         fd = (loss(p + e) - loss(p - e)) / (2 * h)
     np.testing.assert_allclose(grads["direct"][7, 1], fd, rtol=1e-5)
-    np.testing.assert_allclose(grads["nufft"], grads["direct"], atol=1e-8)
+    np.testing.assert_allclose(grads["nufft1"], grads["direct"], atol=1e-8)
     np.testing.assert_allclose(grads["nufft3"], grads["direct"], atol=1e-8)
-
-
-def test_single_precision_terms_agree_with_double():
-    """``spectrum_terms(precision='single')``: the type-1 boxes' transforms in float32 (eps
-    1e-6) against float64, n = 4096, four directions, uniform points. Rounding the box points
-    to float32 moves each phase by up to ``2 pi |u| 2^-24`` (about 3e-4 for the boxes' |u| <= 800),
-    so the loss and its gradient agree to a few 1e-4 relative, not to float64's 1e-10."""
-    from anisosample import frequencies, losses
-
-    with jax.enable_x64(True):
-        n = 4096
-        fset = frequencies.design(n, [0.0, 90.0, 16.0, 146.0], "rate")
-        x = jax.random.uniform(jax.random.key(3), (n, 2), jnp.float64)
-        out = {}
-        for prec in spectrum.PRECISIONS:
-            terms = losses.linear_spectrum_loss_terms(fset, n, eps=1e-7, precision=prec)
-            assert all(isinstance(t, spectrum.GridTerm) for t in terms)
-            assert all(t.single == (prec == "single") for t in terms)
-            assert all(t.eps == (1e-6 if prec == "single" else 1e-7) for t in terms)
-            out[prec] = jax.value_and_grad(lambda y, t=terms: spectrum.terms_value(y, t))(x)
-        (v64, g64), (v32, g32) = out["double"], out["single"]
-        assert g32.dtype == jnp.float64
-        assert abs(float(v32 - v64)) < 1e-3 * float(v64)
-        assert float(jnp.max(jnp.abs(g32 - g64))) < 3e-3 * float(jnp.max(jnp.abs(g64)))
-        with pytest.raises(ValueError, match="precision"):
-            spectrum.spectrum_terms(fset, n, precision="half")
 
 
 def test_basic_facts(pts4096):
@@ -113,7 +88,7 @@ def test_grid_orientation():
     pts = np.stack([x, np.full_like(x, 0.3)], axis=1)
     g = np.asarray(spectrum.power_spectrum_grid(pts, 5, method="direct"))
     np.testing.assert_allclose(g, np.broadcast_to(g[5], g.shape), atol=1e-6)
-    g2 = np.asarray(spectrum.power_spectrum_grid(pts, 5, method="nufft"))
+    g2 = np.asarray(spectrum.power_spectrum_grid(pts, 5, method="nufft1"))
     np.testing.assert_allclose(g2, g, atol=1e-4)
     # column j is v_x = j - r
     np.testing.assert_allclose(g[5, 7], brute_force_spectrum(pts, [[2, 0]])[0], atol=1e-6)
@@ -157,6 +132,24 @@ def test_bad_frequencies(pts4096):
         spectrum.power_spectrum(pts4096, np.array([[1, 2]]), method="fft")
     with pytest.raises(ValueError, match="points must lie"):
         spectrum.power_spectrum(np.full((3, 2), 1.5, np.float32), np.array([[1, 2]]))
+
+
+def test_the_old_method_name_is_refused_with_its_new_one(pts4096):
+    """``"nufft"`` was the type-1 path's old name: every entry point refuses it, naming
+    ``"nufft1"``; the methods are one list (the CLI offers the same)."""
+    f = np.array([[1, 2]])
+    for call in (lambda: spectrum.power_spectrum(pts4096, f, method="nufft"),
+                 lambda: spectrum.power_spectrum_grid(pts4096, 3, method="nufft"),
+                 lambda: losses.linear_spectrum_loss(pts4096, f, method="nufft"),
+                 lambda: asp.synthesis.make_recipe("rate", method="nufft")):
+        with pytest.raises(ValueError, match="'nufft' is now called 'nufft1'"):
+            call()
+    assert spectrum.METHODS == ("auto", "direct", "nufft1", "nufft3")
+    from anisosample.cli import build_parser
+
+    action = next(a for a in build_parser()._subparsers._group_actions[0].choices["spectrum"]
+                  ._actions if a.dest == "method")
+    assert tuple(action.choices) == spectrum.METHODS
 
 
 def test_direct_float32_accurate_beyond_2_to_14():
@@ -290,3 +283,55 @@ def test_huge_grid_is_refused_before_allocating():
         spectrum.power_spectrum_grid(pts, 100000)
     with pytest.raises(ValueError, match="radius=100000"):
         spectrum.frequency_grid(100000)
+
+
+@pytest.mark.parametrize("method", ["direct", "nufft1", "nufft3", "auto"])
+def test_grouped_spectrum_matches_brute_force(getkey, method):
+    n = 300
+    x = jax.random.uniform(getkey(), (n, 2), jnp.float32)
+    fset = frequencies.design(n, [0.0, 90.0, 33.0], "rate")
+    p = np.asarray(spectrum.grouped_power_spectrum(x, fset, method=method))
+    want = brute_force_spectrum(x, fset.freqs)
+    # 1e-4 of the largest value (NUFFT tolerance 1e-6 in float32)
+    assert np.max(np.abs(p - want)) <= 1e-4 * want.max()
+
+
+def test_grouped_nufft3_agrees_with_the_direct_sum(getkey):
+    n = 500
+    x = jax.random.uniform(getkey(), (n, 2), jnp.float32)
+    fset = frequencies.design(n, [0.0, 90.0, 67.0], "paper")
+    mine = np.asarray(spectrum.grouped_power_spectrum(x, fset, method="nufft3"))
+    lead = np.asarray(spectrum.power_spectrum(x, fset.freqs, method="direct"))
+    assert np.max(np.abs(mine - lead)) <= 1e-4 * lead.max()
+
+
+def test_rotated_path_float64_deep(getkey):
+    """float64 agreement far below white noise, as deep suppression needs."""
+    with jax.enable_x64(True):
+        x = jax.random.uniform(getkey(), (256, 2), jnp.float64)
+        v = frequencies.wedge(30.0, 200.0, 2.0, 2.0)
+        a = np.asarray(spectrum.power_spectrum_rotated(x, v, 30.0, method="nufft3"))
+        b = np.asarray(spectrum.power_spectrum_rotated(x, v, 30.0, method="direct"))
+        assert np.max(np.abs(a - b)) < 1e-7 / 256  # 1e-7 of white noise
+
+
+@pytest.mark.parametrize("theta", [30.0, 67.0, 145.0])
+def test_lattice_grids_float64_deep(getkey, theta):
+    """The type-1 path in a unimodular basis along a non-axis direction: the plan leaves the
+    identity, its grids stay near the wedge's size, and values and gradients agree with the
+    direct sum far below white noise (eps 1e-9, upsampling 1.25)."""
+    n = 512
+    fset = frequencies.design(n, [0.0, 90.0, theta], "rate")
+    (_, fg, _), = [g for g in fset.groups() if g[0] == theta]
+    order, segs = spectrum.nufft1_plan(fg, theta, n, lattice=True)
+    assert any(box.m != (1, 0, 0, 1) for _, _, box in segs)
+    assert spectrum.box_area(segs) <= 4 * len(fg)
+    assert sorted(order.tolist()) == list(range(len(fg)))
+    with jax.enable_x64(True):
+        x = jax.random.uniform(getkey(), (n, 2), jnp.float64)
+        a = np.asarray(spectrum.grouped_power_spectrum(x, fset, method="nufft1", eps=1e-9))
+        b = np.asarray(spectrum.grouped_power_spectrum(x, fset, method="direct"))
+        assert np.max(np.abs(a - b)) < 1e-7 / n  # 1e-7 of white noise
+        ga = jax.grad(lambda y: losses.linear_spectrum_loss(y, fset, method="nufft1", eps=1e-9))(x)
+        gb = jax.grad(lambda y: losses.linear_spectrum_loss(y, fset, method="direct"))(x)
+        assert float(jnp.max(jnp.abs(ga - gb))) < 1e-6 * float(jnp.max(jnp.abs(gb)))
