@@ -22,7 +22,6 @@ from __future__ import annotations
 import common
 import jax
 import numpy as np
-from common import cached_json
 
 import anisosample as asp
 from anisosample import metrics
@@ -166,14 +165,9 @@ def save_exrs(out, scene, ref, images: dict):
         asp.io.write_exr(out / f"mse_{slug}.exr", img.reshape(h, w), overwrite=True)
 
 
-def image_settings(name: str, args, scales: dict) -> tuple[dict, dict | None]:
+def image_settings(cfg: dict, args) -> dict:
     """The image experiments' settings (one light and one BSDF sample, MIS, pixel centres,
-    ``jax.random.uniform``) and the finished record under ``args.out`` when it was made with the
-    same settings (rerun reuse; ``--fresh`` ignores it)."""
-    settings = dict(scales[args.scale], scale=args.scale, seed=args.seed, mis=True,
-                    sampler="random", pixel="centre", renderer="anisosample.render.render")
-    record = cached_json(args.out / f"{name}.json", args.fresh)
-    if record is not None and record.get("settings") == settings:
-        print(f"reusing {args.out / (name + '.json')}")
-        return settings, record
-    return settings, None
+    ``jax.random.uniform``), the ``settings`` of their ``common.run`` (a finished record made
+    with the same settings is reused on rerun; ``--fresh`` ignores it)."""
+    return dict(cfg, scale=args.scale, seed=args.seed, mis=True, sampler="random",
+                pixel="centre", renderer="anisosample.render.render")

@@ -11,10 +11,10 @@ Prints its figures; no assertions (STYLE: benchmarks live apart from tests).
 
 from __future__ import annotations
 
-import argparse
 import os
 import time
 
+import common
 import jax
 import jax.numpy as jnp
 
@@ -34,7 +34,8 @@ def make_samples(key, blocks: int, s: int):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = common.parser("bench_directions", __doc__.splitlines()[0], scale=False, out=False,
+        seed=None, fresh=False)
     ap.add_argument("--blocks", type=int, default=80, help="blocks per side (80: 1280 px)")
     ap.add_argument("--samples", type=int, default=96, help="samples per block side")
     ap.add_argument("--repeats", type=int, default=3)

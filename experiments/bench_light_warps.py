@@ -16,10 +16,10 @@ the glossy scene's quad light (H Table 5's scene; Arvo 2001 is for triangles onl
 
 from __future__ import annotations
 
-import argparse
 import os
 import time
 
+import common
 import jax
 
 from anisosample import render, scenes
@@ -38,7 +38,8 @@ CASES = {  # scene -> (base technique, [light warps]); the first row of each is 
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = common.parser("bench_light_warps", __doc__.splitlines()[0], scale=False, out=False,
+        seed=None, fresh=False)
     p.add_argument("--size", type=int, default=256, help="image width and height (1 spp)")
     p.add_argument("--repeats", type=int, default=7)
     p.add_argument("--scenes", default=",".join(CASES), help="comma-separated scene names")

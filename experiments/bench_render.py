@@ -19,7 +19,6 @@ libllvm19 is installed (``apt-get install libllvm19``; found automatically).
 
 from __future__ import annotations
 
-import argparse
 import os
 import tempfile
 import time
@@ -36,7 +35,8 @@ DEBIAN_LLVM19 = "/usr/lib/x86_64-linux-gnu/libLLVM-19.so"  # apt-get install lib
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__)
+    p = common.parser("bench_render", __doc__, scale=False, out=False, seed=None,
+        fresh=False)
     p.add_argument("--size", type=int, default=128, help="image width and height")
     p.add_argument("--spp", type=int, default=64)
     p.add_argument("--repeats", type=int, default=5)

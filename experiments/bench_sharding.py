@@ -29,8 +29,9 @@ from anisosample import io, render, scenes
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = common.parser("bench_sharding", __doc__, scale=False, out=False, seed=None,
+        fresh=False,
+        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scene", default="cornell", help="shipped scene name")
     p.add_argument("--size", type=int, default=128, help="image width and height")
     p.add_argument("--spp", type=int, default=64)

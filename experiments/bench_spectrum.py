@@ -7,8 +7,6 @@ than the direct sum on a 2-core CPU.
 
 from __future__ import annotations
 
-import argparse
-
 import common
 import jax
 import jax.numpy as jnp
@@ -19,7 +17,8 @@ from anisosample import spectrum
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__)
+    p = common.parser("bench_spectrum", __doc__, scale=False, out=False, seed=None,
+        fresh=False)
     p.add_argument("--log2n", type=int, default=16)
     p.add_argument(
         "--radius",

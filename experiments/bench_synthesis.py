@@ -22,10 +22,10 @@ skips the per-method gradient timings.
 
 from __future__ import annotations
 
-import argparse
 import os
 import time
 
+import common
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -61,7 +61,8 @@ def _gradient_times(n, fset, opts):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = common.parser("bench_synthesis", __doc__.splitlines()[0], scale=False, out=False,
+        seed=None, fresh=False)
     ap.add_argument("--log2-n", type=int, nargs="+", default=[12, 16])
     ap.add_argument("--directions", default="0,90,30")
     ap.add_argument("--steps", type=int, default=None, help="override the recipe's steps")

@@ -28,7 +28,6 @@ and after (other work inflates the wall times); run it under ``nice -n 10``.
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import statistics
@@ -37,6 +36,7 @@ import sys
 import tempfile
 import time
 
+import common
 import jax
 import numpy as np
 
@@ -202,7 +202,8 @@ def _three_direction(args):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = common.parser("bench_tables", __doc__.splitlines()[0], scale=False, out=False,
+        seed=None, fresh=False)
     p.add_argument("--n", type=int, default=4096)
     p.add_argument("--kind", type=int, default=4, choices=[3, 4])
     p.add_argument("--sets", type=int, default=20, help="4-direction sets to time")

@@ -11,7 +11,6 @@ Not a test: nothing is asserted.
 
 from __future__ import annotations
 
-import argparse
 import os
 
 import common
@@ -22,7 +21,8 @@ from anisosample import variance as V
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = common.parser("bench_variance", __doc__.splitlines()[0], scale=False, out=False,
+        seed=None, fresh=False)
     ap.add_argument("--realizations", type=int, default=4096)
     ap.add_argument("--log2-n", type=int, default=14)
     ap.add_argument("--repeats", type=int, default=3)

@@ -16,10 +16,10 @@ test: nothing is asserted.
 
 from __future__ import annotations
 
-import argparse
 import os
 import time
 
+import common
 import jax
 import jax.numpy as jnp
 
@@ -55,7 +55,8 @@ def chain(kind, origin):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = common.parser("bench_warps", __doc__.splitlines()[0], scale=False, out=False,
+        seed=None, fresh=False)
     ap.add_argument("--n", type=int, default=1_000_000)
     ap.add_argument("--repeats", type=int, default=5, help="timed runs per round")
     ap.add_argument("--rounds", type=int, default=3,

@@ -32,12 +32,10 @@ shipped aligned table's size).
 
 from __future__ import annotations
 
-import time
-
+import common
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import cached_json, parser, write_record
 
 import anisosample as asp
 from anisosample import selection
@@ -161,31 +159,29 @@ def plot(results, summary, out):
     return aplot.save_figure(fig, out / f"{NAME}.png")
 
 
-def main(argv=None):
-    ap = parser(NAME, __doc__.splitlines()[0])
-    args = ap.parse_args(argv)
-    started = time.time()
-    settings = dict(SCALES[args.scale], scale=args.scale, seed=args.seed,
-                    technique="solid_angle", pixel="centre", scene="cornell.xml",
-                    warp="render light_warp product-* (fitted at the ray origin)")
-    record = cached_json(args.out / f"{NAME}.json", args.fresh)
-    if record is not None and record.get("settings") == settings:
-        print(f"reusing {args.out / (NAME + '.json')}")
-        results, summary = record["pixels"], record["summary"]
-    else:
-        args.out.mkdir(parents=True, exist_ok=True)
-        _, results = run(settings, args.seed)
-        summary = summarize(results)
-        write_record(args.out, NAME, dict(pixels=results, summary=summary), settings, started)
+def compute(settings, args):
+    args.out.mkdir(parents=True, exist_ok=True)
+    _, results = run(settings, args.seed)
+    return dict(pixels=results, summary=summarize(results))
+
+
+def figure(data, args):
+    results, summary = data["pixels"], data["summary"]
     plot(results, summary, args.out)
     lines = ["| method | variance / (base + pmj02bn), geometric mean |", "|---|---|"]
     lines += [f"| {k} | {v:.3f} |" for k, v in summary.items()]
+    n = SCALES[args.scale]["n"]
     (args.out / f"{NAME}.md").write_text(
-        f"# Aligned points through composed warps (scale {args.scale}, n = {settings['n']},"
+        f"# Aligned points through composed warps (scale {args.scale}, n = {n},"
         f" {len(results)} pixels)\n\n" + "\n".join(lines) + "\n"
     )
-    print(f"{len(results)} penumbra pixels, n = {settings['n']}, "
-          f"{settings['realizations']} realizations")
+
+
+def report(data, args):
+    results, summary = data["pixels"], data["summary"]
+    cfg = SCALES[args.scale]
+    print(f"{len(results)} penumbra pixels, n = {cfg['n']}, "
+          f"{cfg['realizations']} realizations")
     for r in results:
         print(f"  pixel {r['pixel']}: directions before {np.round(r['directions_before_deg'], 1)}"
               f" after (bilinear) {np.round(r['warps']['bilinear']['directions_after_deg'], 1)};"
@@ -193,6 +189,17 @@ def main(argv=None):
     print("variance relative to base + pmj02bn (geometric mean over pixels):")
     for k, v in summary.items():
         print(f"  {k:40s} {v:.3f}")
+
+
+def main(argv=None):
+    return common.run(
+        NAME, __doc__.splitlines()[0], SCALES, compute, figure=figure, report=report,
+        settings=lambda cfg, args: dict(cfg, scale=args.scale, seed=args.seed,
+                                        technique="solid_angle", pixel="centre",
+                                        scene="cornell.xml",
+                                        warp="render light_warp product-* (fitted at the ray "
+                                             "origin)"),
+        argv=argv)
 
 
 if __name__ == "__main__":

@@ -16,26 +16,37 @@ import anisosample as asp
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def parser(name: str, doc: str | None) -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=f"experiments/{name}.py", description=doc)
-    p.add_argument(
-        "--scale",
-        choices=["small", "paper"],
-        default="small",
-        help="small: minutes on a 2-core laptop; paper: the papers' sizes (GPU)",
-    )
-    p.add_argument(
-        "--out",
-        type=Path,
-        default=ROOT / "results" / name,
-        help=f"results folder (default results/{name}/)",
-    )
-    p.add_argument("--seed", type=int, default=0, help="seed of the experiment's JAX key")
-    p.add_argument(
-        "--fresh",
-        action="store_true",
-        help="recompute everything instead of reusing finished results",
-    )
+def parser(name: str, doc: str | None, *, seed: int | None = 0, fresh: bool = True,
+           scale: bool = True, out: bool = True, **options) -> argparse.ArgumentParser:
+    """The parser every experiment and benchmark starts from: ``--scale small|paper`` (unless
+    ``scale`` is false), ``--out`` (default ``results/<name>/`` of the repository, wherever the
+    script is run from; none unless ``out``: a benchmark that only prints), ``--seed`` (default
+    ``seed``; None: the script has fixed keys and no such option) and ``--fresh`` (unless
+    ``fresh`` is false: nothing is reused). ``options`` go to ``argparse.ArgumentParser``."""
+    p = argparse.ArgumentParser(prog=f"experiments/{name}.py", description=doc, **options)
+    if scale:
+        p.add_argument(
+            "--scale",
+            choices=["small", "paper"],
+            default="small",
+            help="small: minutes on a 2-core laptop; paper: the papers' sizes (GPU)",
+        )
+    if out:
+        p.add_argument(
+            "--out",
+            type=Path,
+            default=ROOT / "results" / name,
+            help=f"results folder (default results/{name}/)",
+        )
+    if seed is not None:
+        p.add_argument("--seed", type=int, default=seed,
+                       help=f"seed of the experiment's JAX key (default {seed})")
+    if fresh:
+        p.add_argument(
+            "--fresh",
+            action="store_true",
+            help="recompute everything instead of reusing finished results",
+        )
     return p
 
 
@@ -46,15 +57,84 @@ def cached_json(path: Path, fresh: bool):
     return None
 
 
+def same_settings(saved, settings) -> bool:
+    """Whether ``saved`` (settings read back from a JSON record) are ``settings`` as JSON keeps
+    them (tuples become lists)."""
+    return saved == json.loads(json.dumps(settings))
+
+
+def reuse(path: Path, settings: dict, fresh: bool):
+    """The record at ``path`` if it exists, ``fresh`` is false and its ``"settings"`` are
+    ``settings`` (:func:`same_settings`), else None: every cache an experiment reuses is checked
+    against the settings it would be made with now."""
+    cached = cached_json(path, fresh)
+    if cached is not None and same_settings(cached.get("settings"), settings):
+        return cached
+    return None
+
+
 def reuse_or_compute(path: Path, settings: dict, fresh: bool, compute, *, field: str = "curve"):
     """``compute()``'s result, saved at ``path`` as ``{"settings": ..., field: ...}``; a later
     run with the same ``settings`` (and no ``fresh``) reuses the saved value instead."""
-    cached = cached_json(path, fresh)
-    if cached is not None and cached.get("settings") == settings:
+    cached = reuse(path, settings, fresh)
+    if cached is not None:
         return cached[field]
     value = compute()
     asp.io.save_json(path, {"settings": settings, field: value}, overwrite=True)
     return value
+
+
+RECORD_KEYS = ("experiment", "settings", "provenance", "seconds", "command")
+"""What :func:`write_record` adds around an experiment's numbers."""
+
+
+def run(name: str, doc: str | None, scales: dict, compute, *, figure=None, report=None,
+        arguments=None, settings=None, seed: int | None = 0, argv=None) -> dict:
+    """One experiment on the shared harness; returns its numbers.
+
+    1. Arguments: :func:`parser` (``seed`` as there), plus ``arguments(p)``'s own options.
+    2. Settings: ``settings(scales[args.scale], args)`` if given, else ``{**scales[scale],
+       "scale": ..., "seed": ...}`` (no seed when ``seed`` is None).
+    3. Numbers: the record ``--out/<name>.json`` when it was made with these settings (rerun
+       reuse, :func:`reuse`; ``--fresh`` recomputes), else ``compute(settings, args)`` (a dict),
+       written as that record (:func:`write_record`).
+    4. ``figure(numbers, args)``, then ``report(numbers, args)`` (what the script prints).
+    """
+    p = parser(name, doc, seed=seed)
+    if arguments is not None:
+        arguments(p)
+    args = p.parse_args(argv)
+    started = time.time()
+    cfg = scales[args.scale]
+    if settings is not None:
+        chosen = settings(cfg, args)
+    else:
+        chosen = {**cfg, "scale": args.scale, **({} if seed is None else {"seed": args.seed})}
+    path = args.out / f"{name}.json"
+    record = reuse(path, chosen, args.fresh)
+    if record is not None:
+        data = {k: v for k, v in record.items() if k not in RECORD_KEYS}
+        print(f"reusing {path}")
+    else:
+        data = compute(chosen, args)
+        write_record(args.out, name, data, chosen, started)
+    if figure is not None:
+        figure(data, args)
+    if report is not None:
+        report(data, args)
+    return data
+
+
+def run_script(name: str, out: Path, *args: str) -> dict:
+    """Run the experiment ``experiments/<name>.py`` with ``--out out`` and ``args`` in its own
+    process (an experiment never imports another) and return its record ``out/<name>.json``.
+    Its output goes to this process's stdout and stderr; a failure raises
+    ``subprocess.CalledProcessError``."""
+    import subprocess
+
+    subprocess.run([sys.executable, str(ROOT / "experiments" / f"{name}.py"), "--out", str(out),
+                    *args], check=True)
+    return json.loads((Path(out) / f"{name}.json").read_text())
 
 
 def best_time(fn, *args, repeats: int, calls: int = 1, warmup: bool = True,

@@ -50,13 +50,11 @@ H's claims (their pbrt scene): MSE improvement 1.75x bilinear, 1.91x biquadratic
 
 from __future__ import annotations
 
-import time
-
 import _h_render as H
+import common
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import parser, write_record
 
 import anisosample as asp
 
@@ -233,35 +231,31 @@ def run(settings, seed, variant, out):
     )
 
 
-def main(argv=None):
-    ap = parser(NAME, __doc__.splitlines()[0])
-    args = ap.parse_args(argv)
-    started = time.time()
-    settings, record = H.image_settings(NAME, args, SCALES)
-    if record is not None:
-        variants = record["variants"]
-    else:
-        args.out.mkdir(parents=True, exist_ok=True)
-        variants = {}
-        md = [f"# H Fig. 2 (ours), scale {args.scale}\n"]
-        for variant in VARIANTS:
-            sub = args.out / variant
-            sub.mkdir(parents=True, exist_ok=True)
-            scene, ref, images, data = run(settings, args.seed, variant, args.out)
-            H.save_exrs(sub, scene, ref, images)
-            H.plot_images(args.out, f"{NAME}_{variant}", scene, ref, images,
-                          f"H Fig. 2 (ours), {variant} triangle light:"
-                          f" {data['spp']} spp MIS, per-pixel MSE")
-            data["mse_images_exr"] = sorted(f"{variant}/{p.name}" for p in sub.glob("*.exr"))
-            variants[variant] = data
-            md += [f"\n## {variant} scene\n", H.markdown_table(data["methods"])]
-            if "methods_without_mis" in data:
-                md += [f"\n## {variant} scene, light sample only (no MIS)\n",
-                       H.markdown_table(data["methods_without_mis"])]
-        plot_phi_bins(args.out, variants)
-        (args.out / f"{NAME}.md").write_text("\n".join(md))
-        write_record(args.out, NAME, dict(variants=variants, hart=HART), settings, started)
-    for variant, data in variants.items():
+def compute(settings, args):
+    args.out.mkdir(parents=True, exist_ok=True)
+    variants = {}
+    md = [f"# H Fig. 2 (ours), scale {args.scale}\n"]
+    for variant in VARIANTS:
+        sub = args.out / variant
+        sub.mkdir(parents=True, exist_ok=True)
+        scene, ref, images, data = run(settings, args.seed, variant, args.out)
+        H.save_exrs(sub, scene, ref, images)
+        H.plot_images(args.out, f"{NAME}_{variant}", scene, ref, images,
+                      f"H Fig. 2 (ours), {variant} triangle light:"
+                      f" {data['spp']} spp MIS, per-pixel MSE")
+        data["mse_images_exr"] = sorted(f"{variant}/{p.name}" for p in sub.glob("*.exr"))
+        variants[variant] = data
+        md += [f"\n## {variant} scene\n", H.markdown_table(data["methods"])]
+        if "methods_without_mis" in data:
+            md += [f"\n## {variant} scene, light sample only (no MIS)\n",
+                   H.markdown_table(data["methods_without_mis"])]
+    plot_phi_bins(args.out, variants)
+    (args.out / f"{NAME}.md").write_text("\n".join(md))
+    return dict(variants=variants, hart=HART)
+
+
+def report(record, args):
+    for variant, data in record["variants"].items():
         w, h = data["size"]
         print(f"\n{variant} triangle light, {w}x{h}, {data['spp']} spp,"
               f" {data['realizations']} realizations; reference"
@@ -285,6 +279,11 @@ def main(argv=None):
                 print(f"    Phi/pi {lo:.2f}-{hi:.2f}: {b['pixels']:5d} px,"
                       f" {b['share_of_uniform_mse']:.3f} of uniform MSE; factors "
                       + " ".join(f"{f:.3f}" for f in b["mse_factor"].values()))
+
+
+def main(argv=None):
+    return common.run(NAME, __doc__.splitlines()[0], SCALES, compute, report=report,
+                      settings=H.image_settings, argv=argv)
 
 
 if __name__ == "__main__":

@@ -1,5 +1,5 @@
 """Issue 14's defect, measured: rare samples of H Fig. 2's shipped scene and the 1-spp variance
-they carry, through the library renderer (after) or the old experiment pipeline (before).
+they carry, through the library renderer.
 
 Shipped scene ``anisosample/scenes/triangle_light.xml``, 48x48 pixel centres, ``N`` independent
 1-spp MIS samples per pixel (one light sample, one BSDF sample, power heuristic), for uniform
@@ -7,20 +7,20 @@ solid angle, the bilinear and biquadratic cosine warps and Arvo 2001. Per sample
 (a) the light sample's direction misses the triangle (ray-triangle test from the ray origin,
 occluders ignored); (b) the BSDF sample hits the emitter while the technique's light pdf there is
 0 (so MIS gives it the full weight). "carry" is the share of ``sum (x - pixel mean)^2`` over all
-samples that comes from the flagged ones.
+samples that comes from the flagged ones. Writes ``results/h_fig2_defect/h_fig2_defect.json``
+(per technique the numbers printed; reused on rerun with the same N, ``--fresh`` remeasures).
 
-    python experiments/h_fig2_defect.py [N]                  # the library renderer (now)
-    git show 74f13ac:experiments/_h_render.py > OLD/_h_render.py
-    git show 74f13ac:experiments/h_fig2.py > OLD/h_fig2.py
-    python experiments/h_fig2_defect.py [N] --before OLD     # the pipeline before issue 14
+The same measurement through the experiment pipeline before issue 14 (``--before``, which
+loaded an archived ``_h_render.py`` / ``h_fig2.py`` from 74f13ac) is this script at 84b9c3a;
+its numbers at N = 4096 are in the message of commit 8fbdf30.
+
+    python experiments/h_fig2_defect.py [N] [--scale small|paper] [--out DIR] [--fresh]
 """
 
-import sys
-from pathlib import Path
+import common
 
-N = int(sys.argv[1]) if len(sys.argv) > 1 and sys.argv[1].isdigit() else 256
-BEFORE = sys.argv[sys.argv.index("--before") + 1] if "--before" in sys.argv else None
-ROOT = Path(__file__).resolve().parent.parent
+NAME = "h_fig2_defect"
+SCALES = {"small": dict(n=256), "paper": dict(n=4096)}
 
 
 def hits_triangle(verts, o, w):
@@ -38,21 +38,32 @@ def hits_triangle(verts, o, w):
     return (a >= 0) & (b >= 0) & (a + b <= 1) & (t > 0)
 
 
-def report(name, v, m, z):
-    """One technique's line: the mean per-pixel 1-spp variance and the share of it carried by
+def numbers(v, m, z, N):
+    """One technique's numbers: the mean per-pixel 1-spp variance and the share of it carried by
     light samples that miss (``m``) and BSDF hits with light pdf 0 (``z``)."""
     import numpy as np
 
     v = v.astype(np.float64)
     dev2 = (v - v.mean(1, keepdims=True)) ** 2
     tot = dev2.sum()
-    print(f"{name:30s} 1-spp var (mean over px) {dev2.sum(1).mean()/(N-1):.4e}  "
-          f"light misses {m.mean():.2e} of samples (carry {dev2[m].sum()/tot:.3f}),  "
-          f"BSDF-hit pdf 0 {z.mean():.2e} (carry {dev2[z].sum()/tot:.3f}),  "
-          f"both {dev2[m|z].sum()/tot:.3f}", flush=True)
+    return {"variance_1spp": float(dev2.sum(1).mean() / (N - 1)),
+            "light_miss_share": float(m.mean()), "light_miss_carry": float(dev2[m].sum() / tot),
+            "bsdf_pdf0_share": float(z.mean()), "bsdf_pdf0_carry": float(dev2[z].sum() / tot),
+            "both_carry": float(dev2[m | z].sum() / tot)}
 
 
-def after():
+def report(data, args):
+    print(f"shipped H Fig. 2 scene, 48x48 pixel centres, {data['n']} 1-spp MIS samples per pixel"
+          " (library)")
+    for name, r in data["techniques"].items():
+        print(f"{name:30s} 1-spp var (mean over px) {r['variance_1spp']:.4e}  "
+              f"light misses {r['light_miss_share']:.2e} of samples "
+              f"(carry {r['light_miss_carry']:.3f}),  "
+              f"BSDF-hit pdf 0 {r['bsdf_pdf0_share']:.2e} (carry {r['bsdf_pdf0_carry']:.3f}),  "
+              f"both {r['both_carry']:.3f}", flush=True)
+
+
+def after(N):
     import jax
     import jax.numpy as jnp
     import numpy as np
@@ -107,58 +118,19 @@ def after():
         v, m, z = f(jnp.arange(npx).reshape(48, 48), keys.reshape(48, 48))
         return [np.asarray(a).reshape(-1, N) for a in (v, m, z)]
 
-    print(f"shipped H Fig. 2 scene, 48x48 pixel centres, {N} 1-spp MIS samples per pixel (library)")
-    for name, lw in TECHS.items():
-        report(name, *flagged(lw))
+    return {"n": N, "techniques": {name: numbers(*flagged(lw), N) for name, lw in TECHS.items()}}
 
 
-def before(old):
-    sys.path.insert(0, str(old))
-    sys.path.insert(1, str(ROOT / "experiments"))
-    import _h_render as H
-    import h_fig2 as F
-    import jax
-    import jax.numpy as jnp
-    import numpy as np
+def main(argv=None):
+    def arguments(p):
+        p.add_argument("n", nargs="?", type=int, default=None,
+                       help="1-spp samples per pixel (default: 256 small, 4096 paper)")
 
-    import anisosample as asp
-    from anisosample.render.bsdf import sample_bsdf
-    from anisosample.render.geometry import offset_origin
-
-    scene = asp.render.load_xml(F.SHIPPED, width=48, height=48)
-    verts = F.triangle_of(scene)
-    light = H.Light(normal=lambda x: jnp.asarray(scene.lights.normal[0]))
-    techs = F.techniques(verts)
-    sps = H.shading_points(scene)
-
-    def in_tri(o, w):
-        return hits_triangle(verts, o, w)
-
-    def flagged(make_warp):
-        mats = scene.materials
-        def pixel(sp, k):
-            warp = make_warp(sp)
-            u = jax.random.uniform(k, (N, 4), jnp.float32, 0.0, 1.0 - 2.0**-24)
-            def one(ul, ub):
-                val = H.one_sample(scene, light, sp, warp, ul, ub, mis=True)
-                wl = warp.sample(ul)
-                miss = ~in_tri(offset_origin(scene, sp.p, sp.n, wl), wl)
-                wb, pb = sample_bsdf(mats, sp.mat, sp.n, sp.wi, ub)
-                leb, hit = H._emission_along(scene, sp, wb)
-                zero = (leb > 0) & ~(warp.pdf(wb) > 0) & (pb > 0)
-                return val, (miss & sp.valid), (zero & sp.valid)
-            return jax.vmap(one)(u[:, :2], u[:, 2:])
-        keys = jax.random.split(jax.random.key(1), sps.p.shape[0])
-        f = jax.jit(lambda s, k: jax.lax.map(lambda a: jax.vmap(pixel)(*a), (s, k)))
-        blk = jax.tree.map(lambda a: a.reshape(48, 48, *a.shape[1:]), (sps, keys))
-        v, m, z = f(*blk)
-        return [np.asarray(a).reshape(-1, N) for a in (v, m, z)]
-
-    print(f"shipped H Fig. 2 scene, 48x48 pixel centres, {N} 1-spp MIS samples per pixel"
-          " (old _h_render)")
-    for name, make in techs.items():
-        report(name, *flagged(make))
+    return common.run(
+        NAME, __doc__.splitlines()[0], SCALES, lambda settings, args: after(settings["n"]),
+        arguments=arguments, report=report, seed=None, argv=argv,
+        settings=lambda cfg, args: {"n": args.n or cfg["n"], "scale": args.scale})
 
 
 if __name__ == "__main__":
-    before(BEFORE) if BEFORE else after()
+    main()

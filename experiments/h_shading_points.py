@@ -38,7 +38,6 @@ from _h_shading import (
     patch_three_warp,
     triangle_methods,
 )
-from common import cached_json, parser, write_record
 
 import anisosample as asp
 import anisosample.warps as W
@@ -203,21 +202,7 @@ def plot(data, out):
     return aplot.save_figure(fig, out / f"{NAME}.png")
 
 
-def main(argv=None):
-    ap = parser(NAME, __doc__.splitlines()[0])
-    args = ap.parse_args(argv)
-    started = time.time()
-    settings = dict(
-        SCALES[args.scale], scale=args.scale, seed=args.seed, sampler="random", timing="cpu"
-    )
-    record = cached_json(args.out / f"{NAME}.json", args.fresh)
-    if record is not None and record.get("settings") == settings:
-        data = {k: record[k] for k in ("triangle", "patch")}
-        print(f"reusing {args.out / (NAME + '.json')}")
-    else:
-        data = run(settings, args.seed)
-        write_record(args.out, NAME, data, settings, started)
-    plot(data, args.out)
+def report(data, args):
     for light in ("triangle", "patch"):
         print(f"\n{light} light (mean irradiance {data[light]['mean_irradiance']:.4f}):")
         print(
@@ -231,6 +216,15 @@ def main(argv=None):
                 f" {r['time_ratio']:6.2f} {r['efficiency']:7.3g} {r['seconds_per_fit']:8.1e}"
                 f" {r['seconds_per_sample']:8.1e}"
             )
+
+
+def main(argv=None):
+    return common.run(
+        NAME, __doc__.splitlines()[0], SCALES,
+        compute=lambda settings, args: run(settings, args.seed),
+        settings=lambda cfg, args: dict(cfg, scale=args.scale, seed=args.seed,
+                                        sampler="random", timing="cpu"),
+        figure=lambda data, args: plot(data, args.out), report=report, argv=argv)
 
 
 if __name__ == "__main__":

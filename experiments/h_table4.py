@@ -29,13 +29,11 @@ relative to uniform parametric as in H Table 4 (MSE factor 0.373, 0.370, 0.151; 
 
 from __future__ import annotations
 
-import time
-
 import _h_render as H
+import common
 import jax
 import jax.numpy as jnp
 import numpy as np
-from common import parser, write_record
 
 import anisosample as asp
 import anisosample.warps as W
@@ -109,32 +107,34 @@ def run(settings, seed, out):
     return scene, ref, images, data
 
 
-def main(argv=None):
-    ap = parser(NAME, __doc__.splitlines()[0])
-    args = ap.parse_args(argv)
-    started = time.time()
-    settings, record = H.image_settings(NAME, args, SCALES)
-    if record is not None:
-        data = record
-    else:
-        args.out.mkdir(parents=True, exist_ok=True)
-        scene, ref, images, data = run(settings, args.seed, args.out)
-        H.save_exrs(args.out, scene, ref, images)
-        H.plot_images(args.out, NAME, scene, ref, images,
-                      f"H Table 4 (ours): bilinear-patch light, {settings['spp']} spp MIS,"
-                      " per-pixel MSE")
-        md = f"# H Table 4 (ours), scale {args.scale}\n\n" + H.markdown_table(data["methods"])
-        md += "\nH Table 4 (pbrt scene): MSE factor 1 / 0.373 / 0.370 / 0.151; time 1 / 1.01 /"
-        md += " 1.02 / 1.23; efficiency factor 1 / 2.66 / 2.64 / 5.38.\n"
-        (args.out / f"{NAME}.md").write_text(md)
-        data["mse_images_exr"] = sorted(p.name for p in args.out.glob("*.exr"))
-        write_record(args.out, NAME, data, settings, started)
+def compute(settings, args):
+    args.out.mkdir(parents=True, exist_ok=True)
+    scene, ref, images, data = run(settings, args.seed, args.out)
+    H.save_exrs(args.out, scene, ref, images)
+    H.plot_images(args.out, NAME, scene, ref, images,
+                  f"H Table 4 (ours): bilinear-patch light, {settings['spp']} spp MIS,"
+                  " per-pixel MSE")
+    md = f"# H Table 4 (ours), scale {args.scale}\n\n" + H.markdown_table(data["methods"])
+    md += "\nH Table 4 (pbrt scene): MSE factor 1 / 0.373 / 0.370 / 0.151; time 1 / 1.01 /"
+    md += " 1.02 / 1.23; efficiency factor 1 / 2.66 / 2.64 / 5.38.\n"
+    (args.out / f"{NAME}.md").write_text(md)
+    data["mse_images_exr"] = sorted(p.name for p in args.out.glob("*.exr"))
+    return data
+
+
+def report(data, args):
+    settings = H.image_settings(SCALES[args.scale], args)
     print(f"bilinear-patch light, {settings['width']}x{settings['height']}, {settings['spp']} spp,"
           f" {settings['realizations']} realizations; reference {settings['reference_spp']} spp"
           f" (mean variance of its mean {data['reference']['mean_variance_of_mean']:.2e})")
     H.print_rows(data["methods"])
     order = sorted(data["methods"], key=lambda n: data["methods"][n]["mse"])
     print("MSE ordering (best first): " + " < ".join(order))
+
+
+def main(argv=None):
+    return common.run(NAME, __doc__.splitlines()[0], SCALES, compute, report=report,
+                      settings=H.image_settings, argv=argv)
 
 
 if __name__ == "__main__":

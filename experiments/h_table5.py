@@ -33,12 +33,10 @@ angle) and 0.57-0.73 (area).
 
 from __future__ import annotations
 
-import time
-
 import _h_render as H
+import common
 import jax
 import numpy as np
-from common import parser, write_record
 
 import anisosample as asp
 
@@ -104,33 +102,35 @@ def run(settings, seed):
     return scene, ref, images, data
 
 
-def main(argv=None):
-    ap = parser(NAME, __doc__.splitlines()[0])
-    args = ap.parse_args(argv)
-    started = time.time()
-    settings, record = H.image_settings(NAME, args, SCALES)
-    if record is not None:
-        data = record
-    else:
-        args.out.mkdir(parents=True, exist_ok=True)
-        scene, ref, images, data = run(settings, args.seed)
-        H.save_exrs(args.out, scene, ref, images)
-        H.plot_images(args.out, NAME, scene, ref, images,
-                      f"H Table 5 (ours): glossy scene, quad light, {settings['spp']} spp MIS,"
-                      " per-pixel relative squared error", label="MRSE")
-        md = f"# H Table 5 (ours), scale {args.scale}\n\n"
-        md += H.markdown_table(data["methods"], "MRSE")
-        md += ("\nFactors are relative to uniform solid angle; H Table 5 gives, for three pbrt"
-               " scenes, MRSE factors 0.78-0.84 (cosine bilinear), 0.68-0.82 / 0.60-0.77"
-               " (product bilinear, solid angle / area), 0.63-0.80 / 0.57-0.73 (reference).\n")
-        (args.out / f"{NAME}.md").write_text(md)
-        data["mse_images_exr"] = sorted(p.name for p in args.out.glob("*.exr"))
-        write_record(args.out, NAME, data, settings, started)
+def compute(settings, args):
+    args.out.mkdir(parents=True, exist_ok=True)
+    scene, ref, images, data = run(settings, args.seed)
+    H.save_exrs(args.out, scene, ref, images)
+    H.plot_images(args.out, NAME, scene, ref, images,
+                  f"H Table 5 (ours): glossy scene, quad light, {settings['spp']} spp MIS,"
+                  " per-pixel relative squared error", label="MRSE")
+    md = f"# H Table 5 (ours), scale {args.scale}\n\n"
+    md += H.markdown_table(data["methods"], "MRSE")
+    md += ("\nFactors are relative to uniform solid angle; H Table 5 gives, for three pbrt"
+           " scenes, MRSE factors 0.78-0.84 (cosine bilinear), 0.68-0.82 / 0.60-0.77"
+           " (product bilinear, solid angle / area), 0.63-0.80 / 0.57-0.73 (reference).\n")
+    (args.out / f"{NAME}.md").write_text(md)
+    data["mse_images_exr"] = sorted(p.name for p in args.out.glob("*.exr"))
+    return data
+
+
+def report(data, args):
+    settings = H.image_settings(SCALES[args.scale], args)
     print(f"glossy scene, {settings['width']}x{settings['height']}, {settings['spp']} spp,"
           f" {settings['realizations']} realizations; reference {settings['reference_spp']} spp"
           f" (mean relative variance of its mean"
           f" {data['reference']['mean_relative_variance_of_mean']:.2e})")
     H.print_rows(data["methods"], "MRSE")
+
+
+def main(argv=None):
+    return common.run(NAME, __doc__.splitlines()[0], SCALES, compute, report=report,
+                      settings=H.image_settings, argv=argv)
 
 
 if __name__ == "__main__":

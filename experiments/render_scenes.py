@@ -5,7 +5,8 @@ Mitsuba renders a copy in which our ``bilinear`` patches are fine tessellations
 
 small: 96x96, 256 spp (minutes on 2 cores); paper: 512x512, 4096 spp. Outputs per scene:
 ``<scene>.exr`` / ``.png`` (ours), ``<scene>_mitsuba.exr`` / ``.png``, and one JSON record
-``render_scenes.json`` with every number. Finished scenes are reused on rerun.
+``render_scenes.json`` with every number. Finished scenes are reused on rerun when made with the
+same size, spp and key (their EXR metadata says so).
 """
 
 from __future__ import annotations
@@ -27,6 +28,16 @@ SCENES = scenes.FOLDER
 SIZES = {"small": (96, 256), "paper": (512, 4096)}
 
 
+def reused_exr(path: Path, made: dict, fresh: bool):
+    """The RGB image at ``path`` if it exists, ``fresh`` is false and its metadata says it was
+    ``made`` with these settings; else None."""
+    if path.exists() and not fresh:
+        img, meta = io.read_exr(path, metadata=True)
+        if meta.get("made_with") == made:
+            return img[..., :3]
+    return None
+
+
 def main(argv=None):
     p = parser("render_scenes", __doc__)
     p.add_argument("--scenes", default=None, help="comma-separated scene names (default: all)")
@@ -44,14 +55,16 @@ def main(argv=None):
         ours_path = out / f"{name}.exr"
         params = dict(width=size, height=size)
         t = time.time()
-        if ours_path.exists() and not args.fresh:
-            ours = io.read_exr(ours_path)[..., :3]
-            t_ours = None
-        else:
+        # an image is reused only when made with these settings (kept in its EXR metadata)
+        made = {"scene": name, "size": size, "spp": spp, "seed": args.seed, "key_index": i}
+        ours = reused_exr(ours_path, made, args.fresh)
+        t_ours = None
+        if ours is None:
             scene, settings = render.load_xml_with_settings(path, **params)
             res = render.render(scene, jax.random.fold_in(jax.random.key(args.seed), i), spp=spp,
                                 mis=settings.mis)  # the file's integrator, as Mitsuba renders it
-            render.save_result(ours_path, res, overwrite=True, metadata={"scene": name})
+            render.save_result(ours_path, res, overwrite=True,
+                               metadata={"scene": name, "made_with": made})
             ours = res.mean
             t_ours = time.time() - t
         row = {"width": size, "height": size, "spp": spp, "seconds_ours": t_ours}
@@ -61,9 +74,8 @@ def main(argv=None):
             mi = None
         if mi is not None:
             mpath = out / f"{name}_mitsuba.exr"
-            if mpath.exists() and not args.fresh:
-                ref = io.read_exr(mpath)[..., :3]
-            else:
+            ref = reused_exr(mpath, made, args.fresh)
+            if ref is None:
                 mi.set_variant("scalar_rgb")
                 mi_path = render.mitsuba_compat.mitsuba_compatible_copy(
                     path, out / "mitsuba_scenes", **params)
@@ -71,8 +83,8 @@ def main(argv=None):
                 ref = np.array(mi.render(mi.load_file(str(mi_path), **params), spp=spp,
                                          seed=args.seed))[..., :3]
                 row["seconds_mitsuba"] = time.time() - t
-                io.write_exr(mpath, ref, {"scene": name, "renderer": f"mitsuba {mi.__version__}"},
-                             overwrite=True)
+                io.write_exr(mpath, ref, {"scene": name, "renderer": f"mitsuba {mi.__version__}",
+                                          "made_with": made}, overwrite=True)
                 io.save_png(mpath.with_suffix(".png"), render.tonemap(ref), overwrite=True)
             row["relative_rmse_vs_mitsuba"] = float(
                 np.sqrt(np.mean((ours - ref) ** 2)) / np.sqrt(np.mean(ref**2)))

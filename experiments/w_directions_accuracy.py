@@ -17,20 +17,19 @@ defaults of ``anisosample.directions.estimate`` (k = 2), all instances of one si
 when an estimate lies within ``tol_deg`` (3 deg) of it. Angular error = distance from the true
 direction to the nearest estimate.
 
-    python experiments/w_directions_accuracy.py --scale small|paper [--out DIR] [--force]
+    python experiments/w_directions_accuracy.py --scale small|paper [--out DIR] [--fresh]
 """
 
 from __future__ import annotations
 
-import argparse
-from pathlib import Path
-
+import common
 import numpy as np
 
 import anisosample as asp
 from anisosample import directions, integrands, metrics
 from anisosample.progress import progress
 
+NAME = "w_directions_accuracy"
 SIZES = [64, 96, 128]
 CASES = ["one_edge", "one_edge_near_axis", "two_edges", "disk", "bump"]
 SCALES = {"small": {"n": 60}, "paper": {"n": 400}}
@@ -162,21 +161,22 @@ def plot(res, path):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scale", choices=sorted(SCALES), default="small")
-    ap.add_argument("--out", default=None,
-                    help="output folder (default results/w_directions_accuracy/)")
-    ap.add_argument("--force", action="store_true", help="recompute even if results exist")
+    ap = common.parser(NAME, __doc__.splitlines()[0], seed=None)
+    ap.add_argument("--force", dest="fresh", action="store_true", help="the same as --fresh")
     args = ap.parse_args(argv)
-    out = Path(args.out or "results/w_directions_accuracy")
+    out = args.out
     out.mkdir(parents=True, exist_ok=True)
     n = SCALES[args.scale]["n"]
     json_path = out / f"w_directions_accuracy_{args.scale}.json"
     # per-(size, case) partial results are kept so an interrupted run resumes
     part_dir = out / f"parts_{args.scale}"
     part_dir.mkdir(exist_ok=True)
-    if json_path.exists() and not args.force:
-        res = asp.io.load_json(json_path)
+    settings = {"scale": args.scale, "instances_per_case": n, "sizes": SIZES,
+                "tol_deg": TOL_DEG, "seed": SEED, "k": 2,
+                "estimator": "anisosample.directions defaults (fixed kappa)",
+                "defaults": directions.default_options()}
+    res = common.reuse(json_path, settings, args.fresh)
+    if res is not None:
         print(f"reusing {json_path}")
     else:
         rows, table = {}, {}
@@ -185,34 +185,34 @@ def main(argv=None):
             rows[str(size)], table[str(size)] = {}, {}
             for ci, case in enumerate(CASES):
                 part = part_dir / f"{size}_{case}.json"
-                if part.exists() and not args.force:
-                    r = asp.io.load_json(part)["rows"]
+                part_settings = {**settings, "size": size, "case": case, "method": "fixed"}
+                if (cached := common.reuse(part, part_settings, args.fresh)) is not None:
+                    r = cached["rows"]
                     bar.update(n)
                 else:
                     # the same integrands at every size: seed by case only
                     rng = np.random.default_rng([SEED, ci])
                     r = evaluate(case, size, n, rng, bar)
-                    asp.io.save_json(part, {"rows": r}, overwrite=True)
+                    asp.io.save_json(part, {"settings": part_settings, "rows": r},
+                                     overwrite=True)
                 rows[str(size)][case] = r
                 table[str(size)][case] = summarize(case, r)
         rows_g, table_g = {}, {}
         for ci, case in enumerate(CASES):
             part = part_dir / f"96_{case}_gradient.json"
-            if part.exists() and not args.force:
-                r = asp.io.load_json(part)["rows"]
+            part_settings = {**settings, "size": 96, "case": case, "method": "gradient"}
+            if (cached := common.reuse(part, part_settings, args.fresh)) is not None:
+                r = cached["rows"]
                 bar.update(n)
             else:
                 rng = np.random.default_rng([SEED, ci])
                 r = evaluate(case, 96, n, rng, bar, method="gradient")
-                asp.io.save_json(part, {"rows": r}, overwrite=True)
+                asp.io.save_json(part, {"settings": part_settings, "rows": r}, overwrite=True)
             rows_g[case] = r
             table_g[case] = summarize(case, r)
         bar.close()
         res = {
-            "settings": {"scale": args.scale, "instances_per_case": n, "sizes": SIZES,
-                         "tol_deg": TOL_DEG, "seed": SEED, "k": 2,
-                         "estimator": "anisosample.directions defaults (fixed kappa)",
-                         "defaults": directions.default_options()},
+            "settings": settings,
             "provenance": asp.io.provenance(),
             "table": table,
             "table_gradient": {"96": table_g},

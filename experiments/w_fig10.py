@@ -18,9 +18,10 @@ measured cost: ``(t_pixel - t_pmj) / t_spp`` per pixel, the two renders' times a
 ``pixel_spp`` on the same image (the search's samples and compute, the lit pixels' prefix beside
 pmj02bn, the set lookups); ``aligned (window)`` by the block shift (the same estimation samples;
 its per-pixel vMF fits are not timed, so its shift is a lower bound).
-The curves are W Fig. 9's on its one-edge penumbra pixels (``w_fig9``, reused or computed
-first at the same scale): the median over those pixels of each method's per-pixel variance;
-the aligned curves are drawn at ``N + shift``, the unaligned ones at ``N``. The JSON also
+The curves are W Fig. 9's on its one-edge penumbra pixels (``w_fig9``, run first at the same
+scale in its own process, which reuses its finished scenes): the median over those pixels of
+each method's per-pixel variance; the aligned curves are drawn at ``N + shift``, the unaligned
+ones at ``N``. The JSON also
 gives, at the smallest N, each unaligned variance interpolated (log-log) at ``N + shift`` and
 the aligned (block) variance over it. Timings depend on the machine and its load.
 
@@ -37,7 +38,6 @@ import _w_render as W
 import common
 import jax
 import numpy as np
-import w_fig9
 
 import anisosample as asp
 from anisosample import plot, render
@@ -113,9 +113,9 @@ def main(argv=None):
     started = time.time()
     cfg = SCALES[args.scale]
     args.out.mkdir(parents=True, exist_ok=True)
-    fig9 = w_fig9.main(["--scale", args.scale, "--out", str(args.fig9_out), "--seed",
-                        str(args.seed)])
-    cfg9 = w_fig9.SCALES[args.scale]
+    fig9 = common.run_script("w_fig9", args.fig9_out, "--scale", args.scale, "--seed",
+                             str(args.seed))
+    cfg9 = {k: v for k, v in fig9["settings"].items() if k not in ("scale", "seed")}
     key = jax.random.key(args.seed)
     settings = {**cfg, "scale": args.scale, "seed": args.seed, "fig9": cfg9}
     cached = common.cached_json(args.out / "timings.json", args.fresh)

@@ -13,9 +13,7 @@ Writes ``results/w_fig3/w_fig3.png`` and ``w_fig3.json``; reuses finished sets o
 
 from __future__ import annotations
 
-import argparse
-from pathlib import Path
-
+import common
 import jax
 import numpy as np
 
@@ -36,12 +34,11 @@ def nn_distances(points) -> np.ndarray:
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scale", choices=list(SCALES), default="small")
-    ap.add_argument("--out", default="results/w_fig3")
-    args = ap.parse_args(argv)
+    # fixed keys; the sets are reused when made with the same settings (load_or_synthesize)
+    args = common.parser("w_fig3", __doc__.splitlines()[0], seed=None, fresh=False).parse_args(
+        argv)
     cfg = SCALES[args.scale]
-    out = Path(args.out)
+    out = args.out
     n = cfg["n"]
     res = {"settings": {"scale": args.scale, "n": n, "directions_deg": DIRS, "recipe": "paper",
                         "steps": cfg["steps"], "variants": VARIANTS,

@@ -11,15 +11,14 @@ work on that circle directly, without the axial doubling that anisosample.direct
     (kappa = 50) integer-degree search around each maximum (dashed);
 (d) the objective D_KL(q || p) against mu for several kappa.
 
-    python experiments/w_fig4.py --scale small|paper [--out results/w_fig4] [--force]
+    python experiments/w_fig4.py --scale small|paper [--out results/w_fig4] [--fresh]
 """
 
 from __future__ import annotations
 
-import argparse
 import math
-from pathlib import Path
 
+import common
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -80,13 +79,16 @@ def mle(hist):
     return {"mu_deg": math.degrees(float(f.mu)), "kappa": float(f.kappa), "rbar": float(f.rbar)}
 
 
+def settings_of(scale) -> dict:
+    return {"scale": scale, "samples": SCALES[scale]["samples"], "bins": NBINS, "modes": MODES,
+            "kappa_fixed": 50.0, "kappas_objective": KAPPAS_D, "seed": 4,
+            "floor": vmf.DEFAULT_FLOOR, "nodes": vmf.DEFAULT_NODES}
+
+
 def compute(scale):
     n = SCALES[scale]["samples"]
     key_a, key_b = jax.random.split(jax.random.key(4))
-    res = {"settings": {"scale": scale, "samples": n, "bins": NBINS, "modes": MODES,
-                        "kappa_fixed": 50.0, "kappas_objective": KAPPAS_D, "seed": 4,
-                        "floor": vmf.DEFAULT_FLOOR, "nodes": vmf.DEFAULT_NODES},
-           "provenance": asp.io.provenance()}
+    res = {"settings": settings_of(scale), "provenance": asp.io.provenance()}
     steps = progress(total=5, desc="w_fig4")
     one = sampled_hist(key_a, mixture_masses(MODES[:1]), n)
     two = sampled_hist(key_b, mixture_masses(MODES), n)
@@ -165,16 +167,14 @@ def plot(res, path):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scale", choices=sorted(SCALES), default="small")
-    ap.add_argument("--out", default=None, help="output folder (default results/w_fig4/)")
-    ap.add_argument("--force", action="store_true", help="recompute even if results exist")
+    ap = common.parser("w_fig4", __doc__.splitlines()[0], seed=None)
+    ap.add_argument("--force", dest="fresh", action="store_true", help="the same as --fresh")
     args = ap.parse_args(argv)
-    out = Path(args.out or "results/w_fig4")
+    out = args.out
     out.mkdir(parents=True, exist_ok=True)
     json_path = out / f"w_fig4_{args.scale}.json"
-    if json_path.exists() and not args.force:
-        res = asp.io.load_json(json_path)
+    res = common.reuse(json_path, settings_of(args.scale), args.fresh)
+    if res is not None:
         print(f"reusing {json_path}")
     else:
         res = compute(args.scale)

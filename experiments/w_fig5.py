@@ -14,10 +14,9 @@ for a set made with the default (rate) recipe and one made with the paper's reci
 
 from __future__ import annotations
 
-import argparse
 import math
-from pathlib import Path
 
+import common
 import jax
 import numpy as np
 
@@ -57,12 +56,11 @@ def line_profile(grid, n, dirs, half_width=2.0):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scale", choices=list(SCALES), default="small")
-    ap.add_argument("--out", default="results/w_fig5")
-    args = ap.parse_args(argv)
+    # fixed keys; the sets are reused when made with the same settings (load_or_synthesize)
+    args = common.parser("w_fig5", __doc__.splitlines()[0], seed=None, fresh=False).parse_args(
+        argv)
     cfg = SCALES[args.scale]
-    out = Path(args.out)
+    out = args.out
     ns = [2**k for k in cfg["log2_ns"]]
     res = {"settings": {"scale": args.scale, **cfg, "radius": RADIUS,
                         "defaults": synthesis.recipe_defaults("rate")},

@@ -30,10 +30,10 @@ variances on rerun.
 
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
+import common
 import jax
 import numpy as np
 from _w_variance import our_sets, variance_of_sets
@@ -72,18 +72,9 @@ def curve(rows, ns):
     return {"variance": var, "std_error": se, "fit": fit.as_dict()}
 
 
-def cached(path: Path, fn):
-    if path.exists():
-        return json.loads(path.read_text())
-    val = fn()
-    io.save_json(path, val, overwrite=True)
-    return val
-
-
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scale", choices=list(SCALES), default="small")
-    ap.add_argument("--out", default="results/w_fig6")
+    # fixed keys (sets: 1000 + s; variances: 6); --fresh recomputes the variance curves
+    ap = common.parser("w_fig6", __doc__.splitlines()[0], seed=None)
     ap.add_argument("--log2-ns", default=None, help="override, e.g. 8,9,10,11,12,13,14")
     ap.add_argument("--seeds", type=int, default=None, help="override sets per n")
     ap.add_argument("--one-edge", default=None, help="override one-edge angles, e.g. 30,67")
@@ -144,7 +135,7 @@ def main(argv=None):
     if args.only_one_edge:
         cfg["two_edges"], cfg["four_edges"] = [], []
         cfg["misaligned"] = (cfg["one_edge"][0], [])
-    out = Path(args.out)
+    out = args.out
     ns = [2**k for k in cfg["log2_ns"]]
     seeds, R = cfg["seeds"], cfg["realizations"]
     key = jax.random.key(6)
@@ -160,6 +151,14 @@ def main(argv=None):
     t0, deltas = cfg["misaligned"]
 
     tag = f"_n{min(ns)}-{max(ns)}_s{seeds}_R{R}"  # variance caches are per sweep
+    # ... and reused only when made with the same settings (the sets' too)
+    ours_settings = {"ns": ns, "seeds": seeds, "realizations": R, "key": 6, "set_key": 1000,
+                     "recipe": "rate", "defaults": synthesis.recipe_defaults("rate"),
+                     "frequency_options": fopts}
+
+    def cached(path, settings, fn):
+        return common.reuse_or_compute(path, settings, args.fresh, fn)
+
     set_dirs = {tuple(c[2]) for c in cases}
     bar = progress(total=len(set_dirs) * len(ns) * seeds, desc="w_fig6 sets")
     sets = {d: our_sets(out, list(d), ns, seeds, bar, fopts) for d in sorted(set_dirs)}
@@ -172,11 +171,18 @@ def main(argv=None):
         f = integrands.edges(fdirs)
         slug = label.replace(" ", "_").replace("/", "-").replace(",", "-") + tag
         entry = {"integrand_directions_deg": fdirs, "set_directions_deg": sdirs}
-        entry["ours"] = cached(out / "var" / f"{slug}_ours.json", lambda f=f, sdirs=sdirs: curve(
-            variance_of_sets(f, sets[tuple(sdirs)], ns, seeds, R, key), ns))
+        entry["ours"] = cached(
+            out / "var" / f"{slug}_ours.json",
+            {**ours_settings, "integrand_directions_deg": fdirs, "set_directions_deg": sdirs},
+            lambda f=f, sdirs=sdirs: curve(
+                variance_of_sets(f, sets[tuple(sdirs)], ns, seeds, R, key), ns))
         for b in baselines:
-            entry[b] = cached(out / "var" / f"{slug}_{b}.json", lambda b=b, f=f: curve(
-                variance_of_baseline(f, b, ns, R, key), ns))
+            entry[b] = cached(
+                out / "var" / f"{slug}_{b}.json",
+                {"ns": ns, "realizations": R, "key": 6, "integrand_directions_deg": fdirs,
+                 "baseline": b, "randomization": BASELINES[b],
+                 "patterns": 16 if BASELINES[b] == "shift" else None},
+                lambda b=b, f=f: curve(variance_of_baseline(f, b, ns, R, key), ns))
         results["cases"][label] = entry
         print(f"{label}: ours {entry['ours']['fit']['slope']:.3f} "
               f"[{entry['ours']['fit']['ci_low']:.3f}, {entry['ours']['fit']['ci_high']:.3f}]  "
@@ -188,6 +194,8 @@ def main(argv=None):
         for dl in progress(deltas, desc="w_fig6 misalignment"):
             f = integrands.edges([t0 + dl])
             rob[f"{dl:+g}"] = cached(out / "var" / f"misaligned_{t0:g}_{dl:+g}{tag}.json",
+                                     {**ours_settings, "integrand_directions_deg": [t0 + dl],
+                                      "set_directions_deg": [0.0, 90.0, t0]},
                                      lambda f=f: curve(
                 variance_of_sets(f, sets[(0.0, 90.0, t0)], ns, seeds, R, key), ns))
         rob["+0"] = results["cases"][f"one edge {t0:g}"]["ours"]

@@ -170,12 +170,9 @@ SCRIPTS = {p.stem for p in EXPERIMENTS.glob("*.py")} - HARNESS
 OWN_TESTS = {"test_tables.py": {"anisosample._table_build"}}
 
 # What is still to be moved (issue 26): each entry must disappear when its use is fixed; a new
-# use fails the test. Experiments: w_fig10 runs w_fig9's main (and reads its SCALES);
-# h_fig2_defect --before loads an archived copy of h_fig2 / _h_render (git show 74f13ac).
-KNOWN_EXPERIMENT_IMPORTS = {
-    "w_fig10": {"import w_fig9"},
-    "h_fig2_defect": {"import h_fig2", "_h_render._emission_along"},
-}
+# use fails the test. Experiments: none left (w_fig10 runs w_fig9 in its own process,
+# common.run_script; h_fig2_defect lost its --before mode, which loaded archived code).
+KNOWN_EXPERIMENT_IMPORTS: dict[str, set[str]] = {}
 # Tests: none left (each private helper a test used got a public name or is tested through the
 # public API); a new use fails the test.
 KNOWN_TEST_USES: dict[str, set[str]] = {}
@@ -305,3 +302,33 @@ def test_the_test_check_finds_both_rules(tmp_path):
         "imports .test_light_warps.plane", "imports render.test_directions._box",
         "from anisosample.render.xml import _lookat", "anisosample.vmf._fit_reverse_kl_jit",
         "anisosample._table_build._finalize", "anisosample.render.xml._rotation"}}
+
+
+def _own_parsers(folder: Path = EXPERIMENTS) -> dict[str, set[str]]:
+    """Scripts that build an ``argparse.ArgumentParser`` or read ``sys.argv`` themselves instead
+    of starting from ``common.parser`` (``common.py`` itself excepted)."""
+    out = {}
+    for path in sorted(folder.glob("*.py")):
+        if path.stem == "common":
+            continue
+        found = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            name = _dotted(node.func) if isinstance(node, ast.Call) else None
+            if name is not None and name.split(".")[-1] == "ArgumentParser":
+                found.add(f"{name} (line {node.lineno})")
+            if isinstance(node, ast.Attribute) and _dotted(node) == "sys.argv":
+                found.add(f"sys.argv (line {node.lineno})")
+        if found:
+            out[path.stem] = found
+    return out
+
+
+def test_every_experiment_parses_its_arguments_with_common_parser():
+    assert _own_parsers() == {}
+
+
+def test_the_parser_check_finds_both_forms(tmp_path):
+    (tmp_path / "w_fig3.py").write_text(
+        "import argparse\nimport sys\nap = argparse.ArgumentParser()\nN = int(sys.argv[1])\n")
+    assert _own_parsers(tmp_path) == {"w_fig3": {"argparse.ArgumentParser (line 3)",
+                                                  "sys.argv (line 4)"}}
