@@ -149,3 +149,15 @@ def check_devices(name: str, devices) -> list | None:
     if len(set(devs)) != len(devs):
         raise ValueError(f"{name} must be distinct, got {devs}")
     return devs
+
+
+def check_spectrum_grid(name: str, grid) -> np.ndarray:
+    """A centred spectrum grid: a square ``(2r+1, 2r+1)`` array of finite values (the layout of
+    ``spectrum.power_spectrum_grid``), as float64."""
+    g = np.asarray(grid, dtype=np.float64)
+    if g.ndim != 2 or g.shape[0] != g.shape[1] or g.shape[0] % 2 != 1:
+        raise ValueError(f"{name} must be a square centred spectrum of odd side (2r+1, 2r+1), "
+                         f"got shape {g.shape}")
+    if not np.all(np.isfinite(g)):
+        raise ValueError(f"{name} contains NaN or Inf")
+    return g

@@ -278,7 +278,7 @@ def _run_spectrum(args):
     radius = args.radius if args.radius is not None else max(8, int(2 * np.sqrt(n)))
     grid = spectrum.power_spectrum_grid(pts, radius, method=args.method)
     if out.suffix == ".exr":
-        spectrum.save_spectrum_image(out, grid, n=n, overwrite=args.force)
+        plot.save_spectrum_image(out, grid, n=n, overwrite=args.force)
     else:  # a figure: frequency axes, colour bar, marked directions (plot.spectrum_panel)
         plot.save_spectrum_figure(out, grid, n=n, scale=args.scale or "linear", clip=clip,
                                   directions_deg=marks, title=f"power spectrum, {n} points",

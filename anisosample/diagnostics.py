@@ -1,9 +1,11 @@
-"""Where does a pattern's variance come from?  W Eq. 5, one frequency at a time.
+"""Where does a pattern's variance come from?  W Eq. 5, one frequency at a time; and a
+sampler's expected spectrum (:func:`sampler_power_spectrum`, over :func:`sampler_sets`).
 
 For a fixed point set ``S`` under a random toroidal shift, ``Var(I_N) = sum_{v != 0} P_S(v) P_f(v)``
-exactly (W Eq. 5; ``fourier_variance.md`` Sec. 2).  :func:`variance_decomposition` evaluates the
-terms of that sum for an integrand with a closed-form spectrum (``anisosample.integrands``) and
-groups them
+exactly (W Eq. 5; ``fourier_variance.md`` Sec. 2; :func:`anisosample.metrics.predicted_variance`).
+:func:`variance_decomposition` evaluates the terms of that sum
+(:func:`anisosample.metrics.variance_terms`) for an integrand with a closed-form spectrum
+(``anisosample.integrands``) and groups them
 
 * by **region**: near each spectral direction's line (``|v . d_perp| <= band``, the rays of the
   integrand's edges, the axes 0 and 90 degrees included since the square's border is an edge on
@@ -32,8 +34,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import frequencies as _freq
-from . import spectrum
-from ._validate import check_directions_deg, check_points, check_positive_float
+from . import metrics, spectrum
+from ._validate import (
+    check_directions_deg,
+    check_frequencies,
+    check_int,
+    check_key,
+    check_points,
+    check_positive_float,
+)
 
 
 def band_energy(points, direction_deg: float, radius: float = 32.0) -> float:
@@ -48,9 +57,17 @@ def band_energy(points, direction_deg: float, radius: float = 32.0) -> float:
     return float(np.mean(np.asarray(spectrum.power_spectrum(pts, v)))) * pts.shape[0]
 
 
-def _line_bands(theta, r_in, length, band):
-    v = _freq.wedge(theta, length, band, 0.0).astype(np.int64)
-    return v[np.hypot(v[:, 0], v[:, 1]) > r_in]
+def decomposition_frequencies(directions_deg, disk_radius: float, line_length: float,
+                              band: float) -> np.ndarray:
+    """The frequencies :func:`variance_decomposition` sums W Eq. 5 over: the disk
+    ``|v| <= disk_radius`` plus a band of half-width ``band`` along each direction out to
+    ``line_length`` (:func:`anisosample.frequencies.wedge`), one of each ``+-v``, sorted
+    (:func:`anisosample.frequencies.canonical_half`): ``(m, 2)`` int64."""
+    parts = [_freq.disk(disk_radius).astype(np.int64)]
+    for t in directions_deg:
+        v = _freq.wedge(t, line_length, band, 0.0).astype(np.int64)
+        parts.append(v[np.hypot(v[:, 0], v[:, 1]) > disk_radius])  # the disk holds the rest
+    return _freq.canonical_half(np.concatenate(parts)).astype(np.int64)
 
 
 def _power(points64, freqs, dirs):
@@ -109,9 +126,7 @@ def variance_decomposition(points, integrand, *, directions_deg=None, disk_radiu
     if length <= r0:
         raise ValueError(f"line_length must exceed disk_radius ({r0}), got {length}")
 
-    parts = [_freq.disk(r0).astype(np.int64)]
-    parts += [_line_bands(t, r0, length, band) for t in dirs]
-    v = _freq.canonical_half(np.concatenate(parts)).astype(np.int64)
+    v = decomposition_frequencies(dirs, r0, length, band)
     ps = _power(x, v, dirs)
     pf = np.asarray(integrand.power_spectrum(v), np.float64)
 
@@ -126,7 +141,7 @@ def variance_decomposition(points, integrand, *, directions_deg=None, disk_radiu
         best = np.where(take, s, best)
     names = [f"line {t:g} deg" for t in dirs] + ["elsewhere"]
 
-    contrib = 2.0 * ps * pf  # +-v
+    contrib = 2.0 * metrics.variance_terms(ps, pf)  # W Eq. 5's terms, +-v
     white = 2.0 * pf / n
     rad = np.hypot(v[:, 0], v[:, 1])
     kmax = int(math.ceil(math.log2(max(rad.max(), 2.0)))) + 1
@@ -196,3 +211,59 @@ def plot_decomposition(ax, decomp, *, title=None):
     ax.set_title(title or f"W Eq. 5 terms, n={decomp['n']} (dotted: white noise)")
     ax.legend(fontsize=7)
     return ax
+
+
+# --- a sampler's realizations and their expected spectrum -----------------------------------------
+
+
+def sampler_sets(sampler, n, key, realizations: int = 64, *, shift: bool = True):
+    """``realizations`` independent sets of a sampler, stacked: ``(R, n, 2)``.
+
+    ``sampler`` is a sampler name or a callable ``(key, n) -> (n, 2)``; set ``r`` is drawn from
+    the first half of ``split(split(key, R)[r])`` and, with ``shift`` (the default), moved by a
+    toroidal shift drawn from the second. Shifting homogenizes the pattern (W Sec. 2) without
+    changing each set's spectrum, as W Eq. 5's ``<P_S>`` wants. The realizations of
+    :func:`sampler_power_spectrum` and :func:`sampler_power_spectrum_grid`.
+    """
+    n = check_int("n", n, minimum=1)
+    key = check_key("key", key)
+    realizations = check_int("realizations", realizations, minimum=1)
+    return _sampler_sets(sampler, n, key, realizations, shift)
+
+
+def _sampler_sets(sampler, n, key, realizations, shift):
+    from . import samplers as _samplers
+
+    if isinstance(sampler, str):
+        sampler = _samplers.get(sampler)
+    sets = []
+    for k in jax.random.split(key, realizations):
+        k_pts, k_shift = jax.random.split(k)
+        pts = sampler(k_pts, n)
+        sets.append(_samplers.toroidal_shift(k_shift, pts) if shift else jnp.asarray(pts))
+    return jnp.stack(sets)
+
+
+def sampler_power_spectrum(sampler, n, key, freqs, *, realizations: int = 64, shift: bool = True,
+                           method: str = "auto", progress: bool = False):
+    """``<P_S(v)>`` of a sampler (a name or a callable): :func:`anisosample.metrics.
+    expected_power_spectrum` of its :func:`sampler_sets` (shifted by default)."""
+    n = check_int("n", n, minimum=1)
+    key = check_key("key", key)
+    realizations = check_int("realizations", realizations, minimum=1)
+    freqs = check_frequencies("freqs", freqs)
+    method = spectrum.check_method(method)
+    return metrics.expected_power_spectrum(_sampler_sets(sampler, n, key, realizations, shift),
+                                           freqs, method=method, progress=progress)
+
+
+def sampler_power_spectrum_grid(sampler, n, key, radius, *, realizations: int = 64,
+                                shift: bool = True, progress: bool = False):
+    """``<P_S>`` of a sampler on the centred grid of half-width ``radius``
+    (:func:`anisosample.metrics.expected_power_spectrum_grid` of its :func:`sampler_sets`)."""
+    n = check_int("n", n, minimum=1)
+    key = check_key("key", key)
+    realizations = check_int("realizations", realizations, minimum=1)
+    radius = check_int("radius", radius, minimum=1)
+    return metrics.expected_power_spectrum_grid(
+        _sampler_sets(sampler, n, key, realizations, shift), radius, progress=progress)

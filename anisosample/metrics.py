@@ -12,6 +12,14 @@
 * :func:`image_error`, :func:`mse_ratio`, :func:`efficiency`: a rendering technique's MSE (or
   MRSE) against a reference, the paired ratio of two MSEs, Monte Carlo efficiency, each with its
   standard error (H Sec. 4).
+* :func:`expected_power_spectrum`, :func:`expected_power_spectrum_grid`: ``<P_S>`` over a stack
+  of point sets ``(R, n, 2)`` by the one engine (:mod:`anisosample.spectrum`); a sampler's
+  realizations: :func:`anisosample.diagnostics.sampler_sets`.
+* :func:`radial_profile`, :func:`angular_profile`: a centred spectrum's means over rings and
+  over directions.
+* :func:`variance_terms`, :func:`predicted_variance`: W Eq. 5, an estimator's variance from the
+  pattern's and the integrand's spectra (the one implementation; ``diagnostics`` splits it by
+  region).
 """
 
 from __future__ import annotations
@@ -24,7 +32,9 @@ import numpy as np
 from ._validate import check_choice, check_int, check_points
 
 __all__ = ["axial_distance_deg", "nearest_neighbour_distance", "midpoint_grid", "off_axis_deg",
-           "grid_values", "ImageError", "image_error", "mse_ratio", "efficiency"]
+           "grid_values", "ImageError", "image_error", "mse_ratio", "efficiency",
+           "expected_power_spectrum", "expected_power_spectrum_grid", "radial_profile",
+           "angular_profile", "variance_terms", "predicted_variance"]
 
 INDEXINGS = ("xy", "ij")
 
@@ -180,3 +190,155 @@ def efficiency(mse: float, seconds: float, mse_stderr: float | None = None):
     if mse_stderr is None:
         return eff
     return eff, eff * mse_stderr / mse
+
+
+# --- power spectra of stacks of sets, and their profiles ------------------------------------------
+
+
+def _check_sets(sets):
+    """A stack of point sets ``(R, n, 2)``, ``R >= 1`` (each set is checked by the engine)."""
+    shape = getattr(sets, "shape", None)
+    if shape is None:
+        sets = np.asarray(sets)
+        shape = sets.shape
+    if len(shape) != 3 or shape[-1] != 2 or shape[0] < 1 or shape[1] < 1:
+        raise ValueError("sets must be a stack of point sets of shape (R, n, 2) with R, n >= 1, "
+                         f"got shape {tuple(shape)}")
+    return sets
+
+
+def _mean_over_sets(sets, spectrum_of, progress):
+    """``mean_r spectrum_of(sets[r])``, summed in the stack's order, then divided by ``R``."""
+    from .progress import progress as _progress
+
+    acc = None
+    for pts in _progress(sets, desc="expected spectrum", disable=not progress):
+        p = spectrum_of(pts)
+        acc = p if acc is None else acc + p
+    return acc / sets.shape[0]
+
+
+def expected_power_spectrum(sets, freqs, *, method: str = "auto", progress: bool = False):
+    """``<P_S(v)>``: the mean of :func:`anisosample.spectrum.power_spectrum` over a stack of
+    point sets ``sets`` ``(R, n, 2)`` (realizations of a sampler, e.g.
+    :func:`anisosample.diagnostics.sampler_sets`), at integer ``freqs`` ``(m, 2)``: ``(m,)``.
+    Shifted realizations give the homogenized pattern's spectrum, the ``<P_S>`` of W Eq. 5."""
+    from . import spectrum
+    from ._validate import check_frequencies
+
+    sets = _check_sets(sets)
+    freqs = check_frequencies("freqs", freqs)
+    method = spectrum.check_method(method)
+    return _mean_over_sets(sets, lambda pts: spectrum.power_spectrum(pts, freqs, method=method),
+                           progress)
+
+
+def expected_power_spectrum_grid(sets, radius: int, *, method: str = "auto",
+                                 progress: bool = False):
+    """``<P_S>`` over a stack of sets ``(R, n, 2)`` on the centred grid of half-width
+    ``radius`` (:func:`anisosample.spectrum.power_spectrum_grid`'s layout)."""
+    from . import spectrum
+
+    sets = _check_sets(sets)
+    radius = check_int("radius", radius, minimum=1)
+    method = spectrum.check_method(method)
+    return _mean_over_sets(
+        sets, lambda pts: spectrum.power_spectrum_grid(pts, radius, method=method), progress)
+
+
+def _grid_coords(grid):
+    from ._validate import check_spectrum_grid
+
+    g = check_spectrum_grid("grid", grid)
+    r = g.shape[0] // 2
+    k = np.arange(-r, r + 1)
+    vx, vy = np.meshgrid(k, k, indexing="xy")
+    return g, r, vx, vy
+
+
+def radial_profile(grid) -> tuple[np.ndarray, np.ndarray]:
+    """Mean of a centred spectrum over rings of integer radius ``round(|v|)``, ``v != 0``.
+
+    Returns ``(radii, means)`` for radii ``1..r``.
+    """
+    g, r, vx, vy = _grid_coords(grid)
+    rad = np.rint(np.hypot(vx, vy)).astype(int)
+    mask = (rad >= 1) & (rad <= r)
+    sums = np.bincount(rad[mask], weights=g[mask], minlength=r + 1)
+    counts = np.bincount(rad[mask], minlength=r + 1)
+    radii = np.arange(1, r + 1)
+    return radii, sums[1:] / np.maximum(counts[1:], 1)
+
+
+def angular_profile(
+    grid, *, r_min: float = 1.0, r_max: float | None = None, bins: int = 180
+) -> tuple[np.ndarray, np.ndarray]:
+    """Mean of a centred spectrum per spectral direction (axial, degrees in ``[0, 180)``).
+
+    Only frequencies with ``r_min <= |v| <= r_max`` count. Returns ``(bin centres, means)``;
+    empty bins are NaN-free (0 with a count of 0 is reported as 0).
+    """
+    g, r, vx, vy = _grid_coords(grid)
+    bins = check_int("bins", bins, minimum=1)
+    r_max = float(r) if r_max is None else float(r_max)
+    if not 0 <= r_min < r_max:
+        raise ValueError(f"need 0 <= r_min < r_max, got r_min={r_min}, r_max={r_max}")
+    rad = np.hypot(vx, vy)
+    ang = np.degrees(np.arctan2(vy, vx)) % 180.0
+    mask = (rad >= r_min) & (rad <= r_max)
+    idx = np.minimum((ang[mask] / 180.0 * bins).astype(int), bins - 1)
+    sums = np.bincount(idx, weights=g[mask], minlength=bins)
+    counts = np.bincount(idx, minlength=bins)
+    centres = (np.arange(bins) + 0.5) * 180.0 / bins
+    return centres, sums / np.maximum(counts, 1)
+
+
+# --- W Eq. 5: an estimator's variance from the spectra --------------------------------------------
+
+
+def variance_terms(P_S, P_f, freqs=None, *, xp=np):
+    """The terms ``<P_S(v)> P_f(v)`` of W Eq. 5, one per frequency given.
+
+    ``P_S``: the (expected) power spectrum of the pattern (``P_S(0) = 1``, white noise ``1/N``);
+    ``P_f``: the integrand's ``|F_f(v)|^2`` (e.g. ``f.power_spectrum(freqs)``), the same shape.
+    ``xp=numpy`` (default): checked (same shape, finite, non-negative), in float64; with
+    ``freqs`` (shape ``P_S.shape + (2,)``) the zero frequency's term is dropped. ``xp=jax.numpy``:
+    traceable and unchecked, in the inputs' precision; with ``freqs`` the zero frequency's term is
+    0 (the shape stays).
+    """
+    if xp is jnp:
+        t = jnp.asarray(P_S) * jnp.asarray(P_f)
+        if freqs is not None:
+            t = jnp.where(jnp.any(jnp.asarray(freqs) != 0, axis=-1), t, 0)
+        return t
+    if xp is not np:
+        raise ValueError(f"xp must be numpy or jax.numpy, got {xp!r}")
+    ps = np.asarray(P_S, dtype=np.float64)
+    pf = np.asarray(P_f, dtype=np.float64)
+    if ps.shape != pf.shape:
+        raise ValueError(f"P_S and P_f must have the same shape, got {ps.shape} and {pf.shape}")
+    if not (np.all(np.isfinite(ps)) and np.all(np.isfinite(pf))):
+        raise ValueError("P_S and P_f must be finite")
+    if np.any(ps < 0) or np.any(pf < 0):
+        raise ValueError("P_S and P_f must be non-negative (they are power spectra)")
+    if freqs is not None:
+        v = np.asarray(freqs)
+        if v.shape != ps.shape + (2,):
+            raise ValueError(f"freqs must have shape {ps.shape + (2,)}, got {v.shape}")
+        keep = np.any(v != 0, axis=-1)
+        ps, pf = ps[keep], pf[keep]
+    return ps * pf
+
+
+def predicted_variance(P_S, P_f, freqs=None, *, xp=np):
+    """W Eq. 5: ``Var(I_N) = sum_{v != 0} <P_S(v)> P_f(v)`` over the given frequencies: the sum
+    of :func:`variance_terms` (a float with ``xp=numpy``; a traceable scalar with
+    ``xp=jax.numpy``, e.g. to differentiate the prediction through a synthesis).
+
+    Exact for a fixed set under a random toroidal shift (``fourier_variance.md`` Sec. 2). The
+    sum is truncated to the frequencies given: for a jump integrand the missing tail beyond
+    radius ``K`` is about ``(edge length)^2 / (2 pi^2 N K)`` for a pattern that is white there.
+    Without ``freqs`` the caller must have left the zero frequency out.
+    """
+    t = variance_terms(P_S, P_f, freqs, xp=xp)
+    return jnp.sum(t) if xp is jnp else float(np.sum(t))

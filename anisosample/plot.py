@@ -1,4 +1,6 @@
-"""Matplotlib helpers shared by the experiment scripts, so every figure reads the same way."""
+"""Matplotlib helpers shared by the experiment scripts, so every figure reads the same way, and
+the pictures of spectra (:func:`save_spectrum_figure`, a figure; :func:`save_spectrum_image`,
+one pixel per frequency or the raw grid as EXR)."""
 
 from __future__ import annotations
 
@@ -8,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["new_figure", "spectrum_image", "spectrum_panel", "save_spectrum_figure", "points_panel",
+__all__ = ["new_figure", "spectrum_image", "spectrum_panel", "save_spectrum_figure",
+           "save_spectrum_image", "points_panel",
            "convergence_panel", "save_figure", "save_points_figure", "direction_rgb",
            "axial_colormap", "direction_map_rgb", "direction_map_panel", "direction_legend",
            "save_direction_map", "SPECTRUM_SCALES", "LOG_FLOOR", "NO_ESTIMATE_RGB"]
@@ -67,14 +70,9 @@ def spectrum_image(grid, *, n: int, scale: str = "linear", clip: float | None = 
     with ``origin="lower"``. ``clip`` (a multiple of white noise, or None) caps the values;
     ``scale="log"`` also raises them to ``log_floor`` (the log scale's bottom), nothing else.
     """
-    from ._validate import check_choice, check_int, check_positive_float
+    from ._validate import check_choice, check_int, check_positive_float, check_spectrum_grid
 
-    g = np.asarray(grid, dtype=np.float64)
-    if g.ndim != 2 or g.shape[0] != g.shape[1] or g.shape[0] % 2 != 1:
-        raise ValueError(f"grid must be a square centred spectrum of odd side (2r+1, 2r+1), "
-                         f"got shape {g.shape}")
-    if not np.all(np.isfinite(g)):
-        raise ValueError("grid contains NaN or Inf")
+    g = check_spectrum_grid("grid", grid)
     n = check_int("n", n, minimum=1)
     scale = check_choice("scale", scale, SPECTRUM_SCALES)
     clip = _check_clip(clip)
@@ -190,6 +188,46 @@ def save_spectrum_figure(path, grid, *, n: int, scale: str = "linear",
         raise
     (out,) = save_figure(fig, path, formats=(fmt,), overwrite=overwrite)
     return out
+
+
+def save_spectrum_image(path, grid, *, n: int, vmax: float = 2.0, overwrite: bool = False) -> Path:
+    """Save a centred spectrum as PNG (``N P_S`` clipped to ``[0, vmax]``, grey) or EXR (``P_S``).
+
+    The PNG is a picture, upright: ``v_y`` grows upwards, ``v_x`` to the right, ``v = 0`` at the
+    centre. The EXR is data: the grid itself, ``values[i, j] = P_S(j - r, i - r)`` (DESIGN's
+    grid convention, no flip: ``io.read_exr`` / ``io.load_grid`` give back ``grid``, and an EXR
+    viewer shows ``v_y`` growing downwards), with ``n``, ``radius`` and that layout in its
+    metadata (``io.read_exr(path, metadata=True)``). The PNG is one pixel per frequency, without
+    axes; :func:`save_spectrum_figure` draws the figure a person reads (frequency
+    axes, colour bar, linear or log scale, optional clip, marked directions).
+    """
+    from . import io
+    from ._validate import check_int, check_positive_float, check_spectrum_grid
+
+    path = Path(path)
+    g = check_spectrum_grid("grid", grid)
+    n = check_int("n", n, minimum=1)
+    vmax = check_positive_float("vmax", vmax)  # vmax <= 0 or NaN gave a blank/garbled picture
+    upright = g[::-1]
+    if path.suffix == ".exr":
+        return io.write_exr(
+            path,
+            g.astype(np.float32),  # the grid, not the upright picture (issue 27)
+            {"quantity": "P_S (white noise = 1/n)", "n": n, "radius": (g.shape[0] - 1) // 2,
+             "layout": "values[i, j] = P_S(v_x = j - radius, v_y = i - radius); row 0 is "
+                       "v_y = -radius (DESIGN grid, no image flip)"},
+            overwrite=overwrite,
+        )
+    if path.suffix == ".png":
+        return io.save_png(
+            path,
+            np.clip(n * upright, 0.0, vmax),
+            cmap="gray",
+            vmin=0.0,
+            vmax=vmax,
+            overwrite=overwrite,
+        )
+    raise ValueError(f"path must end in .png or .exr, got {path.name}")
 
 
 def points_panel(ax, points, *, title: str | None = None, color: str = "k",

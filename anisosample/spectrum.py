@@ -1,12 +1,13 @@
-"""Power spectra of point sets (W Eq. 6): the one engine, expected spectra, profiles, pictures.
+"""Power spectra of point sets (W Eq. 6): the one engine.
 
 ``F_S(v) = (1/N) sum_j exp(-2 pi i v . x_j)`` and ``P_S(v) = |F_S(v)|^2`` for integer ``v``, so
 ``P_S(0) = 1`` and white noise has ``<P_S(v)> = 1/N``. Plots show ``N P_S`` (white noise -> 1).
 
 One engine evaluates ``P_S`` for everything in the package (:func:`power_spectrum`, the losses of
-:mod:`anisosample.losses`, :mod:`anisosample.diagnostics`): :func:`grouped_power_spectrum` on a
-:class:`~anisosample.frequencies.FrequencySet`, one group (frequencies near one direction) at a
-time, by one of three methods (:data:`METHODS`):
+:mod:`anisosample.losses`, the expected spectra and profiles of :mod:`anisosample.metrics`,
+:mod:`anisosample.diagnostics`; pictures: :mod:`anisosample.plot`):
+:func:`grouped_power_spectrum` on a :class:`~anisosample.frequencies.FrequencySet`, one group
+(frequencies near one direction) at a time, by one of three methods (:data:`METHODS`):
 
 ``"direct"``  the sum itself, chunked over frequencies (the reference; O(n m)). The phase
               ``v . x`` is reduced modulo 1 before it is scaled by ``2 pi``; in float32 it is
@@ -52,7 +53,6 @@ from __future__ import annotations
 import functools
 import math
 import os
-from pathlib import Path
 from typing import NamedTuple
 
 import equinox as eqx
@@ -64,7 +64,6 @@ from ._validate import (
     check_choice,
     check_frequencies,
     check_int,
-    check_key,
     check_points,
     check_positive_float,
 )
@@ -92,11 +91,6 @@ __all__ = [
     "rotation",
     "Box",
     "frequency_grid",
-    "expected_power_spectrum",
-    "expected_power_spectrum_grid",
-    "radial_profile",
-    "angular_profile",
-    "save_spectrum_image",
     "white_noise_level",
 ]
 
@@ -687,165 +681,3 @@ def power_spectrum_grid(points, radius: int, *, method: str = "auto"):
     else:
         vals = power_spectrum(pts, frequency_grid(r), method=method)
     return vals.reshape(side, side)
-
-
-# --- expected spectra over realizations -----------------------------------------------------------
-
-
-def _average_over_realizations(sampler, n, key, realizations, shift, progress, spectrum_of):
-    """``mean_r spectrum_of(S_r)`` over independent (optionally shifted) sets ``S_r``.
-
-    The one loop behind :func:`expected_power_spectrum` and :func:`expected_power_spectrum_grid`;
-    the arguments are already validated (the sampler may be a name).
-    """
-    from . import samplers as _samplers
-    from .progress import progress as _progress
-
-    if isinstance(sampler, str):
-        sampler = _samplers.get(sampler)
-    acc = None
-    for k in _progress(
-        jax.random.split(key, realizations), desc="expected spectrum", disable=not progress
-    ):
-        k_pts, k_shift = jax.random.split(k)
-        pts = sampler(k_pts, n)
-        p = spectrum_of(_samplers.toroidal_shift(k_shift, pts) if shift else pts)
-        acc = p if acc is None else acc + p
-    return acc / realizations
-
-
-def expected_power_spectrum(
-    sampler,
-    n,
-    key,
-    freqs,
-    *,
-    realizations: int = 64,
-    shift: bool = True,
-    method: str = "auto",
-    progress: bool = False,
-):
-    """``<P_S(v)>`` averaged over ``realizations`` independent point sets (shifted by default).
-
-    ``sampler`` is a sampler name or a callable ``(key, n) -> (n, 2)``. Shifting homogenizes the
-    pattern (W Sec. 2) without changing each set's spectrum; it matters only for the sets'
-    positions, so it is on by default for use with W Eq. 5.
-    """
-    n = check_int("n", n, minimum=1)
-    key = check_key("key", key)
-    realizations = check_int("realizations", realizations, minimum=1)
-    freqs = check_frequencies("freqs", freqs)
-    method = check_method(method)
-    return _average_over_realizations(
-        sampler, n, key, realizations, shift, progress,
-        lambda pts: power_spectrum(pts, freqs, method=method),
-    )  # fmt: skip
-
-
-def expected_power_spectrum_grid(
-    sampler, n, key, radius, *, realizations: int = 64, shift: bool = True, progress: bool = False
-):
-    """``<P_S>`` on the centred grid of half-width ``radius`` (see :func:`power_spectrum_grid`)."""
-    n = check_int("n", n, minimum=1)
-    key = check_key("key", key)
-    realizations = check_int("realizations", realizations, minimum=1)
-    radius = check_int("radius", radius, minimum=1)
-    return _average_over_realizations(
-        sampler, n, key, realizations, shift, progress,
-        lambda pts: power_spectrum_grid(pts, radius),
-    )  # fmt: skip
-
-
-# --- profiles -------------------------------------------------------------------------------------
-
-
-def _grid_coords(grid):
-    g = np.asarray(grid)
-    if g.ndim != 2 or g.shape[0] != g.shape[1] or g.shape[0] % 2 == 0:
-        raise ValueError(f"grid must be a centred (2r+1, 2r+1) spectrum, got shape {g.shape}")
-    if not np.all(np.isfinite(g)):
-        raise ValueError("grid must be finite (it holds NaN or Inf values)")
-    r = g.shape[0] // 2
-    k = np.arange(-r, r + 1)
-    vx, vy = np.meshgrid(k, k, indexing="xy")
-    return g, r, vx, vy
-
-
-def radial_profile(grid) -> tuple[np.ndarray, np.ndarray]:
-    """Mean of a centred spectrum over rings of integer radius ``round(|v|)``, ``v != 0``.
-
-    Returns ``(radii, means)`` for radii ``1..r``.
-    """
-    g, r, vx, vy = _grid_coords(grid)
-    rad = np.rint(np.hypot(vx, vy)).astype(int)
-    mask = (rad >= 1) & (rad <= r)
-    sums = np.bincount(rad[mask], weights=g[mask], minlength=r + 1)
-    counts = np.bincount(rad[mask], minlength=r + 1)
-    radii = np.arange(1, r + 1)
-    return radii, sums[1:] / np.maximum(counts[1:], 1)
-
-
-def angular_profile(
-    grid, *, r_min: float = 1.0, r_max: float | None = None, bins: int = 180
-) -> tuple[np.ndarray, np.ndarray]:
-    """Mean of a centred spectrum per spectral direction (axial, degrees in ``[0, 180)``).
-
-    Only frequencies with ``r_min <= |v| <= r_max`` count. Returns ``(bin centres, means)``;
-    empty bins are NaN-free (0 with a count of 0 is reported as 0).
-    """
-    g, r, vx, vy = _grid_coords(grid)
-    bins = check_int("bins", bins, minimum=1)
-    r_max = float(r) if r_max is None else float(r_max)
-    if not 0 <= r_min < r_max:
-        raise ValueError(f"need 0 <= r_min < r_max, got r_min={r_min}, r_max={r_max}")
-    rad = np.hypot(vx, vy)
-    ang = np.degrees(np.arctan2(vy, vx)) % 180.0
-    mask = (rad >= r_min) & (rad <= r_max)
-    idx = np.minimum((ang[mask] / 180.0 * bins).astype(int), bins - 1)
-    sums = np.bincount(idx, weights=g[mask], minlength=bins)
-    counts = np.bincount(idx, minlength=bins)
-    centres = (np.arange(bins) + 0.5) * 180.0 / bins
-    return centres, sums / np.maximum(counts, 1)
-
-
-# --- pictures -------------------------------------------------------------------------------------
-
-
-def save_spectrum_image(path, grid, *, n: int, vmax: float = 2.0, overwrite: bool = False) -> Path:
-    """Save a centred spectrum as PNG (``N P_S`` clipped to ``[0, vmax]``, grey) or EXR (``P_S``).
-
-    The PNG is a picture, upright: ``v_y`` grows upwards, ``v_x`` to the right, ``v = 0`` at the
-    centre. The EXR is data: the grid itself, ``values[i, j] = P_S(j - r, i - r)`` (DESIGN's
-    grid convention, no flip: ``io.read_exr`` / ``io.load_grid`` give back ``grid``, and an EXR
-    viewer shows ``v_y`` growing downwards), with ``n``, ``radius`` and that layout in its
-    metadata (``io.read_exr(path, metadata=True)``). The PNG is one pixel per frequency, without
-    axes; :func:`anisosample.plot.save_spectrum_figure` draws the figure a person reads (frequency
-    axes, colour bar, linear or log scale, optional clip, marked directions).
-    """
-    from . import io
-
-    path = Path(path)
-    g = np.asarray(grid, dtype=np.float64)
-    _grid_coords(g)
-    n = check_int("n", n, minimum=1)
-    vmax = check_positive_float("vmax", vmax)  # vmax <= 0 or NaN gave a blank/garbled picture
-    upright = g[::-1]
-    if path.suffix == ".exr":
-        return io.write_exr(
-            path,
-            g.astype(np.float32),  # the grid, not the upright picture (issue 27)
-            {"quantity": "P_S (white noise = 1/n)", "n": n, "radius": (g.shape[0] - 1) // 2,
-             "layout": "values[i, j] = P_S(v_x = j - radius, v_y = i - radius); row 0 is "
-                       "v_y = -radius (DESIGN grid, no image flip)"},
-            overwrite=overwrite,
-        )
-    if path.suffix == ".png":
-        return io.save_png(
-            path,
-            np.clip(n * upright, 0.0, vmax),
-            cmap="gray",
-            vmin=0.0,
-            vmax=vmax,
-            overwrite=overwrite,
-        )
-    raise ValueError(f"path must end in .png or .exr, got {path.name}")

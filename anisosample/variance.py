@@ -6,8 +6,9 @@ over *randomizations* of the pattern, chosen explicitly with ``randomization``:
 * ``"shift"`` -- one fixed pattern (or ``patterns`` fixed patterns) moved by independent
   toroidal shifts ``(x + t) mod 1`` (Cranley-Patterson; W Sec. 5.4 decorrelates its precomputed
   sets this way). For a fixed set this is exactly ``sum_{v != 0} P_S(v) P_f(v)`` (W Eq. 5;
-  Pilleboue et al. 2015). The only sensible choice for deterministic
-  or precomputed sets (optimized sets, tables) and for slow constructions (pmj02, pmj02bn).
+  Pilleboue et al. 2015; :func:`anisosample.metrics.predicted_variance`). The only sensible
+  choice for deterministic or precomputed sets (optimized sets, tables) and for slow
+  constructions (pmj02, pmj02bn).
 * ``"fresh"`` -- a new pattern per realization from a new key (new jitter, new Owen scramble,
   new permutation): the sampler's own randomization, what a renderer does per pixel.
 * ``"fresh+shift"`` -- both: the homogenized pattern for which W Eq. 5 holds with the expected
@@ -51,7 +52,6 @@ __all__ = [
     "variance_from_estimates",
     "fit_slope",
     "convergence",
-    "predicted_variance",
 ]
 
 RANDOMIZATIONS = ("auto", "shift", "fresh", "fresh+shift")
@@ -668,33 +668,3 @@ def convergence(
         )
     bar.close()
     return ConvergenceResult(ns, estimates, fits)
-
-
-# --- the spectral prediction -----------------------------------------------------------------
-
-
-def predicted_variance(P_S, P_f, freqs=None) -> float:
-    """W Eq. 5: ``Var(I_N) = sum_{v != 0} <P_S(v)> P_f(v)`` over the given frequencies (float64).
-
-    ``P_S``: the (expected) power spectrum of the pattern, normalised so that ``P_S(0) = 1`` and
-    white noise has ``1/N``; ``P_f``: the integrand's power spectrum ``|F_f(v)|^2`` (e.g.
-    ``f.power_spectrum(freqs)``), both over the same frequencies. With ``freqs`` the zero
-    frequency is dropped; without, the caller must have left it out. The sum is truncated to
-    the frequencies given: for a jump integrand the missing tail beyond radius ``K`` is about
-    ``(edge length)^2 / (2 pi^2 N K)`` for a pattern that is white there.
-    """
-    ps = np.asarray(P_S, dtype=np.float64)
-    pf = np.asarray(P_f, dtype=np.float64)
-    if ps.shape != pf.shape:
-        raise ValueError(f"P_S and P_f must have the same shape, got {ps.shape} and {pf.shape}")
-    if not (np.all(np.isfinite(ps)) and np.all(np.isfinite(pf))):
-        raise ValueError("P_S and P_f must be finite")
-    if np.any(ps < 0) or np.any(pf < 0):
-        raise ValueError("P_S and P_f must be non-negative (they are power spectra)")
-    if freqs is not None:
-        v = np.asarray(freqs)
-        if v.shape != ps.shape + (2,):
-            raise ValueError(f"freqs must have shape {ps.shape + (2,)}, got {v.shape}")
-        keep = np.any(v != 0, axis=-1)
-        ps, pf = ps[keep], pf[keep]
-    return float(np.sum(ps * pf))

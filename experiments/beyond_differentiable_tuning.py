@@ -297,15 +297,6 @@ def _relaxed_design(n, theta, max_factor):
     return v.astype(np.float64), w, np.abs(v @ d), only_long
 
 
-def _eval_set(n, theta, radius, length):
-    """Frequencies for W Eq. 5 (one of each +-v): a disk plus bands of half-width 2 along 0, 90
-    and ``theta`` out to ``length`` (as ``diagnostics.variance_decomposition``, no tail)."""
-    from anisosample import frequencies as F
-
-    parts = [F.disk(radius)] + [F.wedge(t, length, 2.0) for t in (0.0, 90.0, theta)]
-    return F.canonical_half(np.concatenate(parts)).astype(np.float64)
-
-
 def synthesis_gradient(settings):
     """d(predicted variance)/d(band length) by unrolled Adam vs central finite differences:
     the library's objective (``optimizer.objective`` on the relaxed design), the rate recipe's
@@ -315,7 +306,11 @@ def synthesis_gradient(settings):
     n, steps, theta, tau = settings["n"], settings["steps"], settings["theta"], settings["tau"]
     v, w, t, only_long = _relaxed_design(n, theta, settings["max_factor"])
     edge = asp.integrands.HalfPlane.through((0.5, 0.5), theta)
-    v_eval = _eval_set(n, theta, settings["eval_radius"], settings["eval_length"])
+    # W Eq. 5's frequencies (one of each +-v): diagnostics.variance_decomposition's disk plus
+    # bands of half-width 2 along 0, 90 and theta (no tail)
+    v_eval = asp.diagnostics.decomposition_frequencies(
+        (0.0, 90.0, theta), settings["eval_radius"], settings["eval_length"], 2.0
+    ).astype(np.float64)
     pf = 2.0 * edge.power_spectrum(v_eval.astype(np.int64))  # both +-v
     l0 = float(n**0.8)
     out = {
@@ -340,7 +335,8 @@ def synthesis_gradient(settings):
             return O.minimize(eqx.tree_at(lambda o: o.weights, base, wj * mask), adam, x0)
 
         def predicted(length, x0):
-            return jnp.sum(pfj * asp.spectrum.power_spectrum_autodiff(synth(length, x0), vej))
+            ps = asp.spectrum.power_spectrum_autodiff(synth(length, x0), vej)
+            return asp.metrics.predicted_variance(ps, pfj, xp=jnp)
 
         value_and_grad = jax.jit(jax.value_and_grad(predicted))
         value = jax.jit(predicted)
@@ -372,8 +368,8 @@ def synthesis_gradient(settings):
         out["library_total_seed0"] = float(lib["total"])
         # The no-warp reference: the initial jittered sets' predicted variance.
         x_init = jnp.asarray(asp.samplers.get("jittered")(jax.random.key(1000), n), jnp.float64)
-        out["jittered_variance"] = float(jnp.sum(pfj * asp.spectrum.power_spectrum_autodiff(
-            x_init, vej)))
+        out["jittered_variance"] = float(asp.metrics.predicted_variance(
+            asp.spectrum.power_spectrum_autodiff(x_init, vej), pfj, xp=jnp))
     var = np.array([r["variance"] for r in rows])
     grads = np.array([r["gradient"] for r in rows])
     out["seeds"] = rows

@@ -14,7 +14,7 @@ import jax
 import numpy as np
 
 import anisosample as asp
-from anisosample import plot, spectrum
+from anisosample import plot
 
 NAME = "w_fig5_baselines"
 SHEAR_DEG = 30.0
@@ -49,7 +49,7 @@ def main(argv=None):
             continue
         sampler = asp.samplers.get(name, **opts)
         grids[label] = np.asarray(
-            spectrum.expected_power_spectrum_grid(
+            asp.diagnostics.sampler_power_spectrum_grid(
                 sampler,
                 n,
                 jax.random.fold_in(key, i),
@@ -67,9 +67,9 @@ def main(argv=None):
     for j, (label, g) in enumerate(grids.items()):
         dirs = [0.0, 90.0] if "sheared" not in label else [SHEAR_DEG, 90.0]
         plot.spectrum_panel(axes[0, j], g, n=n, title=label, directions_deg=[])
-        spectrum.save_spectrum_image(out / f"{label.replace(' ', '_')}.exr", g, n=n, overwrite=True)
-        radii, rad = spectrum.radial_profile(g)
-        centres, ang = spectrum.angular_profile(g, r_min=8, r_max=radius, bins=90)
+        plot.save_spectrum_image(out / f"{label.replace(' ', '_')}.exr", g, n=n, overwrite=True)
+        radii, rad = asp.metrics.radial_profile(g)
+        centres, ang = asp.metrics.angular_profile(g, r_min=8, r_max=radius, bins=90)
         axes[1, j].plot(radii, n * rad, lw=1)
         axes[1, j].axhline(1.0, color="k", lw=0.5, ls=":")
         axes[1, j].set_xlabel("|v|")

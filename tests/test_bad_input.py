@@ -355,10 +355,10 @@ api("spectrum-grid-radius-negative", lambda d: A().spectrum.power_spectrum_grid(
     ValueError, r"radius must be >= 1", owner="spectrum")
 api("spectrum-grid-radius-float", lambda d: A().spectrum.power_spectrum_grid(PTS, 2.5),
     TypeError, r"radius must be an integer", owner="spectrum")
-api("spectrum-save-wrong-suffix", lambda d: A().spectrum.save_spectrum_image(
-    d / "s.jpg", np.ones((5, 5)), n=16), ValueError, r"\.png|\.exr", owner="spectrum")
-api("spectrum-radial-profile-nan", lambda d: A().spectrum.radial_profile(
-    np.full((5, 5), NAN)), ValueError, r"grid.*(NaN|finite)", owner="spectrum")
+api("plot-save-spectrum-image-wrong-suffix", lambda d: A().plot.save_spectrum_image(
+    d / "s.jpg", np.ones((5, 5)), n=16), ValueError, r"\.png|\.exr", owner="plot")
+api("metrics-radial-profile-nan", lambda d: A().metrics.radial_profile(
+    np.full((5, 5), NAN)), ValueError, r"grid.*(NaN|finite)", owner="metrics")
 api("spectrum-grid-radius-huge", lambda d: A().spectrum.power_spectrum_grid(PTS, 100000),
     ValueError, r"radius.*(GB|GiB|MB|MiB|bytes|memory)", owner="spectrum")
 
@@ -431,16 +431,18 @@ api("selection-aligned-k-three", lambda d: A().samplers.get("aligned", direction
     k=3), ValueError, r"k must be <= 2", owner="selection")
 api("selection-aligned-fallback", lambda d: A().samplers.get("aligned", directions_deg=[30.0],
     fallback="aligned"), ValueError, r"fallback must be one of", owner="selection")
-api("spectrum-angular-bins-zero", lambda d: A().spectrum.angular_profile(np.ones((5, 5)),
-    bins=0), ValueError, r"bins must be >= 1", owner="spectrum")
-api("spectrum-angular-r-min-negative", lambda d: A().spectrum.angular_profile(np.ones((5, 5)),
-    r_min=-1.0), ValueError, r"r_min", owner="spectrum")
-api("spectrum-radial-3d", lambda d: A().spectrum.radial_profile(np.ones((5, 5, 5))), ValueError,
-    r"grid must be a centred", owner="spectrum")
-api("spectrum-save-nan-grid", lambda d: A().spectrum.save_spectrum_image(d / "o_nan.png",
-    np.full((5, 5), NAN), n=16), ValueError, r"NaN or Inf", owner="spectrum")
-api("spectrum-save-n-zero", lambda d: A().spectrum.save_spectrum_image(d / "o_n0.png",
-    np.ones((5, 5)), n=0), ValueError, r"n must be >= 1", owner="spectrum")
+api("metrics-angular-bins-zero", lambda d: A().metrics.angular_profile(np.ones((5, 5)),
+    bins=0), ValueError, r"bins must be >= 1", owner="metrics")
+api("metrics-angular-r-min-negative", lambda d: A().metrics.angular_profile(np.ones((5, 5)),
+    r_min=-1.0), ValueError, r"r_min", owner="metrics")
+api("metrics-radial-3d", lambda d: A().metrics.radial_profile(np.ones((5, 5, 5))), ValueError,
+    r"grid must be a square centred spectrum", owner="metrics")
+api("metrics-expected-spectrum-one-set", lambda d: A().metrics.expected_power_spectrum(PTS, F),
+    ValueError, r"sets must be a stack of point sets of shape \(R, n, 2\)", owner="metrics")
+api("plot-save-spectrum-image-nan-grid", lambda d: A().plot.save_spectrum_image(
+    d / "o_nan.png", np.full((5, 5), NAN), n=16), ValueError, r"NaN or Inf", owner="plot")
+api("plot-save-spectrum-image-n-zero", lambda d: A().plot.save_spectrum_image(d / "o_n0.png",
+    np.ones((5, 5)), n=0), ValueError, r"n must be >= 1", owner="plot")
 
 # --- synthesis ---------------------------------------------------------------------------------
 
@@ -775,8 +777,8 @@ api("variance-fit-slope-confidence", lambda d: A().variance.fit_slope([16, 64, 2
     [1e-3, 1e-4, 1e-5], confidence=1.5), ValueError, r"confidence must lie in \(0, 1\)", owner=R)
 api("variance-from-estimates-nan", lambda d: A().variance.variance_from_estimates(
     np.array([0.1, NAN, 0.3])), ValueError, r"NaN or Inf estimates", owner=R)
-api("variance-predicted-shapes", lambda d: A().variance.predicted_variance(np.ones(4),
-    np.ones(5)), ValueError, r"(shape|same)", owner=R)
+api("metrics-predicted-variance-shapes", lambda d: A().metrics.predicted_variance(np.ones(4),
+    np.ones(5)), ValueError, r"(shape|same)", owner="metrics")
 
 # --- warps -------------------------------------------------------------------------------------
 

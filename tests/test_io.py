@@ -203,14 +203,14 @@ def test_exr_keeps_rows_and_metadata(tmp_path):
 def test_spectrum_exr_keeps_a_30_degree_line_at_30_degrees(tmp_path):
     """Issue 27: the spectrum EXR came back flipped, a 30-degree line at 150 degrees. Energy put
     along 30 degrees in a power_spectrum_grid-shaped grid comes back from io at 30."""
-    from anisosample import spectrum
+    from anisosample import metrics, plot
 
     r = 24
     k = np.arange(-r, r + 1)
     vx, vy = np.meshgrid(k, k, indexing="xy")  # grid[i, j] = P(v_x = j - r, v_y = i - r)
     angle = np.degrees(np.arctan2(vy, vx)) % 180
     grid = ((np.abs(angle - 30) < 3) & (np.hypot(vx, vy) > 4)).astype(np.float64)
-    path = spectrum.save_spectrum_image(tmp_path / "s.exr", grid, n=64)
+    path = plot.save_spectrum_image(tmp_path / "s.exr", grid, n=64)
     for back in (io.read_exr(path), io.load_grid(path)):
-        centers, profile = spectrum.angular_profile(back, bins=36)
+        centers, profile = metrics.angular_profile(back, bins=36)
         assert abs(centers[np.argmax(profile)] - 30) <= 5

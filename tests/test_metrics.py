@@ -6,8 +6,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import brute_force_spectrum
 
-from anisosample import directions, metrics
+from anisosample import directions, metrics, samplers, spectrum
 
 
 def test_axial_distance_closed_forms():
@@ -187,3 +188,114 @@ def test_image_error_rejects_bad_shapes():
         metrics.image_error(np.zeros((1, 3)), np.zeros(3))
     with pytest.raises(ValueError, match="estimates"):
         metrics.image_error(np.zeros((4, 3)), np.zeros(2))
+
+
+def test_profiles():
+    r = 10
+    f = spectrum.frequency_grid(r).reshape(2 * r + 1, 2 * r + 1, 2)
+    grid = np.hypot(f[..., 0], f[..., 1])  # P = |v|
+    radii, prof = metrics.radial_profile(grid)
+    np.testing.assert_allclose(prof, radii, atol=0.5)
+    # energy only along the 30-degree ray -> angular profile peaks there
+    ang = np.degrees(np.arctan2(f[..., 1], f[..., 0])) % 180
+    grid2 = (np.abs(ang - 30) < 2).astype(float)
+    c, a = metrics.angular_profile(grid2, bins=36)
+    assert abs(c[np.argmax(a)] - 30) <= 5
+
+
+def test_profiles_of_a_centred_grid_closed_forms():
+    """Rings and directions of a grid known in closed form: ``P = |v|^2`` has ring means within
+    the rounding of ``|v|`` to its ring; a grid that is ``theta`` at direction ``theta`` has an
+    angular profile equal to its bin centres to within half a bin."""
+    r = 12
+    k = np.arange(-r, r + 1)
+    vx, vy = np.meshgrid(k, k, indexing="xy")
+    radii, means = metrics.radial_profile(vx**2 + vy**2)
+    want = [np.mean((vx**2 + vy**2)[np.rint(np.hypot(vx, vy)) == q]) for q in radii]
+    np.testing.assert_allclose(means, want, rtol=1e-12)
+    ang = np.degrees(np.arctan2(vy, vx)) % 180.0
+    centres, a = metrics.angular_profile(ang, bins=18)
+    assert np.max(np.abs(a - centres)) <= 5.0 + 1e-9
+    with pytest.raises(ValueError, match="grid must be a square centred spectrum"):
+        metrics.radial_profile(np.ones((4, 4)))
+    with pytest.raises(ValueError, match="grid contains NaN or Inf"):
+        metrics.angular_profile(np.full((5, 5), np.nan))
+
+
+def test_expected_spectrum_of_a_stack_is_the_mean_of_its_sets():
+    """``<P_S>`` of a stack ``(R, n, 2)``: the mean of the sets' own spectra (brute force, float64),
+    on frequencies and on the centred grid; one set gives its own spectrum."""
+    sets = jnp.stack([samplers.get("jittered")(jax.random.key(i), 64) for i in range(5)])
+    f = np.array([[1, 0], [0, 1], [3, -2], [7, 5], [0, 12]])
+    want = np.mean([brute_force_spectrum(s, f) for s in sets], axis=0)
+    got = np.asarray(metrics.expected_power_spectrum(sets, f))
+    assert np.max(np.abs(got - want)) * 64 < 1e-4
+    grid = np.asarray(metrics.expected_power_spectrum_grid(np.asarray(sets), 3))
+    v = spectrum.frequency_grid(3)
+    want_grid = np.mean([brute_force_spectrum(s, v) for s in sets], axis=0).reshape(7, 7)
+    assert np.max(np.abs(grid - want_grid)) * 64 < 1e-4
+    assert grid[3, 3] == pytest.approx(1.0, abs=1e-5)  # P_S(0) = 1
+    one = np.asarray(metrics.expected_power_spectrum(sets[:1], f))
+    np.testing.assert_array_equal(one, np.asarray(spectrum.power_spectrum(sets[0], f)))
+    with pytest.raises(ValueError, match=r"sets must be a stack .* \(R, n, 2\)"):
+        metrics.expected_power_spectrum(sets[0], f)
+    with pytest.raises(ValueError, match="radius must be >= 1"):
+        metrics.expected_power_spectrum_grid(sets, 0)
+    with pytest.raises(ValueError, match="'nufft' is now called 'nufft1'"):
+        metrics.expected_power_spectrum(sets, f, method="nufft")
+
+
+def _trig_texture():
+    """``f(x) = sum_k a_k cos(2 pi v_k . x + phi_k)``: ``P_f(+-v_k) = a_k^2 / 4``."""
+    v = np.array([[1, 0], [2, 3], [-4, 1]])
+    a = np.array([0.7, 0.4, 1.1])
+    phi = np.array([0.3, 1.9, -0.8])
+
+    def f(x):
+        return np.sum(a * np.cos(2 * np.pi * (x @ v.T) + phi), axis=-1)
+
+    return f, v, a
+
+
+def test_eq5_is_the_variance_over_every_shift_of_a_fixed_set():
+    """W Eq. 5 for a trigonometric polynomial and a fixed set of 10 points: the variance of the
+    shifted estimator averaged over an M x M grid of shifts (exact for the polynomial's degree,
+    M > 2 max |v|) equals ``sum_{v != 0} P_S(v) P_f(v)`` to float64 rounding."""
+    f, v, a = _trig_texture()
+    pts = np.random.default_rng(5).uniform(0, 1, (10, 2))
+    m = 16
+    t = (np.arange(m) + 0.25) / m
+    shifts = np.stack(np.meshgrid(t, t, indexing="ij"), -1).reshape(-1, 2)
+    est = np.array([f(np.mod(pts + s, 1.0)).mean() for s in shifts])
+    measured = np.mean((est - est.mean()) ** 2)
+    freqs = np.concatenate([v, -v, [[0, 0]]])
+    ps = brute_force_spectrum(pts, freqs)
+    pf = np.concatenate([a**2 / 4, a**2 / 4, [0.0]])
+    predicted = metrics.predicted_variance(ps, pf, freqs=freqs)
+    assert predicted == pytest.approx(measured, rel=1e-10)
+    terms = metrics.variance_terms(ps, pf, freqs=freqs)
+    assert terms.shape == (6,) and float(np.sum(terms)) == predicted
+
+
+def test_predicted_variance_drops_zero_frequency():
+    v = np.array([[0, 0], [1, 0], [0, 1]])
+    assert metrics.predicted_variance([1.0, 0.5, 0.25], [9.0, 2.0, 4.0], freqs=v) == 2.0
+    with pytest.raises(ValueError, match="same shape"):
+        metrics.predicted_variance([1.0], [1.0, 2.0])
+    with pytest.raises(ValueError, match="non-negative"):
+        metrics.predicted_variance([-1.0], [1.0])
+    with pytest.raises(ValueError, match="xp must be"):
+        metrics.predicted_variance([1.0], [1.0], xp=jax)
+
+
+def test_predicted_variance_in_jax_is_traceable_and_agrees():
+    """``xp=jax.numpy``: the same sum, under ``jit`` and ``grad`` (d/dP_S = P_f), the zero
+    frequency's term set to 0."""
+    ps = np.array([1.0, 0.5, 0.25, 0.125], np.float32)
+    pf = np.array([9.0, 2.0, 4.0, 8.0], np.float32)
+    v = np.array([[0, 0], [1, 0], [0, 1], [2, 2]])
+    want = metrics.predicted_variance(ps, pf, freqs=v)
+    got = jax.jit(lambda p: metrics.predicted_variance(p, pf, freqs=v, xp=jnp))(ps)
+    assert float(got) == pytest.approx(want, rel=1e-6)
+    g = jax.grad(lambda p: metrics.predicted_variance(p, pf, freqs=v, xp=jnp))(jnp.asarray(ps))
+    np.testing.assert_allclose(np.asarray(g), [0.0, 2.0, 4.0, 8.0])

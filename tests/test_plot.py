@@ -8,6 +8,7 @@ circle (``matplotlib.colors.rgb_to_hsv``).
 
 from __future__ import annotations
 
+import jax
 import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -15,7 +16,7 @@ from matplotlib.colors import LogNorm, rgb_to_hsv
 from matplotlib.figure import Figure
 from matplotlib.image import imread
 
-from anisosample import cli, directions, plot, spectrum
+from anisosample import cli, directions, plot, samplers, spectrum
 
 # Rank-1 lattice x_k = (k / 13, 5 k / 13 mod 1): P_S(v) = 1 where v_x + 5 v_y = 0 (mod 13), else
 # 0. Within |v| <= 4 that is v = 0, +-(3, 2) and +-(2, -3): (3, 2) is bright while its transpose
@@ -269,3 +270,40 @@ def test_cli_directions_map_is_image_sized_with_a_key(tmp_path):
     assert cli.main(["directions", str(grid), "--block", "48", "-k", "1", "-o", str(png)]) == 0
     img = imread(png)
     assert 300 < img.shape[0] < 1500 and 600 < img.shape[1] < 3000
+
+
+def test_spectrum_images(tmp_path):
+    pts4096 = samplers.get("pmj02bn")(jax.random.key(21), 4096)
+    g = spectrum.power_spectrum_grid(pts4096, 32)
+    png = plot.save_spectrum_image(tmp_path / "s.png", g, n=4096)
+    exr = plot.save_spectrum_image(tmp_path / "s.exr", g, n=4096)
+    assert png.stat().st_size > 0
+    from anisosample import io
+
+    back, meta = io.read_exr(exr, metadata=True)
+    np.testing.assert_allclose(back, np.asarray(g), rtol=1e-6)  # the grid, no flip (issue 27)
+    assert meta["n"] == 4096 and meta["radius"] == 32
+    with pytest.raises(FileExistsError):
+        plot.save_spectrum_image(tmp_path / "s.png", g, n=4096)
+
+
+def test_spectrum_image_rejects_bad_vmax(tmp_path):
+    g = np.ones((5, 5))
+    for vmax in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="vmax must be finite and > 0"):
+            plot.save_spectrum_image(tmp_path / "s.png", g, n=4, vmax=vmax)
+    assert not (tmp_path / "s.png").exists()
+
+
+def test_save_spectrum_image_png_is_upright_and_clipped(tmp_path):
+    """The PNG is ``N P_S`` clipped to ``[0, vmax]`` in grey with ``v_y`` growing upwards: the
+    rank-1 lattice's bright ``(3, 2)`` lands right of and above the centre, its dark mirror
+    ``(3, -2)`` below."""
+    g = _direct_grid(LATTICE, R_LAT)
+    path = plot.save_spectrum_image(tmp_path / "lat.png", g, n=N_LAT, vmax=2.0)
+    img = imread(path)
+    grey = img[..., 0] if img.ndim == 3 else img
+    c = R_LAT
+    assert grey.shape == (2 * R_LAT + 1, 2 * R_LAT + 1)
+    assert grey[c - 2, c + 3] == pytest.approx(1.0)  # N P_S = 13, clipped to vmax: white
+    assert grey[c + 2, c + 3] == pytest.approx(0.0)

@@ -113,7 +113,8 @@ def test_random_expected_spectrum_is_white():
     n = 1024
     freqs = asp.spectrum.frequency_grid(12)
     freqs = freqs[np.any(freqs != 0, axis=1)]
-    p = asp.spectrum.expected_power_spectrum("random", n, jax.random.key(9), freqs, realizations=16)
+    p = asp.diagnostics.sampler_power_spectrum("random", n, jax.random.key(9), freqs,
+                                               realizations=16)
     assert abs(float(np.mean(p)) * n - 1.0) < 0.03
 
 

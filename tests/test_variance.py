@@ -104,7 +104,7 @@ def test_fixed_set_shift_identity_exact(getkey):
     ps = np.asarray(spectrum.power_spectrum(pts, freqs, method="direct"), np.float64)
     pf = f.power_spectrum(freqs)
     # each ray also has its mirror -v with the same P_S and P_f
-    predicted = 2 * V.predicted_variance(ps, pf)
+    predicted = 2 * metrics.predicted_variance(ps, pf)
     tail = 2 * 3 * (1 / (4 * np.pi**2)) / k[-1]  # bound: P_S <= 1, sum_{k > K} 1/k^2 < 1/K
     est = V.estimate_variance(f, pts, n, getkey(), 8192, randomization="shift")
     assert abs(est.variance - predicted) < 4 * est.std_error + tail
@@ -134,7 +134,7 @@ def test_eq5_prediction_matches_measurement(sampler, shape, getkey):
         ps = np.full(v.shape[0], 1.0 / n)
     else:
         ps = (1 - (np.sinc(v[:, 0] / side) * np.sinc(v[:, 1] / side)) ** 2) / n
-    predicted = V.predicted_variance(ps, pf)
+    predicted = metrics.predicted_variance(ps, pf)
     est = V.estimate_variance(f, sampler, n, getkey(), 4096, randomization="fresh+shift")
     assert abs(est.variance / predicted - 1) < 0.10, (est.variance, predicted)
     if sampler == "random":  # Parseval: the white-noise prediction is Var(f) / N
@@ -149,20 +149,11 @@ def test_eq5_is_a_finite_sum_for_a_trigonometric_texture(getkey):
     tex = I.smooth_texture()
     v = np.array([k for k, _ in tex._terms() if k != (0, 0)])
     ps = (1 - (np.sinc(v[:, 0] / side) * np.sinc(v[:, 1] / side)) ** 2) / n
-    predicted = V.predicted_variance(ps, tex.power_spectrum(v))
+    predicted = metrics.predicted_variance(ps, tex.power_spectrum(v))
     est = V.estimate_variance(
         tex, "jittered", n, getkey(), 4096, tex.integral, randomization="fresh+shift"
     )
     assert abs(est.variance - predicted) < 4 * est.std_error, (est.variance, predicted)
-
-
-def test_predicted_variance_drops_zero_frequency():
-    v = np.array([[0, 0], [1, 0], [0, 2]])
-    assert V.predicted_variance([1.0, 0.5, 0.25], [9.0, 2.0, 4.0], freqs=v) == 2.0
-    with pytest.raises(ValueError, match="same shape"):
-        V.predicted_variance([1.0], [1.0, 2.0])
-    with pytest.raises(ValueError, match="non-negative"):
-        V.predicted_variance([-1.0], [1.0])
 
 
 # --- convergence rates ----------------------------------------------------------------------------
