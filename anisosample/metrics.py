@@ -20,10 +20,13 @@
 * :func:`variance_terms`, :func:`predicted_variance`: W Eq. 5, an estimator's variance from the
   pattern's and the integrand's spectra (the one implementation; ``diagnostics`` splits it by
   region).
+* :func:`wraparound_discrepancy`: Hickernell's wrap-around L2 discrepancy, a shift-invariant
+  uniformity score (itself W Eq. 5's sum for one fixed spectral weight).
 """
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import jax.numpy as jnp
@@ -34,7 +37,8 @@ from ._validate import check_choice, check_int, check_points
 __all__ = ["axial_distance_deg", "nearest_neighbour_distance", "midpoint_grid", "off_axis_deg",
            "grid_values", "ImageError", "image_error", "mse_ratio", "efficiency",
            "expected_power_spectrum", "expected_power_spectrum_grid", "radial_profile",
-           "angular_profile", "variance_terms", "predicted_variance"]
+           "angular_profile", "variance_terms", "predicted_variance",
+           "wraparound_discrepancy"]
 
 INDEXINGS = ("xy", "ij")
 
@@ -342,3 +346,22 @@ def predicted_variance(P_S, P_f, freqs=None, *, xp=np):
     """
     t = variance_terms(P_S, P_f, freqs, xp=xp)
     return jnp.sum(t) if xp is jnp else float(np.sum(t))
+
+
+def wraparound_discrepancy(points, *, block: int = 1024) -> float:
+    """Hickernell's wrap-around L2 discrepancy of ``points`` ``(n, 2)`` in ``[0, 1)^2`` (float64):
+
+    ``WD^2 = -(4/3)^2 + (1/n^2) sum_{i,j} prod_k (3/2 - |d_ijk| (1 - |d_ijk|))``,
+    ``d_ijk = x_ik - x_jk``. Invariant under toroidal shifts; in spectral form it is
+    ``sum_{v != 0} P_S(v) c(v_x) c(v_y)`` with ``c(0) = 4/3``, ``c(k) = 1 / (2 pi^2 k^2)`` (the
+    Fourier series of ``t (1 - t)``), i.e. W Eq. 5 for that weight. ``O(n^2)`` work in row blocks
+    of ``block`` points."""
+    check_points("points", points)
+    block = check_int("block", block, minimum=1)
+    p = np.asarray(points, dtype=np.float64)
+    n = p.shape[0]
+    total = 0.0
+    for a in range(0, n, block):
+        d = np.abs(p[a:a + block, None, :] - p[None, :, :])
+        total += float(np.sum(np.prod(1.5 - d * (1.0 - d), axis=-1)))
+    return math.sqrt(max(total / (n * n) - (4.0 / 3.0) ** 2, 0.0))

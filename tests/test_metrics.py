@@ -1,6 +1,7 @@
 """anisosample.metrics against closed forms and brute force."""
 
 import itertools
+import math
 
 import jax
 import jax.numpy as jnp
@@ -299,3 +300,26 @@ def test_predicted_variance_in_jax_is_traceable_and_agrees():
     assert float(got) == pytest.approx(want, rel=1e-6)
     g = jax.grad(lambda p: metrics.predicted_variance(p, pf, freqs=v, xp=jnp))(jnp.asarray(ps))
     np.testing.assert_allclose(np.asarray(g), [0.0, 2.0, 4.0, 8.0])
+
+
+def test_wraparound_discrepancy_closed_forms_and_spectral_form():
+    """One point: ``WD^2 = 9/4 - 16/9 = 17/36``. Shift-invariant. Equal to its spectral form
+    ``sum_{v != 0} P_S(v) c(v_x) c(v_y)`` (``c(0) = 4/3``, ``c(k) = 1/(2 pi^2 k^2)``), summed by
+    brute force out to |v_x|, |v_y| <= 300: below it by the tail, which is positive and at most
+    ``3 / (pi^2 r)`` (``P_S <= 1``; about ``3 / (pi^2 r n)`` = 1.3e-4 for these 8 points)."""
+    assert metrics.wraparound_discrepancy(np.array([[0.3, 0.8]])) == pytest.approx(
+        math.sqrt(17 / 36), rel=1e-14)
+    pts = np.random.default_rng(2).uniform(0, 1, (8, 2))
+    wd = metrics.wraparound_discrepancy(pts)
+    shifted = np.mod(pts + [0.37, 0.91], 1.0)
+    assert metrics.wraparound_discrepancy(shifted, block=3) == pytest.approx(wd, rel=1e-12)
+    r = 300
+    v = spectrum.frequency_grid(r)
+    v = v[np.any(v != 0, axis=1)]
+    k = v.astype(np.float64)
+    c = np.where(k == 0, 4.0 / 3.0, 1.0 / (2 * np.pi**2 * np.where(k == 0, 1.0, k) ** 2))
+    spectral = metrics.predicted_variance(brute_force_spectrum(pts, v), c[:, 0] * c[:, 1])
+    assert 0 < wd**2 - spectral < 3 / (np.pi**2 * r)
+    assert wd**2 - spectral == pytest.approx(3 / (np.pi**2 * r * 8), rel=0.3)
+    with pytest.raises(ValueError, match="points must lie"):
+        metrics.wraparound_discrepancy(np.array([[0.5, 1.5]]))
