@@ -1033,14 +1033,14 @@ def _run_render(args):
     scene, settings = render.load_xml_with_settings(_scene_file(args.scene), **params)
     spp = settings.spp if args.spp is None else args.spp
     mis = settings.mis if args.mis is None else args.mis
-    render.light_warps.check_light_warp(scene, args.light_warp)  # before any estimation
+    options = render.IntegratorOptions(  # checked once, before any estimation
+        dimension=args.dimension, technique=args.technique, light_warp=args.light_warp, mis=mis,
+        pixel_center=args.pixel_center).for_scene(scene)
     reference = io.read_exr(args.reference) if args.reference else None
-    sampler = _block_sampler(args, scene, spp)
+    sampler = _block_sampler(args, scene, spp, options)
     result = render.render(
         scene, jax.random.key(args.seed), spp=spp, sampler=sampler,
-        realizations=args.realizations, pixel_center=args.pixel_center,
-        dimension=args.dimension, technique=args.technique, light_warp=args.light_warp,
-        mis=mis, devices=devices,
+        realizations=args.realizations, options=options, devices=devices,
     )
     if jax.process_index() != 0:  # every process has the whole image; the first writes it
         return
@@ -1091,7 +1091,7 @@ def _pixel_summary(result) -> str:
     return line + (f", {gated} gated: their probe is smooth)" if rec["gate"] else ")")
 
 
-def _block_sampler(args, scene, spp):
+def _block_sampler(args, scene, spp, options):
     """``--sampler aligned|sheared``: estimate the blocks' directions (printing the cost, W
     Fig. 10 counts it) and write the direction map; other samplers pass through by name."""
     from . import tables
@@ -1127,8 +1127,7 @@ def _block_sampler(args, scene, spp):
             raise ValueError(f"--direction-map must end in .png, got {map_path.name}")
         if map_path.exists() and not args.force:
             raise FileExistsError(f"{map_path} exists; pass --force to replace it")
-    sampler = aligned.block_sampler(scene, args.sampler, dimension=args.dimension,
-                                    technique=args.technique, progress=True, **opts)
+    sampler = aligned.block_sampler(scene, args.sampler, options=options, progress=True, **opts)
     sampler.check_tables(spp)
     est = sampler.estimate
     by, bx = est.blocks

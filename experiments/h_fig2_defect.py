@@ -101,8 +101,8 @@ def after(N):
             warp = chain(scene, 1, 0, rec, "solid_angle", lw)
             u = jax.random.uniform(k, (N, 4), jnp.float32, 0.0, 1.0 - 2.0**-24)
             def one(ul, ub):
-                rgb = I.radiance(scene, film, half, ul, ub, technique="solid_angle",
-                                 light_warp=lw, mis=True)
+                rgb = I.radiance(scene, film, half, ul, ub, I.IntegratorOptions(
+                    technique="solid_angle", light_warp=lw, mis=True))
                 val = jnp.dot(rgb, lum)
                 wl = warp.sample(ul)
                 miss = ~in_tri(rec.origin, wl)

@@ -75,8 +75,8 @@ def proposed_blocks(name, cfg, nb, rng):
     if cfg["coarse"] is None:
         return [(a, b) for a in range(nb[0]) for b in range(nb[1])], extra
     coarse = W.load_scene(name, cfg["coarse"], cfg["coarse"])
-    cl = pc.pixel_classes(coarse, grid=cfg["coarse_grid"],
-                          square_aperture=W.SCENES[name]["square_aperture"])
+    cl = pc.pixel_classes(coarse, grid=cfg["coarse_grid"], options=render.IntegratorOptions(
+        square_aperture=W.SCENES[name]["square_aperture"]))
     f = cfg["size"] // cfg["coarse"]
     for c, r in cl.pixels("one-edge") * f + f // 2:
         extra.setdefault((int(r) // cfg["block_px"], int(c) // cfg["block_px"]), []).append(
@@ -105,7 +105,9 @@ def run_scene(name, cfg, key, out, fresh):
     rows = []
     if blocks:  # none: no coarse one-edge pixel (e.g. blinds' pattern is "other")
         fc = pc.pixel_classes(scene, np.concatenate(pixels), grid=cfg["grid"],
-                              square_aperture=W.SCENES[name]["square_aperture"], progress=True)
+                              options=render.IntegratorOptions(
+                                  square_aperture=W.SCENES[name]["square_aperture"]),
+                              progress=True)
         rows = direction_error.block_errors(blocks, est_d, est_v, fc, pixels)
     # The same estimation as W Fig. 9: its per-block call on every sampled block.
     cache, recheck = {}, []

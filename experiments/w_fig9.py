@@ -81,7 +81,8 @@ def pick_pixels(name, cfg, rng):
     """Pixels of each class at the full resolution (module docstring), with their classes."""
     sq = W.SCENES[name]["square_aperture"]
     coarse = W.load_scene(name, cfg["coarse"], cfg["coarse"])
-    cl = pc.pixel_classes(coarse, grid=cfg["coarse_grid"], square_aperture=sq, progress=True)
+    cl = pc.pixel_classes(coarse, grid=cfg["coarse_grid"],
+                          options=asp.render.IntegratorOptions(square_aperture=sq), progress=True)
     full = W.load_scene(name, cfg["size"], cfg["size"])
     f = cfg["size"] // cfg["coarse"]
     picked = {}
@@ -95,7 +96,8 @@ def pick_pixels(name, cfg, rng):
             picked[cname] = (np.zeros((0, 2), int), np.zeros((0, 2)), np.zeros(0, int))
             continue
         fine = cand * f + f // 2
-        fc = pc.pixel_classes(full, fine, grid=cfg["grid"], square_aperture=sq)
+        fc = pc.pixel_classes(full, fine, grid=cfg["grid"],
+                              options=asp.render.IntegratorOptions(square_aperture=sq))
         keep = fc.classes[fine[:, 1], fine[:, 0]] == pc.CLASSES.index(cname)
         d = fc.directions_deg[fine[:, 1], fine[:, 0]]
         if cname == "one-edge":
@@ -113,7 +115,8 @@ def lit_in_aligned_blocks(name, cfg, key, full, base, cache):
     sq = W.SCENES[name]["square_aperture"]
     rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).astype(np.uint32))
     coarse = W.load_scene(name, cfg["coarse"], cfg["coarse"])
-    cl = pc.pixel_classes(coarse, grid=cfg["coarse_grid"], square_aperture=sq)
+    cl = pc.pixel_classes(coarse, grid=cfg["coarse_grid"],
+                          options=asp.render.IntegratorOptions(square_aperture=sq))
     f = cfg["size"] // cfg["coarse"]
     cand = cl.pixels("lit")
     cand = cand[rng.permutation(len(cand))] * f + f // 2
@@ -123,7 +126,8 @@ def lit_in_aligned_blocks(name, cfg, key, full, base, cache):
         part = [p for p in part if selection.table_directions(
             W.block_estimate(full, base, p, cfg, cache)[1], k=1)]
         if part:
-            fc = pc.pixel_classes(full, np.array(part), grid=cfg["grid"], square_aperture=sq)
+            fc = pc.pixel_classes(full, np.array(part), grid=cfg["grid"],
+                                  options=asp.render.IntegratorOptions(square_aperture=sq))
             chosen += [p for p in part if fc.classes[p[1], p[0]] == pc.CLASSES.index("lit")]
         if len(chosen) >= cfg["per_class"]:
             break

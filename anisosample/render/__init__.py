@@ -8,8 +8,10 @@ Per-block aligned sampling (W Sec. 5.3-5.4, with a per-pixel gate):
 :mod:`anisosample.render.aligned` (the sampler), :mod:`anisosample.render.estimation` (the block
 estimate and the gate), ``render(scene, key, sampler="aligned")``. Light warps (H Sec. 4):
 ``render(scene, key, technique=..., light_warp=...)`` with a name of :data:`LIGHT_WARPS`
-(:mod:`anisosample.render.light_warps`). Scenes with many planar primitives (meshes) are traced
-through a BVH (:mod:`anisosample.render.bvh`, built by :meth:`SceneBuilder.build`).
+(:mod:`anisosample.render.light_warps`). The integrator's options are one record,
+:class:`IntegratorOptions` (:mod:`anisosample.render.options`). Scenes with many planar
+primitives (meshes) are traced through a BVH (:mod:`anisosample.render.bvh`, built by
+:meth:`SceneBuilder.build`).
 """
 
 from . import aligned as aligned
@@ -18,6 +20,7 @@ from . import direction_error as direction_error
 from . import estimation as estimation
 from . import light_warps as light_warps
 from . import mitsuba_compat as mitsuba_compat
+from . import options as options
 from . import pixel_classes as pixel_classes
 from .aligned import BlockSampler as BlockSampler
 from .aligned import block_sampler as block_sampler
@@ -32,6 +35,7 @@ from .integrator import radiance as radiance
 from .light_warps import LIGHT_WARPS as LIGHT_WARPS
 from .light_warps import Receiver as Receiver
 from .lights import TECHNIQUES as TECHNIQUES
+from .options import IntegratorOptions as IntegratorOptions
 from .scene import Scene as Scene
 from .xml import RenderSettings as RenderSettings
 from .xml import SceneFormatError as SceneFormatError

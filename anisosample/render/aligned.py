@@ -42,8 +42,9 @@ from .estimation import BlockEstimate as BlockEstimate
 from .estimation import block_grid_values as block_grid_values
 from .estimation import estimate_blocks as estimate_blocks
 from .estimation import estimation_grid as estimation_grid
-from .estimation import gate_estimate
+from .estimation import estimation_options, gate_estimate
 from .estimation import strongest_directions as strongest_directions
+from .options import IntegratorOptions
 from .scene import Scene
 
 __all__ = [
@@ -120,8 +121,10 @@ class BlockSampler:
     estimate, the one the block's set is chosen from, so a block marked without a direction
     never gets a set); ``block_extra``: per block (row-major) the integer extra directions of
     its aligned set (empty: the base sampler); ``estimate``: the :class:`BlockEstimate` it came
-    from; ``gate``: whether smooth pixels take the base sampler; ``build_missing``: the table
-    lookup's (None: build missing sets into the user cache; False: refuse).
+    from; ``options``: the integrand options the directions were estimated with
+    (:func:`~anisosample.render.estimation.estimation_options` of the render's, resolved for
+    the scene); ``gate``: whether smooth pixels take the base sampler; ``build_missing``: the
+    table lookup's (None: build missing sets into the user cache; False: refuse).
     Per realization, :meth:`point_sets` gives the distinct sets and each pixel's index into
     them; the renderer shifts each pixel's set toroidally with the pixel's own key.
     """
@@ -133,9 +136,7 @@ class BlockSampler:
     directions_deg: np.ndarray  # (rows, cols) float64, -1 where there is none
     valid: np.ndarray  # (rows, cols) bool
     estimate: BlockEstimate | None = None
-    dimension: str = "light"
-    technique: str = "area"
-    square_aperture: bool = False
+    options: IntegratorOptions = IntegratorOptions(dimension="light").integrand()
     base: str = "pmj02bn"
     table: object = None
     build_missing: bool | None = None
@@ -295,9 +296,7 @@ def block_sampler(
     build_missing: bool | None = None,
     build_options: dict | None = None,
     base: str = "pmj02bn",
-    dimension: str = "auto",
-    technique: str = "area",
-    square_aperture: bool = False,
+    options: IntegratorOptions | None = None,
     progress: bool = False,
     **estimate_options,
 ) -> BlockSampler:
@@ -310,14 +309,15 @@ def block_sampler(
     ``estimate_options``; W: 16, 96, 2) unless a finished ``estimate`` is given (its ``k``
     slots are used, at most ``k``). ``gate`` (default: on for ``"aligned"``, off for
     ``"sheared"``): pixels whose ``probe x probe`` probe is smooth use ``base``.
-    ``dimension``, ``technique`` and ``square_aperture`` must be the render's. Aligned sets come
+    ``options`` (an :class:`~anisosample.render.options.IntegratorOptions`) must be the
+    render's: the directions are estimated on its pixel integrands
+    (:func:`~anisosample.render.estimation.estimation_options`). Aligned sets come
     from ``table`` (default: the installed tables and the user cache); missing ones are
     synthesized into the user cache (``build_missing=None``, the default; ``True`` also into an
     explicit ``table``; ``False`` refuses, naming the build command), passing ``build_options``
     to the build. Any ``spp >= 2`` works. ``progress``: the estimation's progress bars.
     """
     from .. import samplers
-    from .integrator import default_dimension
 
     check_choice("method", method, BLOCK_SAMPLERS)
     check_choice("base", base, samplers.BASELINES)
@@ -327,12 +327,10 @@ def block_sampler(
     gate = (method == "aligned") if gate is None else bool(gate)
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
-    dimension = default_dimension(scene) if dimension in (None, "auto") else dimension
+    options = estimation_options(options).for_scene(scene)
     if estimate is None:
-        estimate = estimate_blocks(scene, block_px, samples, k, dimension=dimension,
-                                   technique=technique, square_aperture=square_aperture,
-                                   gate=gate, probe=probe, progress=progress,
-                                   **estimate_options)
+        estimate = estimate_blocks(scene, block_px, samples, k, options=options, gate=gate,
+                                   probe=probe, progress=progress, **estimate_options)
     elif not isinstance(estimate, BlockEstimate):
         raise TypeError(f"estimate must be a BlockEstimate from estimate_blocks, got "
                         f"{type(estimate).__name__}")
@@ -340,9 +338,7 @@ def block_sampler(
         raise ValueError(f"estimate is for a {estimate.width}x{estimate.height} image, the "
                          f"scene is {scene.width}x{scene.height}")
     elif gate and estimate.discontinuous is None:
-        estimate = gate_estimate(scene, estimate, probe, dimension=dimension,
-                                 technique=technique, square_aperture=square_aperture,
-                                 progress=progress)
+        estimate = gate_estimate(scene, estimate, probe, options=options, progress=progress)
     dirs = np.asarray(estimate.estimate.directions_deg, np.float64)
     ok = np.asarray(estimate.estimate.valid)
     # The strongest *valid* direction: a block whose first slot fails the confidence test but
@@ -354,23 +350,26 @@ def block_sampler(
                   for dd, vv in zip(dirs.reshape(-1, dirs.shape[-1]),
                                     ok.reshape(-1, ok.shape[-1]), strict=True))
     return BlockSampler(method, estimate.block_px, scene.width, scene.height, d, v, estimate,
-                        dimension, technique, bool(square_aperture), base, table,
-                        build_missing, k, gate, extra, dict(build_options or {}))
+                        options, base, table, build_missing, k, gate, extra,
+                        dict(build_options or {}))
 
 
-def resolve_sampler(scene: Scene, sampler, options: dict | None, *, dimension: str,
-                    technique: str, square_aperture: bool,
-                    progress: bool = True) -> BlockSampler | None:
+def resolve_sampler(scene: Scene, sampler, sampler_options: dict | None, *,
+                    options: IntegratorOptions, progress: bool = True) -> BlockSampler | None:
     """The renderer's hook: a :class:`BlockSampler` for ``sampler`` (one, or a name in
-    :data:`BLOCK_SAMPLERS` built with ``options``), None for ordinary samplers.
-    ``progress=False`` (the render's) silences the estimation whatever ``options`` say."""
+    :data:`BLOCK_SAMPLERS` built with ``sampler_options``), None for ordinary samplers.
+    ``options``: the render's :class:`~anisosample.render.options.IntegratorOptions`.
+    ``progress=False`` (the render's) silences the estimation whatever ``sampler_options``
+    say."""
     if isinstance(sampler, str) and sampler in BLOCK_SAMPLERS:
-        opts = dict(options or {})
+        opts = dict(sampler_options or {})
         if not progress:
             opts["progress"] = False
-        return block_sampler(scene, sampler, dimension=dimension, technique=technique,
-                             square_aperture=square_aperture, **opts)
-    if options:
+        if "options" in opts:
+            raise ValueError("sampler_options must not hold options: the render's own "
+                             "IntegratorOptions are the estimation's")
+        return block_sampler(scene, sampler, options=options, **opts)
+    if sampler_options:
         what = "a finished BlockSampler" if isinstance(sampler, BlockSampler) else repr(sampler)
         raise ValueError(f"sampler_options are for the per-block samplers given by name "
                          f"{list(BLOCK_SAMPLERS)}, not {what}")
@@ -379,32 +378,26 @@ def resolve_sampler(scene: Scene, sampler, options: dict | None, *, dimension: s
     if (sampler.width, sampler.height) != (scene.width, scene.height):
         raise ValueError(f"sampler was made for a {sampler.width}x{sampler.height} image, the "
                          f"scene is {scene.width}x{scene.height}")
-    mine = (sampler.dimension, sampler.technique, sampler.square_aperture)
-    if mine != (dimension, technique, bool(square_aperture)):
-        raise ValueError(f"sampler estimated its directions with (dimension, technique, "
-                         f"square_aperture) = {mine}, the render uses "
-                         f"{(dimension, technique, bool(square_aperture))}")
+    mine = estimation_options(options).for_scene(scene)
+    if sampler.options != mine:
+        fields = ("dimension", "technique", "square_aperture")
+        raise ValueError(f"sampler estimated its directions with ({', '.join(fields)}) = "
+                         f"{tuple(getattr(sampler.options, f) for f in fields)}, the render "
+                         f"uses {tuple(getattr(mine, f) for f in fields)}")
     return sampler
 
 
-@functools.partial(
-    jax.jit, static_argnames=("dimension", "technique", "mis", "pixel_center", "square_aperture",
-                              "light_warp"),
-)
-def render_chunk_sets(scene: Scene, sets, pixel_set, key, pixels, **opts):
+@functools.partial(jax.jit, static_argnames=("options",))
+def render_chunk_sets(scene: Scene, sets, pixel_set, key, pixels, *,
+                      options: IntegratorOptions):
     """The render kernel with per-pixel point sets:
     :func:`anisosample.render.integrator.render_chunk` where pixel ``q`` uses
     ``sets[pixel_set[q]]`` (and, as there, its own shift from ``fold_in(key, q)``)."""
     from .integrator import render_chunk
 
     def one(q):
-        return render_chunk(scene, sets[pixel_set[q]], key, q[None], **opts)[0]
+        return render_chunk(scene, sets[pixel_set[q]], key, q[None], options=options)[0]
 
     if pixels.ndim == 1:
         return jax.vmap(one)(pixels)
     return jax.lax.map(jax.vmap(one), pixels)
-
-
-# Old private names image.py used, kept until the end of this session (aliases, same objects).
-_resolve = resolve_sampler
-_render_chunk_sets = render_chunk_sets

@@ -8,8 +8,9 @@
   neighbouring pixels, so the grid pieces together one integrand from the block's structurally
   similar ones. W does not say how pixels share the grid; an interleaved layout (``i mod B``)
   puts jumps between far pixels every ``B`` samples. The pixel integrands are the papers'
-  fixed-primary-hit ones (pixel centre, luminance, no MIS; W Sec. 6.2), whatever the render's
-  own film and MIS settings. One orientation histogram and estimate per block:
+  fixed-primary-hit ones (pixel centre, luminance, no MIS, the base light technique without
+  its warp chain; W Sec. 6.2), whatever the render's own film, MIS and light-warp settings
+  (:func:`estimation_options`). One orientation histogram and estimate per block:
   :func:`anisosample.directions.estimate_blocks`. An image whose sides are not multiples of ``B``
   is *padded*: the last row and column of blocks reach past the image and their missing pixels
   repeat the image's last row or column (edge replication).
@@ -40,11 +41,13 @@ import numpy as np
 from .._validate import check_int, check_positive_float
 from ..metrics import midpoint_grid
 from .integrator import PixelIntegrand, pixel_integrand
+from .options import IntegratorOptions
 from .scene import Scene
 
 __all__ = [
-    "BlockEstimate", "block_grid_values", "estimate_blocks", "estimation_grid", "gate_estimate",
-    "pixel_probes", "probe_discontinuous", "strongest_directions", "window_grid_values",
+    "BlockEstimate", "block_grid_values", "estimate_blocks", "estimation_grid",
+    "estimation_options", "gate_estimate", "pixel_probes", "probe_discontinuous",
+    "strongest_directions", "window_grid_values",
 ]
 
 JUMP_RATIO = 3.0
@@ -104,10 +107,24 @@ def _check_blocks(scene: Scene, block_px, samples) -> tuple[int, int]:
     return block_px, samples
 
 
-def _base_integrand(scene, integrand, dimension, technique, square_aperture):
+def estimation_options(options: IntegratorOptions | None) -> IntegratorOptions:
+    """The options of the estimation's pixel integrands for a render with ``options`` (None:
+    the defaults): its dimension, technique and aperture; the film at the pixel centre, no
+    MIS and no light warp (module docstring)."""
+    if options is None:
+        options = IntegratorOptions()
+    elif not isinstance(options, IntegratorOptions):
+        raise TypeError(f"options must be a render.IntegratorOptions, got "
+                        f"{type(options).__name__}")
+    return options.integrand().replace(light_warp="none")
+
+
+def _base_integrand(scene, integrand, options):
     if integrand is None:
-        return pixel_integrand(scene, (0, 0), dimension=dimension, technique=technique,
-                               square_aperture=square_aperture)
+        return pixel_integrand(scene, (0, 0), options=estimation_options(options))
+    if options is not None:
+        raise ValueError("give integrand= or options=, not both (the integrand holds its "
+                         "options)")
     if not isinstance(integrand, PixelIntegrand):
         raise TypeError(f"integrand must be a render.PixelIntegrand (its film is replaced per "
                         f"pixel), got {type(integrand).__name__}")
@@ -136,9 +153,7 @@ def estimation_grid(
     samples: int = 96,
     *,
     integrand=None,
-    dimension: str = "auto",
-    technique: str = "area",
-    square_aperture: bool = False,
+    options: IntegratorOptions | None = None,
     progress: bool = False,
 ) -> np.ndarray:
     """All blocks' estimation grids as one ``(rows * s, cols * s)`` float32 array (W Sec. 5.3).
@@ -147,11 +162,13 @@ def estimation_grid(
     ``b s .. b s + s - 1``, the layout of :func:`anisosample.directions.estimate_blocks`; inside
     it DESIGN's grid convention in the sample domain. Pixel tiles: module docstring.
     ``integrand``: the :class:`~anisosample.render.PixelIntegrand` whose film is moved to each
-    pixel centre (default: :func:`~anisosample.render.pixel_integrand` with ``dimension``,
-    ``technique``, ``square_aperture``). Computed one row of blocks per jitted call.
+    pixel centre (default: :func:`~anisosample.render.pixel_integrand` with
+    :func:`estimation_options` of ``options``, the render's
+    :class:`~anisosample.render.options.IntegratorOptions`). Computed one row of blocks per
+    jitted call.
     """
     block_px, samples = _check_blocks(scene, block_px, samples)
-    base = _base_integrand(scene, integrand, dimension, technique, square_aperture)
+    base = _base_integrand(scene, integrand, options)
     w, h = scene.width, scene.height
     by, bx = -(-h // block_px), -(-w // block_px)
     t = samples // block_px
@@ -179,14 +196,12 @@ def block_grid_values(
     samples: int = 96,
     *,
     integrand=None,
-    dimension: str = "auto",
-    technique: str = "area",
-    square_aperture: bool = False,
+    options: IntegratorOptions | None = None,
 ) -> np.ndarray:
     """The ``(s, s)`` estimation grid of one block ``(row, col)``: what its histogram is built
     from (equal to that block of :func:`estimation_grid`)."""
     block_px, samples = _check_blocks(scene, block_px, samples)
-    base = _base_integrand(scene, integrand, dimension, technique, square_aperture)
+    base = _base_integrand(scene, integrand, options)
     w, h = scene.width, scene.height
     a = check_int("block[0] (row)", block[0], minimum=0, maximum=-(-h // block_px) - 1)
     b = check_int("block[1] (column)", block[1], minimum=0, maximum=-(-w // block_px) - 1)
@@ -213,9 +228,7 @@ def window_grid_values(
     samples: int = 96,
     *,
     integrand=None,
-    dimension: str = "auto",
-    technique: str = "area",
-    square_aperture: bool = False,
+    options: IntegratorOptions | None = None,
 ) -> np.ndarray:
     """W's estimation grid (Sec. 5.3) on a *sliding* window: the ``window_px^2`` pixels centred
     on ``pixel = (column, row)`` instead of the fixed block holding it, each pixel filling its
@@ -223,7 +236,7 @@ def window_grid_values(
     no samples beyond W's per pixel). Feeding it to :func:`anisosample.directions.estimate`
     gives the pixel a direction pooled only over its own neighbourhood."""
     window_px, samples = _check_blocks(scene, window_px, samples)
-    base = _base_integrand(scene, integrand, dimension, technique, square_aperture)
+    base = _base_integrand(scene, integrand, options)
     col = check_int("pixel[0] (column)", pixel[0], minimum=0, maximum=scene.width - 1)
     row = check_int("pixel[1] (row)", pixel[1], minimum=0, maximum=scene.height - 1)
     half = window_px // 2
@@ -271,9 +284,7 @@ def pixel_probes(
     *,
     pixels=None,
     integrand=None,
-    dimension: str = "auto",
-    technique: str = "area",
-    square_aperture: bool = False,
+    options: IntegratorOptions | None = None,
     progress: bool = False,
 ) -> np.ndarray:
     """Pixel probes: each pixel's integrand (film at the pixel centre, as :func:`estimation_grid`)
@@ -283,7 +294,7 @@ def pixel_probes(
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
     m = check_int("probe", probe, minimum=3)
-    base = _base_integrand(scene, integrand, dimension, technique, square_aperture)
+    base = _base_integrand(scene, integrand, options)
     w, h = scene.width, scene.height
     if pixels is None:
         rows, cols = np.mgrid[0:h, 0:w]
@@ -335,9 +346,7 @@ def estimate_blocks(
     k: int = 2,
     *,
     integrand=None,
-    dimension: str = "auto",
-    technique: str = "area",
-    square_aperture: bool = False,
+    options: IntegratorOptions | None = None,
     strength: bool = False,
     gate: bool = False,
     probe: int = 6,
@@ -360,8 +369,7 @@ def estimate_blocks(
     block_px, samples = _check_blocks(scene, block_px, samples)
     probe = check_int("probe", probe, minimum=3)
     t0 = time.perf_counter()
-    grid = estimation_grid(scene, block_px, samples, integrand=integrand, dimension=dimension,
-                           technique=technique, square_aperture=square_aperture,
+    grid = estimation_grid(scene, block_px, samples, integrand=integrand, options=options,
                            progress=progress)
     try:
         est = directions.estimate_blocks(grid, k=k, samples_per_block=samples,
@@ -379,8 +387,7 @@ def estimate_blocks(
     out = BlockEstimate(est, power, block_px, samples, scene.width, scene.height, seconds,
                         by * bx * samples * samples)
     if gate:
-        out = gate_estimate(scene, out, probe, integrand=integrand, dimension=dimension,
-                            technique=technique, square_aperture=square_aperture,
+        out = gate_estimate(scene, out, probe, integrand=integrand, options=options,
                             progress=progress)
     return out
 
@@ -391,9 +398,7 @@ def gate_estimate(
     probe: int = 6,
     *,
     integrand=None,
-    dimension: str = "auto",
-    technique: str = "area",
-    square_aperture: bool = False,
+    options: IntegratorOptions | None = None,
     progress: bool = False,
 ) -> BlockEstimate:
     """``estimate`` with the per-pixel gate filled in (``discontinuous``, ``probe``,
@@ -412,8 +417,7 @@ def gate_estimate(
     if rows.size:
         disc[rows, cols] = probe_discontinuous(pixel_probes(
             scene, probe, pixels=np.stack([cols, rows], -1), integrand=integrand,
-            dimension=dimension, technique=technique, square_aperture=square_aperture,
-            progress=progress))
+            options=options, progress=progress))
     return estimate._replace(discontinuous=disc, probe=probe,
                              probe_seconds=time.perf_counter() - t0)
 

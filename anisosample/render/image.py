@@ -19,8 +19,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._validate import check_devices, check_int, check_key
-from .integrator import check_options, render_chunk
-from .light_warps import light_warp_name
+from .integrator import options_of, render_chunk
+from .options import IntegratorOptions
 from .scene import Scene
 
 
@@ -67,6 +67,7 @@ def render(
     progress: bool = True,
     sampler_options: dict | None = None,
     devices=None,
+    options: IntegratorOptions | None = None,
 ) -> RenderResult:
     """Render ``scene`` ``realizations`` times with ``spp`` points per pixel per realization.
 
@@ -75,8 +76,15 @@ def render(
     per light sample, power heuristic) are the caller's: a scene file's own sample count and
     integrator are :class:`~anisosample.render.xml.RenderSettings`
     (``scene, settings = load_xml_with_settings(p)``; ``render(scene, key,
-    **settings._asdict())``). ``mis`` applies to light sampling only (``dimension="light"``).
-    Deterministic for a given ``key``.
+    **settings._asdict())``). Deterministic for a given ``key``.
+
+    ``options``: the integrator's options as one record,
+    :class:`~anisosample.render.options.IntegratorOptions`, instead of the keywords
+    ``pixel_center``, ``dimension``, ``technique``, ``light_warp``, ``mis`` and
+    ``square_aperture`` (not both); either way it is checked once and resolved for the scene
+    here, and everything the render calls takes the record. ``mis=True`` on
+    ``dimension="lens"`` (point lights only) is applied and changes no bit: no BSDF sample
+    reaches a point light.
 
     ``technique`` is the base light-sampling technique (``"area"``, ``"solid_angle"``,
     ``"parametric"``) and ``light_warp`` the warp chain fitted at every shading point in front of
@@ -103,10 +111,9 @@ def render(
     key = check_key("key", key)
     spp = check_int("spp", spp, minimum=1)
     realizations = check_int("realizations", realizations, minimum=1)
-    dimension = check_options(scene, dimension, technique, light_warp)
-    if not isinstance(mis, (bool, np.bool_)):
-        raise TypeError(f"mis must be True or False, got {mis!r}")
-    mis = bool(mis) and dimension == "light"
+    options = options_of(options, pixel_center=pixel_center, dimension=dimension,
+                         technique=technique, light_warp=light_warp, mis=mis,
+                         square_aperture=square_aperture).for_scene(scene)
     split = _PixelSplit.of(check_devices("devices", devices))
     from .aligned import render_chunk_sets, resolve_sampler
     from .pixel_aligned import PIXEL_SAMPLERS, PixelSampler, pixel_sampler
@@ -120,8 +127,7 @@ def render(
                              "PixelSampler")
         per_pixel = sampler
     blocks = None if per_pixel is not None else resolve_sampler(
-        scene, sampler, sampler_options, dimension=dimension, technique=technique,
-        square_aperture=bool(square_aperture), progress=progress)
+        scene, sampler, sampler_options, options=options, progress=progress)
     if per_pixel is not None:
         sampler_name = per_pixel.name
         if (per_pixel.width, per_pixel.height) != (scene.width, scene.height):
@@ -149,14 +155,7 @@ def render(
 
     total = np.zeros((npix, 3), np.float64)
     total2 = np.zeros((npix, 3), np.float64)
-    opts = dict(
-        dimension=dimension,
-        technique=technique,
-        mis=mis,
-        pixel_center=bool(pixel_center),
-        square_aperture=bool(square_aperture),
-        light_warp=light_warp,
-    )
+    opts = dict(options=options)
     with bar(
         total=realizations * (n_chunks + 2 if per_pixel is not None else n_chunks),
         desc="render",
@@ -242,12 +241,7 @@ def render(
         spp=spp,
         sampler=sampler_name,
         realizations=realizations,
-        pixel_center=bool(pixel_center),
-        dimension=dimension,
-        technique=technique,
-        light_warp=light_warp_name(light_warp),
-        mis=mis,
-        square_aperture=bool(square_aperture),
+        **options.settings(),
         width=w,
         height=h,
     )

@@ -2,8 +2,12 @@
 
 One sample of pixel ``q`` is a function of four 2D points: the film position inside the pixel,
 the lens sample, the light sample and (with MIS) the BSDF sample. :func:`radiance` evaluates it.
-The *integrand dimension* is the one the sampler under study drives; the others are either fixed
-(pixel centre, lens centre) or independent uniform random numbers:
+The options (``dimension``, ``technique``, ``light_warp``, ``mis``, ``pixel_center``,
+``square_aperture``) are one record, :class:`~anisosample.render.options.IntegratorOptions`,
+checked once and resolved for the scene by :func:`anisosample.render.render` and
+:func:`pixel_integrand`; every function here takes it. The *integrand dimension* is the one the
+sampler under study drives; the others are either fixed (pixel centre, lens centre) or
+independent uniform random numbers:
 
 * ``dimension="light"``: ``x`` is the light sample; ``f_q(x) = L_e + f_r L_e G V / p(x)`` at the
   primary hit (Veach's area form, the pixel's direct illumination estimated with one light
@@ -20,7 +24,8 @@ pixel's reconstruction filter for a gaussian one (filter importance sampling,
 MIS (``mis=True``): one light sample and one BSDF sample combined with the power heuristic
 (Veach & Guibas 1995, :func:`anisosample.warps.power_heuristic`; H renders with one light and
 one BSDF sample). Mitsuba's ``direct`` integrator with ``emitter_samples = bsdf_samples = 1``
-computes the same estimator.
+computes the same estimator. On ``dimension="lens"`` (point lights only) it is applied too and
+changes no bit: the BSDF sample reaches no emitter (:mod:`anisosample.render.options`).
 
 Light warps (``light_warp``, :mod:`anisosample.render.light_warps`, H Sec. 4): one shading frame
 per sample. Every ray leaves from the offset point ``offset_origin(p, n, wi)`` on the viewer's
@@ -35,6 +40,7 @@ import functools
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 from ..warps import power_heuristic
@@ -43,11 +49,10 @@ from .bsdf import eval_bsdf, pdf_bsdf, sample_bsdf
 from .camera import generate_ray
 from .film import film_offsets
 from .geometry import intersect, occluded, offset_origin
-from .light_warps import Receiver, check_light_warp
+from .light_warps import Receiver
 from .lights import emitted, light_pdf, sample_light
+from .options import IntegratorOptions
 from .scene import LUMINANCE, THINLENS, Scene
-
-DIMENSIONS = ("light", "lens")
 
 
 def hashed_uniforms(key, n: int) -> Float[Array, "n 2"]:
@@ -71,14 +76,14 @@ def radiance(
     lens: Float[Array, "2"],
     light: Float[Array, "2"],
     bsdf_u: Float[Array, "2"],
-    *,
-    technique: str = "area",
-    light_warp: str = "none",
-    mis: bool = False,
-    square_aperture: bool = False,
+    options: IntegratorOptions | None = None,
 ) -> Float[Array, "3"]:
-    """One sample of the radiance through film point ``film`` (``[0, 1]^2``, row 0 on top)."""
-    o, d = generate_ray(scene.camera, film, lens, square_aperture=square_aperture)
+    """One sample of the radiance through film point ``film`` (``[0, 1]^2``, row 0 on top),
+    with ``options``' technique, light warp, MIS and aperture (its dimension and film rule are
+    the callers': :func:`sample_function`, :func:`pixel_samples`; None: the defaults)."""
+    options = IntegratorOptions() if options is None else options
+    technique, light_warp, mis = options.technique, options.light_warp, options.mis
+    o, d = generate_ray(scene.camera, film, lens, square_aperture=options.square_aperture)
     hit = intersect(scene, o, d)
     wi = -d
     mats = scene.materials
@@ -121,58 +126,17 @@ def radiance(
     return L
 
 
-def default_dimension(scene: Scene) -> str:
-    """``"lens"`` for a thin-lens scene lit by point lights only, else ``"light"``."""
-    if scene.camera.kind == THINLENS and not scene.has_area_lights:
-        return "lens"
-    return "light"
-
-
-def check_options(scene, dimension, technique, light_warp="none") -> str:
-    """Validate a render's ``dimension`` (returned, ``"auto"`` resolved), ``technique`` and
-    ``light_warp`` for ``scene`` before tracing."""
-    from .._validate import check_choice
-    from .lights import TECHNIQUES
-
-    dimension = default_dimension(scene) if dimension in (None, "auto") else dimension
-    check_choice("dimension", dimension, DIMENSIONS)
-    check_choice("technique", technique, TECHNIQUES)
-    check_light_warp(scene, light_warp)
-    if dimension == "lens" and scene.camera.kind != THINLENS:
-        raise ValueError("dimension='lens' needs a thinlens sensor; this scene's is perspective")
-    if dimension == "lens" and scene.has_area_lights:
-        raise ValueError(
-            "dimension='lens' needs a scene lit by point lights only (the light is"
-            " connected deterministically, W Sec. 6.2); this one has area lights"
-        )
-    return dimension
-
-
-_check_options = check_options  # old private name (render/aligned.py), until it moves over
-
-
-def sample_function(scene: Scene, dimension: str, technique: str, mis: bool,
-                    square_aperture: bool, light_warp: str = "none"):
+def sample_function(scene: Scene, options: IntegratorOptions):
     """``g(x, film, other, bsdf_u) -> rgb``: one sample of :func:`radiance` where ``x``
-    drives ``dimension`` (the other dimension's sample is ``other``)."""
+    drives ``options.dimension`` (resolved; the other dimension's sample is ``other``)."""
 
     def g(x, film, other, bsdf_u):
-        if dimension == "light":
+        if options.dimension == "light":
             lens = other if scene.camera.kind == THINLENS else jnp.full(2, 0.5, jnp.float32)
             light = x
         else:
             lens, light = x, other
-        return radiance(
-            scene,
-            film,
-            lens,
-            light,
-            bsdf_u,
-            technique=technique,
-            light_warp=light_warp,
-            mis=mis,
-            square_aperture=square_aperture,
-        )
+        return radiance(scene, film, lens, light, bsdf_u, options)
 
     return g
 
@@ -184,9 +148,12 @@ class PixelIntegrand(eqx.Module):
     ``x`` as its light or lens sample: the image estimator is ``mean_j f_q(x_j)`` (W Eq. 8),
     exactly :func:`anisosample.variance.estimator_variance`'s estimator. Everything except ``x``
     is fixed: the film position at the pixel centre (or at ``film`` if given), the lens at its
-    centre, no BSDF sample (``mis`` is off: a 2D integrand has one sampling technique).
+    centre, no BSDF sample.
 
-    ``light_warp``: the light technique's warp chain fitted at each shading point
+    ``options``: the :class:`~anisosample.render.options.IntegratorOptions` of the integrand,
+    resolved for the scene (:meth:`~anisosample.render.options.IntegratorOptions.integrand`:
+    ``mis`` off, ``pixel_center`` on: a 2D integrand has one sampling technique); its
+    ``light_warp`` is the light technique's warp chain fitted at each shading point
     (:mod:`anisosample.render.light_warps`; ``"none"``: the base ``technique`` alone).
     ``warp`` (optional): a further primary-sample-space warp ``w`` from
     :mod:`anisosample.warps` (``[0,1)^2 -> [0,1)^2``, e.g. a fitted ``Bilinear`` or a
@@ -197,11 +164,8 @@ class PixelIntegrand(eqx.Module):
     scene: Scene
     film: Float[Array, "2"]
     weights: Float[Array, "3"]
-    dimension: str = eqx.field(static=True)
-    technique: str = eqx.field(static=True)
-    square_aperture: bool = eqx.field(static=True)
+    options: IntegratorOptions = eqx.field(static=True)
     warp: eqx.Module | None = None
-    light_warp: str = eqx.field(static=True, default="none")
 
     def rgb(self, x: Float[Array, "... 2"]) -> Float[Array, "... 3"]:
         x = jnp.asarray(x, jnp.float32)
@@ -227,7 +191,7 @@ _BLOCK = 4096  # points per vmapped block: keeps the working set in cache (see i
 
 @eqx.filter_jit
 def _integrand_rgb(f: PixelIntegrand, flat):
-    g = sample_function(f.scene, f.dimension, f.technique, False, f.square_aperture, f.light_warp)
+    g = sample_function(f.scene, f.options)
     half = jnp.full(2, 0.5, jnp.float32)
 
     def point(xi):
@@ -251,6 +215,7 @@ def pixel_integrand(
     scene: Scene,
     pixel: tuple[int, int],
     *,
+    options: IntegratorOptions | None = None,
     dimension: str = "auto",
     technique: str = "area",
     light_warp: str = "none",
@@ -261,16 +226,21 @@ def pixel_integrand(
 ) -> PixelIntegrand:
     """The 2D integrand ``f_q`` of pixel ``pixel = (column, row)`` (row 0 at the image top).
 
-    ``channel``: ``"luminance"`` (Rec. 709 weights), ``"r"``, ``"g"`` or ``"b"``. ``film``
-    overrides the film position inside ``[0, 1]^2`` (default: the pixel centre).
-    ``light_warp``: one of :data:`~anisosample.render.light_warps.LIGHT_WARPS`, the light
-    technique's warp chain fitted at the shading point (H Sec. 4). ``warp``: a
-    primary-sample-space warp composed in front of the light/lens technique (see
-    :class:`PixelIntegrand`).
+    ``options``: an :class:`~anisosample.render.options.IntegratorOptions` (a render's own,
+    say), or the keywords ``dimension``, ``technique``, ``light_warp`` (one of
+    :data:`~anisosample.render.light_warps.LIGHT_WARPS`, the light technique's warp chain
+    fitted at the shading point, H Sec. 4) and ``square_aperture`` that make one -- not both.
+    The integrand takes :meth:`~anisosample.render.options.IntegratorOptions.integrand` of it
+    (no MIS, film at the pixel centre). ``channel``: ``"luminance"`` (Rec. 709 weights),
+    ``"r"``, ``"g"`` or ``"b"``. ``film`` overrides the film position inside ``[0, 1]^2``
+    (default: the pixel centre). ``warp``: a primary-sample-space warp composed in front of
+    the light/lens technique (see :class:`PixelIntegrand`).
     """
     from .._validate import check_choice, check_int
 
-    dimension = check_options(scene, dimension, technique, light_warp)
+    options = options_of(options, dimension=dimension, technique=technique,
+                         light_warp=light_warp, square_aperture=square_aperture)
+    options = options.for_scene(scene).integrand()
     col = check_int("pixel[0] (column)", pixel[0], minimum=0, maximum=scene.width - 1)
     row = check_int("pixel[1] (row)", pixel[1], minimum=0, maximum=scene.height - 1)
     check_choice("channel", channel, ("luminance", "r", "g", "b"))
@@ -281,36 +251,51 @@ def pixel_integrand(
         scene=scene,
         film=jnp.asarray(film, jnp.float32),
         weights=jnp.asarray(weights, jnp.float32),
-        dimension=dimension,
-        technique=technique,
-        square_aperture=square_aperture,
+        options=options,
         warp=warp,
-        light_warp=light_warp,
     )
 
 
-@functools.partial(
-    jax.jit,
-    static_argnames=("dimension", "technique", "mis", "pixel_center", "square_aperture",
-                     "light_warp"),
-)
-def render_chunk(
-    scene: Scene, points, key, pixels, *, dimension, technique, mis, pixel_center, square_aperture,
-    light_warp="none",
-):
+_KEYWORD_DEFAULTS = IntegratorOptions()
+
+
+def options_of(options: IntegratorOptions | None = None, **keywords) -> IntegratorOptions:
+    """``options``, or the record the keywords make (the user-facing functions take either,
+    not both: a keyword away from its default beside ``options`` is a ``ValueError``)."""
+    if options is None:
+        return IntegratorOptions(**keywords)
+    if not isinstance(options, IntegratorOptions):
+        raise TypeError(f"options must be a render.IntegratorOptions, got "
+                        f"{type(options).__name__}")
+    given = sorted(k for k, v in keywords.items() if not _is_default(k, v))
+    if given:
+        raise ValueError(f"give options= or the keywords {given}, not both (the record "
+                         f"holds them: options.replace({given[0]}=...))")
+    return options
+
+
+def _is_default(name: str, value) -> bool:
+    default = getattr(_KEYWORD_DEFAULTS, name)
+    if name == "dimension" and value is None:
+        return True
+    return type(value) in (type(default), np.bool_) and value == default
+
+
+@functools.partial(jax.jit, static_argnames=("options",))
+def render_chunk(scene: Scene, points, key, pixels, *, options: IntegratorOptions):
     """Mean over the ``spp`` points of each pixel in ``pixels`` (flat indices): ``(..., 3)``.
 
     Each pixel gets its own toroidal shift of the shared point set (W Sec. 5.4) and its own
     independent random numbers for the other dimensions, all from ``fold_in(key, pixel)``.
+    ``options``: the render's record, resolved for ``scene``.
     """
     from ..samplers import toroidal_shift
 
-    g = sample_function(scene, dimension, technique, mis, square_aperture, light_warp)
+    g = sample_function(scene, options)
 
     def one_pixel(q):
         x = toroidal_shift(pixel_shift_key(key, q), points)
-        rgb = pixel_samples(scene, g, x, key, q, points.shape[0], 0, mis=mis,
-                            pixel_center=pixel_center, dimension=dimension)
+        rgb = pixel_samples(scene, g, x, key, q, points.shape[0], 0, options)
         return jnp.mean(rgb, axis=0)
 
     if pixels.ndim == 1:
@@ -324,13 +309,14 @@ def pixel_shift_key(key, q):
     return jax.random.split(jax.random.fold_in(key, q), 4)[0]
 
 
-def pixel_samples(scene: Scene, g, x, key, q, spp: int, start: int, *, mis: bool,
-                  pixel_center: bool, dimension: str) -> Float[Array, "k 3"]:
+def pixel_samples(scene: Scene, g, x, key, q, spp: int, start: int,
+                  options: IntegratorOptions) -> Float[Array, "k 3"]:
     """Samples ``start .. start + k - 1`` of pixel ``q``'s ``spp``-sample estimate, ``x``
     ``(k, 2)`` their (shifted) points in the studied dimension: the film position, the other
     dimension's and the BSDF's random numbers are the same counters of the pixel's streams
     (``fold_in(key, q)``) whatever the split, so a pixel rendered in parts (a prefix, then the
-    rest of its set: :mod:`anisosample.render.pixel_aligned`) gets the bits it gets whole."""
+    rest of its set: :mod:`anisosample.render.pixel_aligned`) gets the bits it gets whole.
+    ``options`` (resolved) says which of them the configuration draws."""
     k = x.shape[0]
     w, h = scene.width, scene.height
     _, k_film, k_other, k_bsdf = jax.random.split(jax.random.fold_in(key, q), 4)
@@ -340,7 +326,7 @@ def pixel_samples(scene: Scene, g, x, key, q, spp: int, start: int, *, mis: bool
 
     col = (q % w).astype(jnp.float32)
     row = (q // w).astype(jnp.float32)
-    if pixel_center:
+    if options.pixel_center:
         pos = jnp.broadcast_to(jnp.stack([col, row]) + 0.5, (k, 2))
     else:  # uniform in the pixel (box) or from its reconstruction filter (render/film.py)
         cam = scene.camera
@@ -349,10 +335,8 @@ def pixel_samples(scene: Scene, g, x, key, q, spp: int, start: int, *, mis: bool
     # Draw only the random numbers this configuration uses.
     half = jnp.full((k, 2), 0.5, jnp.float32)
     # (dimension "lens" implies point lights only: no light sample is needed.)
-    need_other = dimension == "light" and scene.camera.kind == THINLENS
+    need_other = options.dimension == "light" and scene.camera.kind == THINLENS
     other = stream(k_other) if need_other else half
-    bsdf_u = stream(k_bsdf) if mis else half
+    bsdf_u = stream(k_bsdf) if options.mis else half
     return jax.vmap(g)(x, film, other, bsdf_u)
 
-
-_render_chunk = render_chunk  # old private name (render/aligned.py), until it moves over

@@ -52,6 +52,7 @@ from .. import edges, selection
 from .. import tables as _tables
 from .._validate import check_int
 from .integrator import pixel_samples, pixel_shift_key, sample_function
+from .options import IntegratorOptions
 from .scene import LUMINANCE, THINLENS, Scene
 
 __all__ = ["FALLBACK", "PIXEL_SAMPLERS", "PixelEstimates", "PixelSampler", "choose_sets",
@@ -197,33 +198,33 @@ def pixel_sampler(scene: Scene, *, k: int = 2, table=None, build_missing: bool |
                         build_missing, dict(build_options or {}))
 
 
-def exact_values(scene: Scene, *, dimension: str, mis: bool, pixel_center: bool) -> bool:
-    """Whether a pixel's render samples are values of its 2D integrand (pixel centre, no MIS,
-    no random lens), so the search reads the prefix's samples instead of re-evaluating them."""
-    lens_random = dimension == "light" and scene.camera.kind == THINLENS
-    return bool(pixel_center) and not mis and not lens_random
+def exact_values(scene: Scene, options: IntegratorOptions) -> bool:
+    """Whether a pixel's render samples (``options`` resolved) are values of its 2D integrand
+    (pixel centre, no MIS, no random lens), so the search reads the prefix's samples instead of
+    re-evaluating them."""
+    lens_random = options.dimension == "light" and scene.camera.kind == THINLENS
+    return options.pixel_center and not options.mis and not lens_random
 
 
-_STATIC = ("spp", "dimension", "technique", "mis", "pixel_center", "square_aperture",
-           "light_warp", "search")
+_STATIC = ("spp", "options", "search")
 
 
 @functools.partial(jax.jit, static_argnames=_STATIC)
-def prefix_chunk(scene: Scene, prefix, key, pixels, *, spp, dimension, technique, mis,
-                 pixel_center, square_aperture, light_warp, search: edges.SearchOptions):
-    """Pass 1 for ``pixels``: the sum of each pixel's first ``m`` samples ``(..., 3)``, its
-    directions ``(..., 2)`` (NaN: none), its edge count and the search's extra samples."""
-    g = sample_function(scene, dimension, technique, mis, square_aperture, light_warp)
-    g0 = sample_function(scene, dimension, technique, False, square_aperture, light_warp)
-    exact = exact_values(scene, dimension=dimension, mis=mis, pixel_center=pixel_center)
+def prefix_chunk(scene: Scene, prefix, key, pixels, *, spp, options: IntegratorOptions,
+                 search: edges.SearchOptions):
+    """Pass 1 for ``pixels`` (``options``: the render's, resolved): the sum of each pixel's
+    first ``m`` samples ``(..., 3)``, its directions ``(..., 2)`` (NaN: none), its edge count
+    and the search's extra samples."""
+    g = sample_function(scene, options)
+    g0 = sample_function(scene, options.replace(mis=False))
+    exact = exact_values(scene, options)
     lum = jnp.asarray(LUMINANCE, jnp.float32)
     w, h = scene.width, scene.height
     m = prefix.shape[0]
 
     def one(q):
         x = toroidal_shift_key(key, q, prefix)
-        rgb = pixel_samples(scene, g, x, key, q, spp, 0, mis=mis, pixel_center=pixel_center,
-                            dimension=dimension)
+        rgb = pixel_samples(scene, g, x, key, q, spp, 0, options)
         centre = jnp.stack([(q % w).astype(jnp.float32) + 0.5,
                             (q // w).astype(jnp.float32) + 0.5]) / jnp.asarray([w, h],
                                                                                 jnp.float32)
@@ -252,17 +253,16 @@ def toroidal_shift_key(key, q, points):
 
 
 @functools.partial(jax.jit, static_argnames=_STATIC[:-1])
-def rest_chunk(scene: Scene, rests, pixel_set, key, pixels, *, spp, dimension, technique, mis,
-               pixel_center, square_aperture, light_warp):
+def rest_chunk(scene: Scene, rests, pixel_set, key, pixels, *, spp,
+               options: IntegratorOptions):
     """Pass 2 for ``pixels``: the sum of samples ``m .. spp - 1`` ``(..., 3)``, pixel ``q``
     taking ``rests[pixel_set[q]]`` (its set without the prefix) under its shift."""
-    g = sample_function(scene, dimension, technique, mis, square_aperture, light_warp)
+    g = sample_function(scene, options)
     m = spp - rests.shape[1]
 
     def one(q):
         x = toroidal_shift_key(key, q, rests[pixel_set[q]])
-        rgb = pixel_samples(scene, g, x, key, q, spp, m, mis=mis, pixel_center=pixel_center,
-                            dimension=dimension)
+        rgb = pixel_samples(scene, g, x, key, q, spp, m, options)
         return jnp.sum(rgb, axis=0)
 
     if pixels.ndim == 1:
@@ -276,19 +276,17 @@ def fallback_shift_key(key, q):
 
 
 @functools.partial(jax.jit, static_argnames=(*_STATIC[:-1], "m"))
-def fallback_chunk(scene: Scene, base, key, pixels, *, spp, m, dimension, technique, mis,
-                   pixel_center, square_aperture, light_warp):
+def fallback_chunk(scene: Scene, base, key, pixels, *, spp, m, options: IntegratorOptions):
     """Pass 2 for pixels without an edge: the mean ``(..., 3)`` over the ``spp`` points of
     ``base`` (pmj02bn) under the pixel's own fallback shift, on stream counters
     ``m .. m + spp - 1`` (after the prefix's)."""
     from ..samplers import toroidal_shift
 
-    g = sample_function(scene, dimension, technique, mis, square_aperture, light_warp)
+    g = sample_function(scene, options)
 
     def one(q):
         x = toroidal_shift(fallback_shift_key(key, q), base)
-        rgb = pixel_samples(scene, g, x, key, q, spp + m, m, mis=mis, pixel_center=pixel_center,
-                            dimension=dimension)
+        rgb = pixel_samples(scene, g, x, key, q, spp + m, m, options)
         return jnp.mean(rgb, axis=0)
 
     if pixels.ndim == 1:

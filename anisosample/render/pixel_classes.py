@@ -35,6 +35,7 @@ import numpy as np
 
 from .._validate import check_int, check_positive_float
 from ..metrics import axial_distance_deg
+from .options import IntegratorOptions
 from .scene import Scene
 
 __all__ = [
@@ -257,26 +258,27 @@ def pixel_grids(
     pixels=None,
     *,
     grid: int = 64,
-    dimension: str = "auto",
-    technique: str = "area",
-    square_aperture: bool = False,
+    options: IntegratorOptions | None = None,
     chunk: int = 64,
 ):
     """Dense grids ``(m, g, g)`` (float32) of the integrands of ``pixels`` (``(m, 2)`` of
     ``[column, row]``; default every pixel), each at its pixel centre, in DESIGN's grid
-    convention: :func:`anisosample.render.estimation.pixel_probes` with ``probe = grid``, as a
+    convention (``options``: the integrand's :class:`~anisosample.render.options.
+    IntegratorOptions`, default the defaults; no MIS, no light warp: the estimation's
+    integrand, :func:`anisosample.render.estimation.estimation_options`):
+    :func:`anisosample.render.estimation.pixel_probes` with ``probe = grid``, as a
     generator of ``(start, grids)`` chunks of ``chunk`` pixels, so that a large image is never
     held at once."""
-    from .estimation import pixel_probes
+    from .estimation import estimation_options, pixel_probes
 
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
     grid = check_int("grid", grid, minimum=3, maximum=1024)
     chunk = check_int("chunk", chunk, minimum=1)
     px = _check_pixels(scene, pixels)
+    options = estimation_options(options).for_scene(scene)
     for s in range(0, len(px), chunk):
-        yield s, pixel_probes(scene, grid, pixels=px[s:s + chunk], dimension=dimension,
-                              technique=technique, square_aperture=square_aperture)
+        yield s, pixel_probes(scene, grid, pixels=px[s:s + chunk], options=options)
 
 
 def pixel_classes(
@@ -284,22 +286,24 @@ def pixel_classes(
     pixels=None,
     *,
     grid: int = 64,
-    dimension: str = "auto",
-    technique: str = "area",
-    square_aperture: bool = False,
+    options: IntegratorOptions | None = None,
     progress: bool = False,
-    **options,
+    **classify_options,
 ) -> PixelClasses:
     """Classify the 2D integrand of every pixel in ``pixels`` (default: all) from a dense
-    ``grid x grid`` sample of it (module docstring). ``dimension``, ``technique`` and
-    ``square_aperture`` choose the integrand as :func:`anisosample.render.pixel_integrand` does
-    (``"auto"``: the light sample where the scene has area lights, else the lens sample);
-    ``options`` go to :func:`classify_grid`.
+    ``grid x grid`` sample of it (module docstring). ``options`` (an
+    :class:`~anisosample.render.options.IntegratorOptions`: its ``dimension``, ``technique``
+    and ``square_aperture``) choose the integrand as :func:`pixel_grids` does
+    (``dimension="auto"``: the light sample where the scene has area lights, else the lens
+    sample); ``classify_options`` go to :func:`classify_grid`.
     """
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
     px = _check_pixels(scene, pixels)
-    classify_grid(np.ones((8, 8)), **options)  # validate the options once, before any work
+    classify_grid(np.ones((8, 8)), **classify_options)  # validate them once, before any work
+    from .estimation import estimation_options
+
+    options = estimation_options(options).for_scene(scene)
     h, w = scene.height, scene.width
     classes = np.full((h, w), CLASSES.index("other"), np.int8)
     dirs = np.zeros((h, w, 2), np.float32)
@@ -307,8 +311,7 @@ def pixel_classes(
     done = np.zeros((h, w), bool)
     from ..progress import progress as bar
 
-    chunks = pixel_grids(scene, px, grid=grid, dimension=dimension, technique=technique,
-                         square_aperture=square_aperture)
+    chunks = pixel_grids(scene, px, grid=grid, options=options)
     total = -(-len(px) // 64)
     for start, grids in bar(chunks, total=total, desc="pixel classes", unit="chunk",
                             disable=None if progress else True, leave=False):
@@ -316,15 +319,12 @@ def pixel_classes(
             raise FloatingPointError("a pixel integrand returned NaN or inf (a bug: please report)")
         for k, values in enumerate(grids):
             col, row = px[start + k]
-            r = classify_grid(values, **options)
+            r = classify_grid(values, **classify_options)
             classes[row, col] = CLASSES.index(r.name)
             num[row, col] = len(r.directions_deg)
             dirs[row, col, :len(r.directions_deg)] = r.directions_deg
             done[row, col] = True
-    from .integrator import default_dimension
-
-    dim = default_dimension(scene) if dimension == "auto" else dimension
-    return PixelClasses(classes, dirs, num, done, grid, dim, technique)
+    return PixelClasses(classes, dirs, num, done, grid, options.dimension, options.technique)
 
 
 def class_rgb(classes: PixelClasses, *, unevaluated=1.0) -> np.ndarray:

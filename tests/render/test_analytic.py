@@ -122,7 +122,7 @@ def test_pixel_integrand_plugs_into_the_variance_engine():
 def test_depth_of_field_lens_integrand_matches_the_render():
     scene = R.load_xml(SCENES / "dof.xml", width=16, height=16)
     f = R.pixel_integrand(scene, (12, 14))  # "auto": the lens sample (point light only)
-    assert f.dimension == "lens"
+    assert f.options.dimension == "lens"
     grid = np.asarray(f(jnp.asarray(midpoint_grid(128))))
     ref = float(grid.mean())
     res = R.render(scene, jax.random.key(2), spp=64, sampler="jittered", pixel_center=True,

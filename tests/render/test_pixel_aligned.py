@@ -107,8 +107,8 @@ def test_prefix_and_rest_are_the_whole_set(cornell):
     k_pix = jax.random.split(jax.random.fold_in(jax.random.key(3), 0))[1]
     for q in np.flatnonzero(code == 3)[:6]:
         whole = render_chunk(scene, sets[index[q]], k_pix, jnp.asarray([q], jnp.int32),
-                             dimension="light", technique="area", mis=False, pixel_center=True,
-                             square_aperture=False)[0]
+                             options=R.IntegratorOptions(dimension="light",
+                                                         pixel_center=True))[0]
         np.testing.assert_allclose(res.mean.reshape(-1, 3)[q], np.asarray(whole), rtol=2e-6,
                                    atol=1e-9)
 

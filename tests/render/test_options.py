@@ -1,0 +1,124 @@
+"""The integrator's options as one record (render.options, issue 23): validated once, immutable,
+resolved per scene; MIS on the lens dimension applied (no bit changes); lookup never builds."""
+
+import dataclasses
+
+import jax
+import numpy as np
+import pytest
+
+import anisosample.render as R
+from anisosample import tables
+from anisosample.render import aligned, estimation
+from anisosample.render.options import IntegratorOptions
+
+from .helpers import SCENES, plane_under_light
+
+
+@pytest.mark.parametrize("field, value, error, match", [
+    ("dimension", "aperture", ValueError, r"dimension must be one of \['auto', 'lens', 'light'\]"),
+    ("dimension", 3, TypeError, "dimension must be one of"),
+    ("technique", "cosine", ValueError, r"technique must be one of \['area', 'parametric'"),
+    ("technique", None, TypeError, "technique must be one of"),
+    ("light_warp", "bilinear", ValueError, r"light_warp must be one of .*'arvo2001'"),
+    ("light_warp", 2, TypeError, r"light_warp must be one of .* or a callable"),
+    ("mis", 1, TypeError, "mis must be True or False, got 1"),
+    ("mis", None, TypeError, "mis must be True or False"),
+    ("pixel_center", "yes", TypeError, "pixel_center must be True or False"),
+    ("square_aperture", 0.0, TypeError, "square_aperture must be True or False"),
+])
+def test_each_field_is_checked_when_made(field, value, error, match):
+    with pytest.raises(error, match=match):
+        IntegratorOptions(**{field: value})
+    with pytest.raises(error, match=match):  # replace makes a new, checked record
+        IntegratorOptions().replace(**{field: value})
+
+
+def test_immutable_hashable_and_normalised():
+    o = IntegratorOptions(technique="solid_angle", mis=np.bool_(True), dimension=None)
+    assert o.mis is True and o.dimension == "auto"
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        o.mis = False
+    assert hash(o) == hash(IntegratorOptions(technique="solid_angle", mis=True))
+    assert o.replace(mis=False) == IntegratorOptions(technique="solid_angle")
+    assert o.integrand() == o.replace(mis=False, pixel_center=True)
+    assert o.settings() == dict(pixel_center=False, dimension="auto", technique="solid_angle",
+                                light_warp="none", mis=True, square_aperture=False)
+
+
+def test_for_scene_resolves_and_checks_the_scene():
+    plane = plane_under_light()
+    dof = R.load_xml(SCENES / "dof.xml", width=8, height=8)
+    assert IntegratorOptions().for_scene(plane).dimension == "light"
+    assert IntegratorOptions().for_scene(dof).dimension == "lens"
+    with pytest.raises(ValueError, match="dimension='lens' needs a thinlens sensor"):
+        IntegratorOptions(dimension="lens").for_scene(plane)
+    with pytest.raises(ValueError, match="only point lights"):
+        IntegratorOptions(light_warp="cosine-bilinear").for_scene(dof)
+    with pytest.raises(TypeError, match="scene must be an anisosample.render.Scene"):
+        IntegratorOptions().for_scene("cornell.xml")
+
+
+def test_record_or_keywords_not_both():
+    plane = plane_under_light()
+    o = IntegratorOptions(technique="solid_angle")
+    f = R.pixel_integrand(plane, (4, 4), options=o)
+    assert f.options == o.for_scene(plane).integrand()
+    assert f.options == R.pixel_integrand(plane, (4, 4), technique="solid_angle").options
+    with pytest.raises(ValueError, match=r"give options= or the keywords \['technique'\]"):
+        R.pixel_integrand(plane, (4, 4), options=o, technique="parametric")
+    with pytest.raises(ValueError, match=r"the keywords \['mis'\], not both"):
+        R.render(plane, jax.random.key(0), spp=1, options=o, mis=True, progress=False)
+    with pytest.raises(TypeError, match="options must be a render.IntegratorOptions"):
+        R.render(plane, jax.random.key(0), spp=1, options={"mis": True}, progress=False)
+    with pytest.raises(ValueError, match="give integrand= or options=, not both"):
+        estimation.estimation_grid(plane, 3, 6, integrand=f, options=o)
+
+
+def test_render_with_the_record_is_the_render_with_keywords():
+    plane = plane_under_light()
+    kw = dict(technique="solid_angle", mis=True, pixel_center=True)
+    a = R.render(plane, jax.random.key(2), spp=4, progress=False, **kw)
+    b = R.render(plane, jax.random.key(2), spp=4, progress=False, options=IntegratorOptions(**kw))
+    np.testing.assert_array_equal(a.mean, b.mean)
+    assert a.settings == b.settings and b.settings["mis"] is True
+
+
+def test_mis_on_the_lens_dimension_is_applied_and_changes_no_bit():
+    """Today's rule (``render`` once dropped ``mis`` off the light dimension silently): MIS
+    applies on ``dimension="lens"`` too, the record says so, and since a BSDF sample reaches no
+    point light the image is the one without MIS, bit for bit."""
+    dof = R.load_xml(SCENES / "dof.xml", width=8, height=8)
+    off = R.render(dof, jax.random.key(4), spp=4, progress=False)
+    on = R.render(dof, jax.random.key(4), spp=4, mis=True, progress=False)
+    assert off.settings["dimension"] == on.settings["dimension"] == "lens"
+    assert off.settings["mis"] is False and on.settings["mis"] is True
+    np.testing.assert_array_equal(off.mean, on.mean)
+
+
+def test_block_sampler_keeps_the_estimation_options():
+    plane = plane_under_light()
+    o = IntegratorOptions(technique="solid_angle", light_warp="cosine-bilinear", mis=True)
+    s = aligned.block_sampler(plane, "sheared", block_px=3, samples=18, options=o)
+    assert s.options == IntegratorOptions(technique="solid_angle", dimension="light",
+                                          pixel_center=True)
+    R.render(plane, jax.random.key(0), spp=2, sampler=s, options=o, progress=False)
+    with pytest.raises(ValueError, match=r"estimated its directions with .* = \('light', "
+                                         r"'solid_angle', False\), the render uses \('light', "
+                                         r"'area', False\)"):
+        R.render(plane, jax.random.key(0), spp=2, sampler=s, progress=False)
+
+
+def test_lookup_never_builds_and_ensure_does(tmp_path):
+    n = 16
+    with pytest.raises(FileNotFoundError, match=r"tables.ensure\(\[\[30\]\], 16"):
+        tables.lookup((30,), n, table=tmp_path)
+    assert not any(tmp_path.iterdir())  # the lookup wrote nothing
+    with pytest.raises(TypeError, match="pure lookup"):
+        tables.lookup((30,), n, table=tmp_path, build_missing=True)
+    built = tables.ensure([(30,)], n, table=tmp_path, build_missing=True, show_progress=False,
+                          steps=4)
+    assert built == ["psi_030"]
+    pts = np.asarray(tables.lookup((30,), n, table=tmp_path))
+    assert pts.shape == (n, 2) and pts.dtype == np.float32
+    assert tables.ensure([(30,)], n, table=tmp_path, build_missing=True) == []  # nothing to do
