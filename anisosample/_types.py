@@ -1,6 +1,9 @@
 """Shape aliases shared by the package (jaxtyping), in one place.
 
-They document shapes in signatures; run-time checking happens in the tests, not the library.
+They document shapes in signatures (``samplers``: ``Key`` in, ``Points`` out; ``directions``,
+``vmf``, ``warps``: ``Float[Array, ...]``); nothing checks them at run time yet (issue 26: the
+suite would need jaxtyping's import hook with beartype, and the annotations of arguments that
+accept NumPy arrays too would need ``ArrayLike``-based aliases first).
 """
 
 from jaxtyping import Array, Float, Int, PRNGKeyArray

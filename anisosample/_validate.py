@@ -2,14 +2,24 @@
 
 Every public function checks its arguments with these helpers so that messages read the same
 everywhere: they name the parameter, what is allowed and what came.
+
+Shapes, dtypes and static arguments are checked while tracing too, so those errors are the same
+``ValueError``/``TypeError`` under ``jax.jit`` and ``jax.vmap``. Values are checked eagerly where
+they are concrete; where they are traced (the caller's ``jit``, ``vmap``, ``grad``) the same
+check runs inside the program through :func:`refuse_traced` (``equinox.error_if``), with the same
+message: under ``jax.vmap`` or ``equinox.filter_jit`` an ``EquinoxRuntimeError`` carrying it,
+under plain ``jax.jit`` a ``jax.errors.JaxRuntimeError`` (a ``RuntimeError``) whose text holds it.
 """
 
 from __future__ import annotations
 
+import functools
 import numbers
 from collections.abc import Sequence
 
+import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 ONE_MINUS_EPSILON = np.float32(1.0 - 2.0**-24)
@@ -60,7 +70,8 @@ def check_points(name: str, points, *, check_range: bool = True,
     """A point set of shape ``(n, 2)``, finite, in ``[0, 1)^2`` (``[0, 1]^2`` if ``closed``:
     primary samples entering a warp may touch 1).
 
-    Arrays that are being traced are only shape-checked; concrete arrays are also range-checked.
+    Concrete arrays are range-checked here; traced ones inside the program
+    (:func:`refuse_traced`): use the returned array, or the traced check is dropped.
     """
     shape = getattr(points, "shape", None)
     if shape is None:
@@ -70,14 +81,45 @@ def check_points(name: str, points, *, check_range: bool = True,
         raise ValueError(f"{name} must have shape (n, 2) with n >= 1, got shape {tuple(shape)}")
     if not np.issubdtype(np.dtype(points.dtype), np.floating):
         raise TypeError(f"{name} must be a floating-point array, got dtype {points.dtype}")
-    if check_range and not isinstance(points, jax.core.Tracer):
+    square = "[0, 1]^2" if closed else "[0, 1)^2"
+    if check_range and isinstance(points, jax.core.Tracer):
+        points = refuse_traced(points, ~jnp.all(jnp.isfinite(points)),
+                               f"{name} contains NaN or Inf")
+        outside = (points < 0) | ((points >= 1) if not closed else (points > 1))
+        return refuse_traced(points, jnp.any(outside), f"{name} must lie in {square}")
+    if check_range:
         p = np.asarray(points)
         if not np.all(np.isfinite(p)):
             raise ValueError(f"{name} contains NaN or Inf")
         if p.min() < 0.0 or p.max() > 1.0 or (p.max() == 1.0 and not closed):
-            square = "[0, 1]^2" if closed else "[0, 1)^2"
             raise ValueError(f"{name} must lie in {square}, got values in [{p.min()}, {p.max()}]")
     return points
+
+
+def renamed_keywords(**old_to_new: str):
+    """Decorator: calling with an old keyword (``kind=``) raises ``TypeError`` naming the new one
+    (``family=``) instead of Python's bare "unexpected keyword" (DESIGN's vocabulary)."""
+
+    def decorate(fn):
+        @functools.wraps(fn)
+        def wrapper(*args, **kwargs):
+            for old, new in old_to_new.items():
+                if old in kwargs:
+                    raise TypeError(f"{fn.__name__}() takes {new}= where it took {old}= "
+                                    f"(docs/design.md, Vocabulary)")
+            return fn(*args, **kwargs)
+
+        return wrapper
+
+    return decorate
+
+
+def refuse_traced(x, bad, message: str):
+    """``x`` unchanged, with the check ``bad`` (a traced boolean) attached: running the program
+    with ``bad`` true raises ``message`` (``equinox.error_if``; module docstring). The traced
+    half of a value check whose eager half raises ``ValueError(message)``; the message names the
+    parameter as the eager one does. Use the returned ``x``: XLA drops a check nothing uses."""
+    return eqx.error_if(x, bad, message)
 
 
 def check_frequencies(name: str, freqs) -> np.ndarray | jax.Array:

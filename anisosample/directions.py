@@ -68,7 +68,7 @@ from jaxtyping import Bool
 
 from . import metrics, vmf
 from ._types import Array, Float
-from ._validate import check_choice, check_int, check_positive_float
+from ._validate import check_choice, check_int, check_positive_float, refuse_traced
 from .metrics import axial_distance_deg as axial_distance_deg  # moved to metrics; kept here
 
 __all__ = [
@@ -264,7 +264,10 @@ def _check_grid(values, params: _Params, name="values"):
     dtype = np.dtype(values.dtype)
     if not (np.issubdtype(dtype, np.integer) or np.issubdtype(dtype, np.floating)):
         raise TypeError(f"{name} must be a real-valued array, got dtype {values.dtype}")
-    if not isinstance(values, jax.core.Tracer) and not np.all(np.isfinite(np.asarray(values))):
+    if isinstance(values, jax.core.Tracer):
+        return refuse_traced(jnp.asarray(values, jnp.float32),
+                             ~jnp.all(jnp.isfinite(values)), f"{name} contains NaN or Inf samples")
+    if not np.all(np.isfinite(np.asarray(values))):
         raise ValueError(f"{name} contains NaN or Inf samples")
     return jnp.asarray(values, jnp.float32)
 
@@ -448,6 +451,9 @@ def estimate(values, k: int = 2, *, details: bool = False, **options):
     """
     k = check_int("k", k, minimum=0)
     params = _params(**options)
+    if isinstance(values, jax.core.Tracer) and not details:
+        raise TypeError("values is traced (jit/vmap), but estimate returns a tuple of Python "
+                        "floats: pass details=True for the Estimate arrays")
     values = _check_grid(values, params)
     est = _estimate_grid_jit(values, k, params)
     if details:

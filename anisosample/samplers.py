@@ -26,6 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._names import BASELINES
+from ._types import Key, Points
 from ._validate import ONE_MINUS_EPSILON, check_int, check_key, check_points
 
 __all__ = [
@@ -67,7 +68,7 @@ class Sampler:
     jittable: bool = True
     power_of_two: bool = False
 
-    def __call__(self, key, n) -> jax.Array:
+    def __call__(self, key: Key, n: int) -> Points:
         key = check_key("key", key)
         n = check_int("n", n, minimum=1, maximum=2**MAX_LOG2_N)
         return self.fn(key, n)
@@ -423,6 +424,10 @@ _pmj02_cached = functools.lru_cache(maxsize=32)(_pmj02_build)
 
 
 def _pmj(key, n, candidates):
+    if isinstance(key, jax.core.Tracer):
+        raise TypeError("key is traced (jit/vmap), but the pmj02 constructions run in NumPy "
+                        "(Sampler.jittable is False): call them outside jit and vmap, or shift "
+                        "their set (toroidal_shift) inside")
     if not jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key):
         key = jax.random.wrap_key_data(key)
     log2_n = max(0, (n - 1).bit_length())
@@ -465,7 +470,7 @@ def _shift(key, points):
     return wrap_unit(points + t[None, :])
 
 
-def toroidal_shift(key, points) -> jax.Array:
+def toroidal_shift(key: Key, points) -> Points:
     """Cranley-Patterson rotation: ``(x + t) mod 1`` with one uniform ``t`` for the whole set.
 
     Keeps the power spectrum (``P_{S+t} = P_S``) and makes the pattern homogeneous (W Sec. 2).
@@ -487,7 +492,7 @@ def _shear(points, theta_rad):
     return jnp.stack([jnp.where(horizontal, xh, x), jnp.where(horizontal, y, yv)], axis=-1)
 
 
-def shear(points, direction_deg) -> jax.Array:
+def shear(points, direction_deg: float) -> Points:
     """Singh & Jarosz 2017: re-aim one low-energy axis of a 2-direction pattern at a direction.
 
     For spectral directions within 45 degrees of the x axis a horizontal shear

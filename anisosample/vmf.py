@@ -35,7 +35,7 @@ import optimistix as optx
 from jax.scipy.special import i0e, i1e
 
 from ._types import Array, Float
-from ._validate import check_int, check_positive_float
+from ._validate import check_int, check_positive_float, refuse_traced
 
 __all__ = [
     "log_i0",
@@ -231,13 +231,19 @@ def _log_density(hist, floor):
 
 def check_hist(hist):
     """``hist`` as a float array of shape ``(..., K)``, ``K >= 2``; concrete values must be
-    finite, non-negative and of positive total (``ValueError`` otherwise; tracers pass)."""
+    finite, non-negative and of positive total (``ValueError`` otherwise; traced values are
+    checked inside the program, :func:`anisosample._validate.refuse_traced`)."""
     hist = jnp.asarray(hist)
     if hist.ndim < 1 or hist.shape[-1] < 2:
         raise ValueError(f"hist must have shape (..., K) with K >= 2 bins, got {hist.shape}")
     if not jnp.issubdtype(hist.dtype, jnp.floating):
         hist = hist.astype(jnp.float32)
-    if not isinstance(hist, jax.core.Tracer):
+    if isinstance(hist, jax.core.Tracer):
+        hist = refuse_traced(hist, ~jnp.all(jnp.isfinite(hist) & (hist >= 0)),
+                             "hist must hold finite, non-negative bin weights")
+        return refuse_traced(hist, jnp.any(jnp.sum(hist, axis=-1) <= 0),
+                             "hist must have positive total weight; got an all-zero histogram")
+    else:
         h = np.asarray(hist)
         if not np.all(np.isfinite(h)) or np.any(h < 0):
             raise ValueError("hist must hold finite, non-negative bin weights")
@@ -425,6 +431,9 @@ def fit_reverse_kl(
     :func:`reverse_kl`.
     """
     hist = check_hist(hist)
+    if hist.ndim != 1:
+        raise ValueError(f"hist must have shape (K,) for one fit (jax.vmap for batches), got "
+                         f"shape {hist.shape}")
     floor = check_positive_float("floor", floor)
     nodes = check_int("nodes", nodes, minimum=1)
     kappa_max = check_positive_float("kappa_max", kappa_max)

@@ -841,8 +841,11 @@ api("warps-fit-pointwise-nan-factor", lambda d: A().warps.fit_pointwise(
     r"factor must be finite", owner=W)
 api("warps-fit-pointwise-not-callable", lambda d: A().warps.fit_pointwise(
     A().warps.Bilinear, 3.0, [tri()]), TypeError, r"factor must be a callable", owner=W)
-api("warps-fit-pointwise-kind", lambda d: A().warps.fit_pointwise(A().warps.Tabulated,
-    lambda x: x[2], [tri()]), ValueError, r"kind must be Bilinear or Biquadratic", owner=W)
+api("warps-fit-pointwise-family", lambda d: A().warps.fit_pointwise(A().warps.Tabulated,
+    lambda x: x[2], [tri()]), ValueError, r"family must be Bilinear or Biquadratic", owner=W)
+api("warps-fit-pointwise-old-kind-keyword", lambda d: A().warps.fit_pointwise(
+    kind=A().warps.Bilinear, factor=lambda x: x[2], later=[tri()]), TypeError,
+    r"fit_pointwise\(\) takes family= where it took kind=", owner=W)
 api("warps-sample-batch-u-above-one", lambda d: A().warps.sample_batch(tri(),
     np.array([[0.5, 1.5]], np.float32)), ValueError, r"u must lie in \[0, 1\]\^2", owner=W)
 api("warps-sample-batch-u-negative", lambda d: A().warps.sample_batch(tri(),

@@ -2,6 +2,10 @@
 
 Every warp is an ``equinox.Module`` with the triplet ``sample(u) -> x``, ``pdf(x)`` and
 ``inverse(x) -> u``, each for **one point** (batch with ``jax.vmap`` or :func:`sample_batch`).
+The one-point methods are the inner loop: they check shapes, not values, so a NaN ``u`` or
+``x`` may give a NaN result; :func:`sample_batch` checks the batch's values too (finite, in
+``[0, 1]^2``), eagerly or inside the caller's ``jit``/``vmap``, as warp constructors check their
+control values.
 See ``_base`` for the contract and ``docs``/``references/warps.md`` for the math.
 """
 
@@ -13,6 +17,7 @@ from ._base import pdf_batch as pdf_batch
 from ._base import sample_batch as sample_batch
 from .arvo import CosineSphericalTriangle as CosineSphericalTriangle
 from .arvo import projected_solid_angle as projected_solid_angle
+from .fit import WarpFit as WarpFit
 from .fit import fit_least_squares as fit_least_squares
 from .fit import fit_pointwise as fit_pointwise
 from .fit import fit_tabulated as fit_tabulated

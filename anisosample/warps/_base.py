@@ -151,7 +151,8 @@ def sample_batch(warp: AbstractWarp, u: Float[Array, "n 2"]) -> tuple[Array, Arr
 
     ``u`` must lie in ``[0, 1]^2`` and be finite: a ``ValueError`` otherwise (checked once here,
     before the compiled batch; a warp would clamp such ``u`` to the square's border, or map NaN
-    to a finite point, without saying so). Traced ``u`` is only shape-checked.
+    to a finite point, without saying so); traced ``u`` inside the program, with the same
+    message (``_validate.refuse_traced``).
     """
     if not isinstance(warp, AbstractWarp):
         raise TypeError(f"warp must be a warp (AbstractWarp), got {type(warp).__name__}")

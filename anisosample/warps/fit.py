@@ -23,26 +23,52 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
+from jaxtyping import Bool, Int
 
+from .._types import Array
+from .._validate import renamed_keywords
 from ..metrics import midpoint_grid
 from ._base import AbstractWarp, Compose
 from .planar import Bilinear, Biquadratic
 from .tabulated import Tabulated
 
-__all__ = ["fit_pointwise", "fit_least_squares", "fit_tabulated"]  # the API; the checks below
-# are shared with warps.tuning
+# the API; the checks below are shared with warps.tuning
+__all__ = ["fit_pointwise", "fit_least_squares", "fit_tabulated", "WarpFit"]
 
-_KINDS = (Bilinear, Biquadratic)
+_FAMILIES = (Bilinear, Biquadratic)
 
 
-def check_fit_kind(kind):
-    """``kind`` must be a fittable PSS warp class (:class:`Bilinear` or :class:`Biquadratic`)."""
-    if kind not in _KINDS:
-        raise ValueError(f"kind must be Bilinear or Biquadratic, got {kind!r}")
+class WarpFit(eqx.Module):
+    """A solver's warp fit with its status (``details=True`` of :func:`fit_least_squares` and
+    :func:`~anisosample.warps.tuning.fit_min_variance`); ``vmap``ped fits hold one entry per fit.
+
+    ``warp``: the fitted warp (what ``details=False`` returns). ``result``: optimistix's
+    ``RESULTS`` of the solve (``optimistix.RESULTS.successful``, ``max_steps_reached``, ...; the
+    fits run with ``throw=False`` so that they ``vmap``, and keep it here).
+    ``steps``: the solver's steps. ``kept_start``: the solver's answer was not better than its
+    start (or was not finite), so ``warp`` is the start.
+    """
+
+    warp: AbstractWarp
+    result: optx.RESULTS
+    steps: Int[Array, "..."]
+    kept_start: Bool[Array, "..."]
+
+    @property
+    def successful(self) -> Bool[Array, "..."]:
+        """``result == optimistix.RESULTS.successful``."""
+        return self.result == optx.RESULTS.successful
+
+
+def check_fit_family(family):
+    """``family`` must be a fittable PSS warp class (:class:`Bilinear` or :class:`Biquadratic`)."""
+    if family not in _FAMILIES:
+        raise ValueError(f"family must be Bilinear or Biquadratic, got {family!r}")
 
 
 def later_chain(later) -> AbstractWarp | None:
@@ -63,14 +89,15 @@ def _clean(v, floor):
     return jnp.where(vmax > 0, v, 1.0)
 
 
+@renamed_keywords(kind="family")
 def fit_pointwise(
-    kind,
+    family,
     factor: Callable,
     later: Sequence[AbstractWarp] | AbstractWarp = (),
     *,
     floor: float = 0.01,
 ):
-    """H Eq. 9: a ``kind`` warp whose control values are ``factor`` at the later warps' images.
+    """H Eq. 9: a ``family`` warp whose control values are ``factor`` at the later warps' images.
 
     Values are clamped below at ``floor`` times their maximum (pbrt-v4 clamps cosines at 0.01) so
     that the density stays positive wherever the factor might not vanish; a factor that is 0 at
@@ -79,38 +106,39 @@ def fit_pointwise(
     it is not zero (no density to follow), is a ``ValueError``; inside ``jit`` such values are
     cleaned as above (the renderer's own factors are finite).
     """
-    check_fit_kind(kind)
+    check_fit_family(family)
     if not callable(factor):
         raise TypeError(f"factor must be a callable f(x) -> scalar, got {type(factor).__name__}")
     floor = float(floor)
     if not 0.0 <= floor < 1.0:
         raise ValueError(f"floor must lie in [0, 1), got {floor}")
-    pts = jnp.asarray(kind.control_points())
+    pts = jnp.asarray(family.control_points())
     rest = later_chain(later)
-    if kind is Bilinear and hasattr(rest, "corner_images"):
+    if family is Bilinear and hasattr(rest, "corner_images"):
         x = rest.corner_images()  # the base warp knows its corners' images: no sampling
     elif hasattr(rest, "grid_images"):  # the base warp maps the control grid in one go
-        x = rest.grid_images(kind.control_points()[:, 0, 0])
+        x = rest.grid_images(family.control_points()[:, 0, 0])
     else:
         x = pts if rest is None else jax.vmap(jax.vmap(rest.sample))(pts)
     v = jax.vmap(jax.vmap(factor))(x)
     if not isinstance(v, jax.core.Tracer):  # the Python boundary: say what is wrong
         vals = np.asarray(v, np.float64)
         if not np.all(np.isfinite(vals)):
-            raise ValueError(f"factor must be finite at the {kind.__name__} control points, got "
+            raise ValueError(f"factor must be finite at the {family.__name__} control points, got "
                              f"{vals.ravel().tolist()}")
         if vals.max() <= 0.0 and vals.min() < 0.0:
             raise ValueError(f"factor must be >= 0 (a density to follow) at some control point; "
                              f"it is negative at every one: {vals.ravel().tolist()}")
-    return kind(_clean(v.astype(jnp.float32), floor))
+    return family(_clean(v.astype(jnp.float32), floor))
 
 
 def _probes(probes: int):
     return jnp.asarray(midpoint_grid(probes, indexing="ij").reshape(-1, 2))
 
 
+@renamed_keywords(kind="family")
 def fit_least_squares(
-    kind,
+    family,
     f: Callable,
     later: Sequence[AbstractWarp] | AbstractWarp,
     *,
@@ -119,15 +147,17 @@ def fit_least_squares(
     max_steps: int = 32,
     rtol: float = 1e-4,
     atol: float = 1e-6,
+    details: bool = False,
 ):
-    """Variance-minimising control values for a ``kind`` warp placed before ``later``.
+    """Variance-minimising control values for a ``family`` warp placed before ``later``.
 
     ``f`` is the whole integrand (one output point -> scalar); ``init`` (e.g. the point-wise fit)
     is the starting point, else the uniform warp. Levenberg-Marquardt from optimistix on the
     residuals of the module docstring; ``throw=False`` so that it ``vmap``s over shading points
-    (a run that hits ``max_steps`` returns its last iterate).
+    (a run that hits ``max_steps`` returns its last iterate). ``details=True`` returns a
+    :class:`WarpFit` (the warp with the solver's status) instead of the warp.
     """
-    check_fit_kind(kind)
+    check_fit_family(family)
     rest = later_chain(later)
     if rest is None:
         raise ValueError("later must hold at least the base warp")
@@ -139,7 +169,7 @@ def fit_least_squares(
     scale = jnp.maximum(jnp.sqrt(jnp.mean(target**2)), 1e-30)
     target = target / scale  # residuals of order 1
     k = target.shape[0]
-    n_side = 2 if kind is Bilinear else 3
+    n_side = 2 if family is Bilinear else 3
     theta0 = (
         jnp.zeros((n_side, n_side), jnp.float32)
         if init is None
@@ -147,7 +177,7 @@ def fit_least_squares(
     )
 
     def residuals(theta, _):
-        warp = kind(jnp.exp(jnp.clip(theta, -14.0, 14.0)))
+        warp = family(jnp.exp(jnp.clip(theta, -14.0, 14.0)))
         j = jax.vmap(warp.pdf)(y)
         return target / jnp.sqrt(k * jnp.maximum(j, 1e-12))
 
@@ -162,7 +192,10 @@ def fit_least_squares(
     # Keep the start if the solver did not improve the probe objective (e.g. hit max_steps early).
     better = jnp.sum(residuals(theta, None) ** 2) <= jnp.sum(residuals(theta0, None) ** 2)
     theta = jnp.where(better, theta, theta0)
-    return kind(jnp.exp(jnp.clip(theta - jnp.max(theta), -14.0, 0.0)))
+    warp = family(jnp.exp(jnp.clip(theta - jnp.max(theta), -14.0, 0.0)))
+    if details:
+        return WarpFit(warp, sol.result, sol.stats["num_steps"], ~better)
+    return warp
 
 
 def fit_tabulated(f: Callable, later: Sequence[AbstractWarp] | AbstractWarp, *, res: int = 32):

@@ -7,8 +7,9 @@ conditional given ``y``. pdfs are per unit area of ``[0, 1]^2``.
 
 Control values must be finite and ``>= 0`` with a positive sum. Concrete arrays are checked when
 the warp is made (``ValueError``); traced values (a warp fitted inside ``jit``/``vmap``) are
-clamped to ``>= 0``, and an all-zero set of values gives the uniform warp (identity, pdf 1), as
-pbrt-v4 does. Either way no method returns NaN.
+checked inside the program with the same messages (``_validate.refuse_traced``). An all-zero
+set of values gives the uniform warp (identity, pdf 1), as pbrt-v4 does, traced or not (the
+fits' fallback where a factor vanishes).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._types import Array, Float
-from .._validate import ONE_MINUS_EPSILON
+from .._validate import ONE_MINUS_EPSILON, refuse_traced
 from ._base import AbstractWarp, check_point
 from ._solve import newton_bisection
 
@@ -89,8 +90,12 @@ def _control_values(name: str, values, shape: tuple[int, int]) -> jax.Array:
         arr_shape = values.shape
     if tuple(arr_shape) != shape:
         raise ValueError(f"{name} must have shape {shape}, got shape {tuple(arr_shape)}")
-    if isinstance(values, jax.core.Tracer):
-        return jnp.maximum(jnp.asarray(values, jnp.float32), 0.0)
+    if isinstance(values, jax.core.Tracer):  # the same checks inside the program
+        v = refuse_traced(jnp.asarray(values, jnp.float32), ~jnp.all(jnp.isfinite(values)),
+                          f"{name} must be finite")
+        v = refuse_traced(v, jnp.any(v < 0), f"{name} must be >= 0 (a density)")
+        # all zeros stays the identity (pdf 1): the fits' uniform fallback
+        return v
     v = np.asarray(values, dtype=np.float64)
     if not np.all(np.isfinite(v)):
         raise ValueError(f"{name} must be finite, got {v.tolist()}")

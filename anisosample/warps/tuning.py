@@ -38,9 +38,9 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from .._validate import check_choice, check_int, check_positive_float
+from .._validate import check_choice, check_int, check_positive_float, renamed_keywords
 from ._base import AbstractWarp
-from .fit import check_fit_kind, later_chain
+from .fit import WarpFit, check_fit_family, later_chain
 from .planar import Bilinear
 
 RULES = ("gauss", "midpoint")
@@ -127,8 +127,9 @@ def chain_variance(
     return _variance(jax.vmap(warp.pdf)(y), g, w)
 
 
+@renamed_keywords(kind="family")
 def fit_min_variance(
-    kind,
+    family,
     f: Callable,
     later: Sequence[AbstractWarp] | AbstractWarp = (),
     *,
@@ -139,10 +140,11 @@ def fit_min_variance(
     max_steps: int = 64,
     rtol: float = 1e-6,
     atol: float = 1e-8,
+    details: bool = False,
 ):
-    """The ``kind`` warp before ``later`` whose control values minimise :func:`chain_variance`.
+    """The ``family`` warp before ``later`` whose control values minimise :func:`chain_variance`.
 
-    ``kind`` is ``Bilinear`` or ``Biquadratic``; ``f`` the whole integrand on one output point;
+    ``family`` is ``Bilinear`` or ``Biquadratic``; ``f`` the whole integrand on one output point;
     ``later`` the warps after it (the base technique last; empty for the identity). The
     parameters are ``theta = log(values)`` (positive values, so ``J > 0``; ``theta`` and
     ``theta + c`` are the same warp), started at ``init``'s values (e.g. the point-wise fit, H
@@ -161,19 +163,20 @@ def fit_min_variance(
 
     ``throw=False``, so it ``jit``s and ``vmap``s over shading points; a run that hits
     ``max_steps`` returns its last iterate, and the start is kept if it was better. An integrand
-    that is 0 at every node gives the uniform warp.
+    that is 0 at every node gives the uniform warp. ``details=True`` returns a
+    :class:`~anisosample.warps.WarpFit` (the warp with the solver's status) instead.
     """
-    check_fit_kind(kind)
+    check_fit_family(family)
     rest = _check_later(later)
     y, w = quadrature(grid, rule)
     solver = check_choice("solver", solver, SOLVERS)
     max_steps = check_int("max_steps", max_steps, minimum=1)
     rtol = check_positive_float("rtol", rtol)
     atol = check_positive_float("atol", atol)
-    n_side = 2 if kind is Bilinear else 3
+    n_side = 2 if family is Bilinear else 3
     if init is not None:
-        if not isinstance(init, kind):
-            raise TypeError(f"init must be a {kind.__name__} warp or None, got {init!r:.80}")
+        if not isinstance(init, family):
+            raise TypeError(f"init must be a {family.__name__} warp or None, got {init!r:.80}")
         v0 = init.values
         theta0 = jnp.log(jnp.maximum(v0 / jnp.max(v0), jnp.exp(-2 * _LOG_CLIP)))
     else:
@@ -186,7 +189,7 @@ def fit_min_variance(
     integral = jnp.sum(w * g)
 
     def warp_of(theta):
-        return kind(jnp.exp(jnp.clip(theta - jnp.max(theta), -2 * _LOG_CLIP, 0.0)))
+        return family(jnp.exp(jnp.clip(theta - jnp.max(theta), -2 * _LOG_CLIP, 0.0)))
 
     def residuals(theta, _):
         j = jnp.maximum(jax.vmap(warp_of(theta).pdf)(y), 1e-30)
@@ -210,4 +213,6 @@ def fit_min_variance(
     theta = jnp.where(jnp.isfinite(sol.value), sol.value, theta0)
     better = objective(theta, None) <= objective(theta0, None)
     theta = jnp.where(better & ok, theta, jnp.where(ok, theta0, 0.0))
+    if details:
+        return WarpFit(warp_of(theta), sol.result, sol.stats["num_steps"], ~(better & ok))
     return warp_of(theta)

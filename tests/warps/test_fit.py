@@ -94,7 +94,7 @@ def test_pointwise_all_zero_factor_gives_uniform():
 
 
 def test_fit_bad_kind():
-    with pytest.raises(ValueError, match="kind must be"):
+    with pytest.raises(ValueError, match="family must be"):
         W.fit_pointwise(W.Tabulated, _cos)
 
 
@@ -157,3 +157,33 @@ def test_mis_weights_sum_to_one_with_composed_pdfs():
     p1, p2 = W.pdf_batch(tri, x), W.pdf_batch(warped, x)
     for h in (W.balance_heuristic, W.power_heuristic):
         np.testing.assert_allclose(np.asarray(h(1, p1, 1, p2) + h(1, p2, 1, p1)), 1.0, rtol=1e-5)
+
+
+def test_least_squares_details_keep_the_solver_status():
+    """``details=True``: the same warp bit for bit, with optimistix's RESULTS (the fits run with
+    throw=False so that they vmap) and the step count. The default 32 steps do not reach
+    rtol = 1e-4 here (the status says so; the warp is still the better iterate), 400 do."""
+    tri = W.SphericalTriangle(VERTS, P)
+    plain = W.fit_least_squares(W.Biquadratic, _cos, [tri])
+    fit = W.fit_least_squares(W.Biquadratic, _cos, [tri], details=True)
+    assert isinstance(fit, W.WarpFit)
+    np.testing.assert_array_equal(np.asarray(fit.warp.values), np.asarray(plain.values))
+    assert not bool(fit.successful) and int(fit.steps) == 32
+    assert not bool(fit.kept_start)
+    done = W.fit_least_squares(W.Biquadratic, _cos, [tri], max_steps=400, details=True)
+    assert bool(done.successful) and 32 < int(done.steps) < 400
+
+    points = jnp.asarray([P, P + 0.1])
+    many = jax.vmap(lambda p: W.fit_least_squares(
+        W.Bilinear, _cos, [W.SphericalTriangle(VERTS, p)], max_steps=200, details=True))(points)
+    assert many.steps.shape == (2,) and bool(jnp.all(many.successful))
+
+
+def test_the_old_kind_keyword_is_refused_naming_family():
+    tri = W.SphericalTriangle(VERTS, P)
+    for fit in (W.fit_pointwise, W.fit_least_squares):
+        with pytest.raises(TypeError, match=r"takes family= where it took kind="):
+            fit(kind=W.Bilinear, **{"factor" if fit is W.fit_pointwise else "f": _cos},
+                later=[tri])
+    fit = W.fit_pointwise(family=W.Bilinear, factor=_cos, later=[tri])
+    assert isinstance(fit, W.Bilinear)

@@ -177,7 +177,7 @@ def test_zero_integrand_gives_uniform():
 @pytest.mark.parametrize(
     "kwargs,exc,match",
     [
-        (dict(kind=W.Tabulated), ValueError, "kind must be"),
+        (dict(family=W.Tabulated), ValueError, "family must be"),
         (dict(grid=1), ValueError, "grid must be >= 2"),
         (dict(grid=8.0), TypeError, "grid must be an integer"),
         (dict(rule="simpson"), ValueError, "rule must be one of"),
@@ -190,12 +190,25 @@ def test_zero_integrand_gives_uniform():
     ],
 )
 def test_bad_parameters(kwargs, exc, match):
-    args = dict(kind=W.Bilinear, f=_cos, later=[_triangle()])
+    args = dict(family=W.Bilinear, f=_cos, later=[_triangle()])
     args.update(kwargs)
     with pytest.raises(exc, match=match):
-        tuning.fit_min_variance(args.pop("kind"), args.pop("f"), args.pop("later"), **args)
+        tuning.fit_min_variance(args.pop("family"), args.pop("f"), args.pop("later"), **args)
 
 
 def test_chain_variance_needs_a_pss_warp():
     with pytest.raises(TypeError, match="warp must be a Warp from"):
         tuning.chain_variance(_triangle(), _cos)
+
+
+def test_min_variance_details_keep_the_solver_status():
+    plain = tuning.fit_min_variance(W.Bilinear, _cos, [_triangle()], grid=8)
+    for solver in ("lm", "bfgs"):
+        fit = tuning.fit_min_variance(W.Bilinear, _cos, [_triangle()], grid=8, solver=solver,
+                                      details=True)
+        assert isinstance(fit, W.WarpFit) and int(fit.steps) >= 1
+        assert bool(fit.successful) or int(fit.steps) == 64
+    fit = tuning.fit_min_variance(W.Bilinear, _cos, [_triangle()], grid=8, details=True)
+    np.testing.assert_array_equal(np.asarray(fit.warp.values), np.asarray(plain.values))
+    with pytest.raises(TypeError, match="takes family= where it took kind="):
+        tuning.fit_min_variance(kind=W.Bilinear, f=_cos, later=[_triangle()])
