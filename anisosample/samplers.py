@@ -25,7 +25,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._names import BASELINES
+from ._names import BASELINES, BUILTIN_SAMPLER_FACTORIES
 from ._types import Key, Points
 from ._validate import ONE_MINUS_EPSILON, check_int, check_key, check_points
 
@@ -80,35 +80,30 @@ _REGISTRY: dict[str, Callable[..., Sampler]] = {}
 def register(name: str, factory: Callable[..., Sampler]) -> None:
     """Make ``get(name, **options)`` return ``factory(**options)``.
 
-    Users add their own samplers this way; the name must not be taken.
+    Users add their own samplers this way; the name must not be taken (by a registered sampler
+    or a built-in one, :data:`anisosample._names.BUILTIN_SAMPLER_FACTORIES`).
     """
     if not isinstance(name, str) or not name:
         raise ValueError(f"name must be a non-empty string, got {name!r}")
-    if name in _REGISTRY:
+    if name in _REGISTRY or name in BUILTIN_SAMPLER_FACTORIES:
         raise ValueError(f"a sampler named {name!r} is already registered")
     _REGISTRY[name] = factory
 
 
-_BUILTIN_HOMES = ("selection",)
-"""Modules that register a built-in sampler on import (``aligned``, which looks its sets up in
-the tables): imported on first use of the registry, so that ``get("aligned")`` always works."""
+def _factory(name: str) -> Callable[..., Sampler] | None:
+    """The factory of ``name``: registered, or a built-in one made above this module
+    (``aligned``: ``BUILTIN_SAMPLER_FACTORIES``), imported on first use; None if unknown."""
+    if name not in _REGISTRY and name in BUILTIN_SAMPLER_FACTORIES:
+        import importlib
 
-
-def _register_builtins() -> None:
-    import importlib
-    import importlib.util
-
-    for home in _BUILTIN_HOMES:
-        if "aligned" in _REGISTRY:
-            return
-        if importlib.util.find_spec(f"{__package__}.{home}") is not None:
-            importlib.import_module(f".{home}", __package__)
+        module, function = BUILTIN_SAMPLER_FACTORIES[name].split(":")
+        _REGISTRY[name] = getattr(importlib.import_module(module), function)
+    return _REGISTRY.get(name)
 
 
 def names() -> list[str]:
-    """The registered sampler names."""
-    _register_builtins()
-    return sorted(_REGISTRY)
+    """The registered sampler names (the built-in ones included)."""
+    return sorted({*_REGISTRY, *BUILTIN_SAMPLER_FACTORIES})
 
 
 def get(name: str, **options) -> Sampler:
@@ -116,10 +111,10 @@ def get(name: str, **options) -> Sampler:
 
     ``get("sheared", base="pmj02bn", direction_deg=30.0)`` is the Singh-Jarosz sheared baseline.
     """
-    _register_builtins()
-    if name not in _REGISTRY:
+    factory = _factory(name) if isinstance(name, str) else None
+    if factory is None:
         raise ValueError(f"unknown sampler {name!r}; known samplers: {', '.join(names())}")
-    return _REGISTRY[name](**options)
+    return factory(**options)
 
 
 def _no_options(sampler: Sampler) -> Callable[..., Sampler]:

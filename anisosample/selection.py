@@ -7,7 +7,9 @@ horizontal and vertical axes, e.g., on smooth integrands, we use an existing ani
 pattern", and "we decorrelate points across pixels using toroidal shifts" (W Sec. 5.4).
 
 This module is that selection, once, for every caller: the aligned sampler of one integrand
-(:func:`aligned_sampler`, also ``samplers.get("aligned", ...)``) and the renderer's per-block
+(:func:`aligned_sampler`, also ``samplers.get("aligned", ...)``: ``samplers`` names no module
+above it and finds this function through ``anisosample._names.BUILTIN_SAMPLER_FACTORIES``,
+imported on first use) and the renderer's per-block
 sampler (:mod:`anisosample.render.aligned`).
 
 * **Rounding** (:func:`table_directions`): each estimated direction, strongest first, is rounded
@@ -21,7 +23,13 @@ sampler (:mod:`anisosample.render.aligned`).
   user cache, with progress (``build_missing=None``, the default; ``True`` also builds into an
   explicit ``table``); ``build_missing=False`` refuses with ``FileNotFoundError`` naming the
   build command. Any ``n >= 2``.
-  No remaining direction: the fallback sampler (pmj02bn).
+  No remaining direction: the fallback sampler (:data:`FALLBACK`, pmj02bn).
+* **Many requests at once** (:func:`table_requests`, :func:`aligned_sets`): the renderer's
+  per-block and per-pixel samplers ask for one set per block or pixel; the distinct requests
+  are made available first (:func:`anisosample.tables.ensure`, with a progress bar over the
+  sets), then read by the pure lookup. The toroidal shift of each pixel's set (W Sec. 5.4) is
+  the renderer's, from the pixel's key; the per-pixel gate (a smooth pixel takes
+  :data:`FALLBACK`) is :mod:`anisosample.render.estimation`'s probe.
 """
 
 from __future__ import annotations
@@ -38,7 +46,12 @@ from . import tables as _tables
 from ._validate import check_choice, check_int
 from .metrics import midpoint_grid
 
-__all__ = ["AlignedSampler", "aligned_sampler", "aligned_set", "table_directions"]
+__all__ = ["FALLBACK", "AlignedSampler", "aligned_sampler", "aligned_sequence_sampler",
+           "aligned_set", "aligned_sets", "table_directions", "table_requests"]
+
+FALLBACK = "pmj02bn"
+"""The set of an integrand, block or pixel without a direction off the axes (W Sec. 5.4: "an
+existing anisotropic sampling pattern"), and of a gated pixel."""
 
 
 def table_directions(directions_deg, k: int = 2) -> tuple[int, ...]:
@@ -89,6 +102,50 @@ def aligned_set(extra_deg, n: int, key=None, *, table=None, build_missing: bool 
     return pts if key is None else _samplers.toroidal_shift(key, pts)
 
 
+def table_requests(directions, k: int = 2) -> tuple[list, np.ndarray]:
+    """The distinct table requests of many items (blocks, pixels): ``directions`` holds each
+    item's estimated directions, strongest first (empty: none), rounded by
+    :func:`table_directions`. Returns ``(requests, index)``: the distinct non-empty requests in
+    order of first use and each item's index into them (``-1``: no direction off the axes,
+    the item takes :data:`FALLBACK`)."""
+    requests: list = []
+    where: dict = {}
+    index = np.full(len(directions), -1, np.int32)
+    for i, dirs in enumerate(directions):
+        if len(dirs) == 0:
+            continue
+        extra = table_directions(tuple(dirs), k)
+        if not extra:
+            continue
+        if extra not in where:
+            where[extra] = len(requests)
+            requests.append(extra)
+        index[i] = where[extra]
+    return requests, index
+
+
+def aligned_sets(requests, n: int, *, table=None, build_missing: bool | None = None,
+                 prefix: str | None = None, progress: bool = True, desc: str | None = None,
+                 **build_options) -> jax.Array:
+    """The aligned sets of ``n`` points for ``requests`` (tuples of integer extra directions,
+    :func:`table_requests`), stacked ``(len(requests), n, 2)`` float32, unshifted: every
+    missing one is built first (:func:`anisosample.tables.ensure`, one progress bar over the
+    sets unless ``progress=False``; ``table``, ``build_missing``, ``prefix`` and
+    ``build_options`` are its), then all are read by the pure :func:`anisosample.tables.lookup`.
+    """
+    from .progress import progress as bar
+
+    n = check_int("n", n, minimum=2)
+    opts = dict(build_options)
+    opts["show_progress"] = False
+    for extra in bar(requests, desc=desc or f"aligned sets n={n}", unit="set",
+                     disable=None if progress and len(requests) > 8 else True):
+        _tables.ensure([extra], n, kind=len(extra) + 2, table=table,
+                       build_missing=build_missing, prefix=prefix, **opts)
+    return jnp.stack([_tables.lookup(extra, n, kind=len(extra) + 2, table=table, prefix=prefix)
+                      for extra in requests])
+
+
 @dataclasses.dataclass(frozen=True)
 class AlignedSampler(_samplers.Sampler):
     """The aligned sampler of one integrand: a :class:`~anisosample.samplers.Sampler` with
@@ -106,7 +163,7 @@ def _grid_of(f, size: int) -> np.ndarray:
 
 
 def aligned_sampler(*, integrand=None, values=None, directions_deg=None, k: int = 2,
-                    grid_size: int = 96, fallback: str = "pmj02bn", table=None,
+                    grid_size: int = 96, fallback: str = FALLBACK, table=None,
                     build_missing: bool | None = None, estimate_options: dict | None = None,
                     **build_options) -> AlignedSampler:
     """The aligned sampler of W Sec. 5.4 for one integrand.
@@ -189,6 +246,3 @@ def aligned_sequence_sampler(*, length: int = 4096, sequence_from: int = 256,
     return AlignedSampler(f"aligned-sequence{list(base.directions_deg)}", fn, False, False,
                           base.directions_deg, base.estimated_deg, base.canonical)
 
-
-_samplers.register("aligned", aligned_sampler)
-_samplers.register("aligned-sequence", aligned_sequence_sampler)

@@ -100,7 +100,7 @@ def block_sets(direction_deg: float | None, n: int, key, *, table=None,
     key = check_key("key", key)
     n = check_int("n", n, minimum=2)
     k_pmj, k_al = jax.random.split(key)
-    pmj = jnp.asarray(samplers.get("pmj02bn")(k_pmj, n), jnp.float32)
+    pmj = jnp.asarray(samplers.get(selection.FALLBACK)(k_pmj, n), jnp.float32)
     out = {"pmj02bn": pmj}
     out["sheared"] = pmj if direction_deg is None else samplers.shear(pmj, direction_deg)
     d = selection.table_directions((direction_deg,), 1)
@@ -137,7 +137,7 @@ class BlockSampler:
     valid: np.ndarray  # (rows, cols) bool
     estimate: BlockEstimate | None = None
     options: IntegratorOptions = IntegratorOptions(dimension="light").integrand()
-    base: str = "pmj02bn"
+    base: str = selection.FALLBACK
     table: object = None
     build_missing: bool | None = None
     k: int = 2
@@ -295,7 +295,7 @@ def block_sampler(
     table=None,
     build_missing: bool | None = None,
     build_options: dict | None = None,
-    base: str = "pmj02bn",
+    base: str = selection.FALLBACK,
     options: IntegratorOptions | None = None,
     progress: bool = False,
     **estimate_options,

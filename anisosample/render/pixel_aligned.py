@@ -49,7 +49,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import edges, selection
-from .. import tables as _tables
 from .._validate import check_int
 from .integrator import pixel_samples, pixel_shift_key, sample_function
 from .options import IntegratorOptions
@@ -63,8 +62,9 @@ __all__ = ["FALLBACK", "PIXEL_SAMPLERS", "PixelEstimates", "PixelSampler", "choo
 PIXEL_SAMPLERS = ("aligned-pixel",)
 """Sampler names :func:`anisosample.render.render` resolves with a :class:`PixelSampler`."""
 
-FALLBACK = "pmj02bn"
-"""The sampler of a pixel without an edge (module docstring, step 3)."""
+FALLBACK = selection.FALLBACK
+"""The sampler of a pixel without an edge (module docstring, step 3):
+:data:`anisosample.selection.FALLBACK`."""
 
 
 def prefix_weight(m: int, n: int) -> float:
@@ -114,19 +114,12 @@ def prefix_sets(requests, spp: int, *, table=None, build_missing: bool | None = 
                 build_options: dict | None = None, progress: bool = True) -> jax.Array:
     """The sets with the prefix :func:`pixel_prefix` for ``requests`` (tuples of integer extra
     directions), stacked ``(len(requests), spp, 2)``, each starting with the prefix bit for
-    bit; missing ones are built first (:func:`anisosample.tables.lookup`'s one rule), with a
-    progress bar over the sets (:func:`anisosample.tables.ensure`, then the pure lookup)."""
-    from ..progress import progress as bar
-
-    prefix = pixel_prefix(spp)
-    opts = dict(build_options or {})
-    opts["show_progress"] = False
-    for extra in bar(requests, desc=f"pixel sets n={spp}", unit="set",
-                     disable=None if progress and len(requests) > 8 else True):
-        _tables.ensure([extra], spp, kind=len(extra) + 2, table=table,
-                       build_missing=build_missing, prefix=prefix, **opts)
-    return jnp.stack([_tables.lookup(extra, spp, kind=len(extra) + 2, table=table, prefix=prefix)
-                      for extra in requests])
+    bit: :func:`anisosample.selection.aligned_sets` with the prefix (missing sets built
+    first, :func:`anisosample.tables.ensure`, with a progress bar over the sets; then the pure
+    lookup)."""
+    return selection.aligned_sets(requests, spp, table=table, build_missing=build_missing,
+                                  prefix=pixel_prefix(spp), progress=progress,
+                                  desc=f"pixel sets n={spp}", **(build_options or {}))
 
 
 class PixelEstimates(NamedTuple):
@@ -301,17 +294,7 @@ def choose_sets(directions_deg, count, k: int) -> tuple[list, np.ndarray, np.nda
     set, 5: no direction off the axes, the fallback)."""
     dirs = np.asarray(directions_deg, np.float64).reshape(-1, 2)
     count = np.asarray(count).reshape(-1)
-    requests = []
-    where = {}
-    index = np.full(dirs.shape[0], -1, np.int32)
-    code = np.full(dirs.shape[0], 5, np.int8)
-    for q in np.flatnonzero(count > 0):
-        extra = selection.table_directions(tuple(dirs[q, :count[q]]), k)
-        if not extra:
-            continue
-        if extra not in where:
-            where[extra] = len(requests)
-            requests.append(extra)
-        index[q] = where[extra]
-        code[q] = len(extra) + 2
-    return requests, index, code
+    requests, index = selection.table_requests(
+        [dirs[q, :max(int(c), 0)] for q, c in enumerate(count)], k)
+    sizes = np.asarray([len(r) + 2 for r in requests] + [5], np.int8)
+    return requests, index, sizes[index].astype(np.int8)

@@ -122,3 +122,34 @@ def test_lookup_never_builds_and_ensure_does(tmp_path):
     pts = np.asarray(tables.lookup((30,), n, table=tmp_path))
     assert pts.shape == (n, 2) and pts.dtype == np.float32
     assert tables.ensure([(30,)], n, table=tmp_path, build_missing=True) == []  # nothing to do
+
+
+def test_samplers_names_no_module_above_it():
+    """``samplers`` finds the aligned sampler through the names table and imports it only on
+    first use: listing names imports nothing, and its source names no ``selection``."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import anisosample
+
+    src = (Path(anisosample.__file__).parent / "samplers.py").read_text()
+    assert "selection" not in src
+    code = ("import sys, anisosample.samplers as s; assert 'aligned' in s.names(); "
+            "assert 'anisosample.selection' not in sys.modules; "
+            "f = s.get('aligned', directions_deg=30); "
+            "assert 'anisosample.selection' in sys.modules and f.directions_deg == (30,)")
+    subprocess.run([sys.executable, "-c", code], check=True)
+    from anisosample import samplers
+    with pytest.raises(ValueError, match="'aligned' is already registered"):
+        samplers.register("aligned", lambda **o: None)
+
+
+def test_table_requests_are_the_distinct_rounded_requests():
+    from anisosample import selection
+
+    requests, index = selection.table_requests([(30.4,), (), (0.2,), (29.6, 100.0), (30.0,)],
+                                               k=2)
+    assert requests == [(30,), (30, 100)]
+    assert index.tolist() == [0, -1, -1, 1, 0]
+    assert selection.FALLBACK == "pmj02bn"
