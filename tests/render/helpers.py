@@ -22,7 +22,7 @@ def plane_under_light(height=1.98, half=0.25, radiance=10.0, albedo=0.5, occlude
     t[2, 3] = height
     b.rectangle(t, b.diffuse(0.0), radiance=radiance)
     if occluder is not None:
-        b.rectangle(occluder, b.diffuse(0.0), twosided=False)
+        b.rectangle(occluder, b.diffuse(0.0))
     cam = look_at(np.array([0, 0, 1.0]), np.zeros(3), np.array([0, 1.0, 0]))
     b.camera(cam, width=9, height=9, fov=10)
     return b.build()
