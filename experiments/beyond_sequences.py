@@ -34,7 +34,8 @@ DESIGNS = {"equal": {}, "equal, 600 steps": {"steps": 600},
            "equal, lr 0.5": {"steps": 600, "learning_rate": 0.5},
            "size": {"steps": 600, "sequence_weights": "size"},
            f"equal + {prefix.DEFAULT_PREFIX}": {"steps": 600, "prefix": prefix.DEFAULT_PREFIX}}
-SMALL_DESIGNS = ("equal",)  # the four comparisons add 4 x 600 optimizer steps per direction to the default's 1500
+# the four comparisons add 4 x 600 optimizer steps per direction to the default's 1500
+SMALL_DESIGNS = ("equal",)
 KEYS = (1, 2, 3)
 
 
