@@ -126,11 +126,11 @@ w-directions-accuracy: $(VENV)/.installed
 # interruption; a finished table is verified and left alone; a rebuild takes about 5 min on a
 # quiet 2-core machine: 6.6 s per set, experiments/bench_tables.py --full). The shipped n = 256 table keeps the
 # aligned-only weights (see anisosample/tables.py). Other sizes: `anisosample tables build --n N`
-# into the user cache; 4-direction: `--directions 4`.
+# into the user cache; 4-direction: `--direction-count 4`.
 TABLE_N ?= 4096
 TABLE_BATCH ?= 1
 tables: $(VENV)/.installed
-	nice -n 10 $(PY) -m anisosample.cli tables build --n $(TABLE_N) --directions 3 \
+	nice -n 10 $(PY) -m anisosample.cli tables build --n $(TABLE_N) --direction-count 3 \
 		--batch $(TABLE_BATCH) --out anisosample/data/tables/d3_n$(TABLE_N)
 
 w-aligned-end-to-end: $(VENV)/.installed

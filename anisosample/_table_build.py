@@ -1,7 +1,7 @@
 """Building aligned point-set tables (W Sec. 5.4): resumable, parallel over devices and hosts.
 
-``build(n, kind)`` synthesizes every canonical set of a table (:func:`anisosample.tables.
-canonical_sets`: 46 for ``kind=3``, 4,141 for ``kind=4``) with
+``build(n, direction_count)`` synthesizes every canonical set of a table (:func:`anisosample.tables.
+canonical_sets`: 46 for ``direction_count=3``, 4,141 for ``direction_count=4``) with
 :func:`anisosample.synthesis.synthesize` and writes each finished set at once (atomically), so an
 interrupted build resumes where it stopped: finished sets are verified and skipped, the set that
 was in progress resumes from its synthesis checkpoint (``.ckpt/`` inside the table directory;
@@ -24,7 +24,7 @@ device; the same bits as one device). On the CPU, test either with
 ``XLA_FLAGS=--xla_force_host_platform_device_count=2``.
 
 Several hosts: run the same command on every host with a shared ``--out``, e.g.
-``anisosample tables build --n 4096 --directions 4 --out /shared/d4 --distributed --coordinator
+``anisosample tables build --n 4096 --direction-count 4 --out /shared/d4 --distributed --coordinator
 host0:1234 --num-processes P --process-id p`` (``--distributed`` alone auto-detects SLURM, Open MPI
 and TPU pods). It calls ``jax.distributed.initialize`` before anything touches the XLA backend
 (importing anisosample does not); work unit ``i`` (a set, or a group with ``batch > 1``) is built
@@ -32,7 +32,7 @@ by process ``i % P``, and the last process to finish writes the checksums (any l
 call also does, and builds nothing if all sets exist). Tested with two processes on one machine
 (a localhost coordinator).
 
-One machine, several cores: ``anisosample tables build --n 4096 --directions 4 --processes P``
+One machine, several cores: ``anisosample tables build --n 4096 --direction-count 4 --processes P``
 starts P such workers itself (a localhost coordinator), each pinned to its share of the cores,
 so each runs one term at a time (:func:`anisosample.synthesis.usable_cores`). On this project's
 2-core machine two workers build the 4-direction table about 1.4 times as fast as one process
@@ -68,13 +68,13 @@ def _synth_options() -> tuple[str, ...]:
     return ("recipe", *synthesis.OPTIONS)
 
 
-def _settings(n: int, kind: int, seed: int, synthesis: dict) -> dict:
+def _settings(n: int, direction_count: int, seed: int, synthesis: dict) -> dict:
     s = {
         "format": _t.FORMAT,
         "format_version": _t.FORMAT_VERSION,
         "n": n,
-        "kind": kind,
-        "count": len(_t.canonical_sets(kind)),
+        "kind": direction_count,
+        "count": len(_t.canonical_sets(direction_count)),
         "seed": seed,
         "synthesis": dict(sorted(synthesis.items())),
         # the recipe's defaults as they are now: a later change of synthesize's defaults makes
@@ -133,7 +133,7 @@ def warm_source(n: int, *, exclude=None, prefix: str = "none",
             continue
         if (path / "table.json").exists():
             try:
-                tab = _t.open_table(path, n=n, kind=3)
+                tab = _t.open_table(path, n=n, direction_count=3)
             except ValueError:
                 continue
             if tab.complete:
@@ -150,9 +150,9 @@ def warm_points(n: int, extra, fingerprint: str, prefix: str = "none",
     for root in _t.table_dirs():
         path = root / _t.table_name(3, n, prefix, sequence_from)
         if (path / "table.json").exists():
-            tab = _t.open_table(path, n=n, kind=3)
+            tab = _t.open_table(path, n=n, direction_count=3)
             if tab.settings["fingerprint"] == fingerprint:
-                c = _t.canonicalize((int(extra[0]),), kind=3)
+                c = _t.canonicalize((int(extra[0]),), direction_count=3)
                 return _prefix.restore_prefix(
                     _t.transform_points(tab.load(c.extra), c.transform), prefix, c.transform)
     raise FileNotFoundError(f"the 3-direction table for n={n} this table is warm-started from "
@@ -254,17 +254,18 @@ def write_set(table: _t.Table, extra, points, metadata: dict | None = None) -> P
         "extra_deg": list(extra),
         "directions_deg": list(_t.set_directions(extra)),
         "n": table.n,
-        "kind": table.kind,
+        "kind": table.direction_count,
         "fingerprint": table.settings["fingerprint"],
         "points_sha256": _t.points_checksum(pts),
     })
     return _io.save_npz(table.set_path(extra), {"points": pts}, meta, overwrite=True)
 
 
-def create_table(out, n: int, kind: int, *, seed: int = 0, synthesis: dict | None = None):
+def create_table(out, n: int, direction_count: int, *, seed: int = 0,
+                 synthesis: dict | None = None):
     """Create (or open, if its settings match) the table directory ``out``."""
     out = Path(out)
-    settings = _settings(n, kind, seed, dict(synthesis or {}))
+    settings = _settings(n, direction_count, seed, dict(synthesis or {}))
     if (out / "table.json").exists():
         table = _t.open_table(out)
         if table.settings["fingerprint"] != settings["fingerprint"]:
@@ -314,27 +315,28 @@ four terms of a 4-direction set). Measured against double precision
 4 --precisions double single``). Tables that exist keep the precision they were built with."""
 
 
-def _existing_synthesis(out: Path, kind: int) -> dict | None:
+def _existing_synthesis(out: Path, direction_count: int) -> dict | None:
     """The synthesis settings of the table at ``out``, or None (no table, or a damaged one:
     :func:`create_table` reports what is wrong with it)."""
     if (out / "table.json").exists():
         try:
-            return dict(_t.open_table(out, kind=kind).settings["synthesis"])
+            return dict(_t.open_table(out, direction_count=direction_count).settings["synthesis"])
         except (ValueError, KeyError):
             pass
     return None
 
 
-def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: int = 1,
+def build(n: int, direction_count: int = 3, *, out=None, seed: int = 0, sets=None, batch: int = 1,
           devices=None, checkpoint_every: int = 25, show_progress: bool = True,
           warm_start: bool | None = None, **synthesis_options) -> dict:
-    """Synthesize the canonical sets of the ``kind``-direction table for ``n`` points.
+    """Synthesize the canonical sets of the ``direction_count``-direction table for ``n`` points.
 
     Args:
         n: points per set.
-        kind: 3 (axes + one extra direction, 46 sets) or 4 (two extra, 4,141 sets).
-        out: table directory (default ``tables.cache_dir()/d{kind}_n{n}``). An existing table
-            there must have the same settings (n, kind, seed, synthesis options), else
+        direction_count: 3 (axes + one extra direction, 46 sets) or 4 (two extra, 4,141 sets).
+        out: table directory (default ``tables.cache_dir()/d{direction_count}_n{n}``). An
+            existing table
+            there must have the same settings (n, direction_count, seed, synthesis options), else
             ``ValueError``; its finished sets are verified and kept, damaged ones rebuilt.
         seed: integer seed; set ``i`` uses ``fold_in(key(seed), i)``.
         sets: build only these canonical extra-direction tuples (default: all).
@@ -354,7 +356,8 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
             with :data:`WARM_STEPS` steps at :data:`WARM_LEARNING_RATE` unless ``steps`` /
             ``learning_rate`` are given; no such table: cold. Part of the table's settings.
             ``None`` (default): what an existing table at ``out`` chose, else warm for
-            ``kind=4`` (as the on-demand lookups build), so a table built here serves them.
+            ``direction_count=4`` (as the on-demand lookups build), so a table built here serves
+            them.
             A new 4-direction table also runs its transforms in single precision
             (:data:`FOUR_DIRECTION_PRECISION`) unless ``nufft_precision`` is given.
         synthesis_options: passed to :func:`anisosample.synthesize` (``recipe``, ``steps``, ...).
@@ -363,7 +366,7 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
     ``complete``).
     """
     n = check_int("n", n, minimum=2)
-    kind = _t.check_kind(kind)
+    direction_count = _t.check_direction_count(direction_count)
     seed = check_int("seed", seed, minimum=0)
     checkpoint_every = check_int("checkpoint_every", checkpoint_every, minimum=1)
     batch = check_int("batch", batch, minimum=1)
@@ -376,8 +379,8 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
         synth["batch"] = batch
     prefix = _prefix.check_table_prefix(synth.get("prefix"))
     seq = check_int("sequence_from", synth.get("sequence_from", 0), minimum=0)
-    out = Path(out) if out is not None else _t.cache_table_path(kind, n, prefix, seq)
-    existing = _existing_synthesis(out, kind)  # an existing table keeps its own choices
+    out = Path(out) if out is not None else _t.cache_table_path(direction_count, n, prefix, seq)
+    existing = _existing_synthesis(out, direction_count)  # an existing table keeps its own choices
     if seq:  # a sequence table's steps and learning rate: its own, else the sequence defaults
         from .synthesis import SEQUENCE_DEFAULTS
 
@@ -389,22 +392,22 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
             elif name in existing:
                 synth[name] = existing[name]
     if warm_start is None:
-        warm_start = kind == 4 if existing is None else "warm_start" in existing
+        warm_start = direction_count == 4 if existing is None else "warm_start" in existing
     if not isinstance(warm_start, bool):
         raise TypeError(f"warm_start must be True, False or None, got {warm_start!r}")
-    if kind == 4 and "nufft_precision" not in synth:
+    if direction_count == 4 and "nufft_precision" not in synth:
         if existing is None:
             synth["nufft_precision"] = FOUR_DIRECTION_PRECISION
         elif "nufft_precision" in existing:  # a table from before the option has none
             synth["nufft_precision"] = existing["nufft_precision"]
     src = (warm_source(n, exclude=out, prefix=prefix, sequence_from=seq)
-           if warm_start and kind == 4 else None)
+           if warm_start and direction_count == 4 else None)
     if src is not None:
         synth["warm_start"] = {"table": _t.table_name(3, n, prefix, seq),
                                "fingerprint": src.settings["fingerprint"]}
         synth.setdefault("steps", WARM_STEPS)
         synth.setdefault("learning_rate", WARM_LEARNING_RATE)
-    all_sets = _t.canonical_sets(kind)
+    all_sets = _t.canonical_sets(direction_count)
     index = {e: i for i, e in enumerate(all_sets)}
     if sets is None:
         todo = list(all_sets)
@@ -413,11 +416,12 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
         for e in sets:
             e = tuple(int(a) for a in np.atleast_1d(e))
             if e not in index:
-                raise ValueError(f"sets must hold canonical extra directions of a {kind}-direction"
-                                 f" table (see tables.canonical_sets({kind})), got {list(e)}")
+                raise ValueError(f"sets must hold canonical extra directions of a "
+                                 f"{direction_count}-direction table (see "
+                                 f"tables.canonical_sets({direction_count})), got {list(e)}")
             if e not in todo:
                 todo.append(e)
-    table = create_table(out, n, kind, seed=seed, synthesis=synth)
+    table = create_table(out, n, direction_count, seed=seed, synthesis=synth)
 
     # Work units: one set (batch 1) or a fixed group of sets (batch B). Hosts split the units
     # (jax.distributed); each host spreads its share over its local devices, one thread each.
@@ -443,7 +447,7 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
     for u in remaining:
         work.put(u)
     bar = _progress(total=sum(map(len, mine)), initial=sum(map(len, done_units)),
-                    desc=f"table d{kind} n={n} ({len(devices)} device(s))",
+                    desc=f"table d{direction_count} n={n} ({len(devices)} device(s))",
                     disable=None if show_progress else True)
     lock = threading.Lock()
 
@@ -496,22 +500,22 @@ def build(n: int, kind: int = 3, *, out=None, seed: int = 0, sets=None, batch: i
     }
 
 
-def build_set(n: int, kind: int, extra, *, out, show_progress: bool = True,
+def build_set(n: int, direction_count: int, extra, *, out, show_progress: bool = True,
               **build_options) -> dict:
     """Build one missing canonical set on demand (what :func:`anisosample.tables.ensure` does).
 
     An existing table at ``out`` is finished with its own settings (seed, batch, synthesis
     options, warm start); given ``build_options`` must then match them (else ``ValueError``).
-    A new table gets ``build_options`` and, for ``kind=4``, ``warm_start=True`` unless
+    A new table gets ``build_options`` and, for ``direction_count=4``, ``warm_start=True`` unless
     ``build_options`` say otherwise. One set builds with its own progress bar.
     """
     out = Path(out)
     if (out / "table.json").exists() and not build_options:
-        tab = _t.open_table(out, n=n, kind=kind)
+        tab = _t.open_table(out, n=n, direction_count=direction_count)
         opts = dict(tab.settings["synthesis"])
         batch = opts.pop("batch", 1)
         opts.pop("warm_start", None)  # the table's own choice (build's default)
-        return build(n, kind, out=out, sets=[tuple(extra)], seed=tab.settings["seed"],
+        return build(n, direction_count, out=out, sets=[tuple(extra)], seed=tab.settings["seed"],
                      batch=batch, show_progress=show_progress, **build_options, **opts)
-    return build(n, kind, out=out, sets=[tuple(extra)], show_progress=show_progress,
+    return build(n, direction_count, out=out, sets=[tuple(extra)], show_progress=show_progress,
                  **build_options)

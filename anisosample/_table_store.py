@@ -21,13 +21,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import io as _io
-from ._validate import ONE_MINUS_EPSILON, check_choice, check_int, check_points
+from ._validate import ONE_MINUS_EPSILON, check_choice, check_int, check_points, renamed_keywords
 
 AXES_DEG = (0, 90)
 """The axes every set is optimized for (W Sec. 5.4)."""
 
-KINDS = (3, 4)
-"""Table kinds: the number of directions per set (axes plus one or two extra)."""
+DIRECTION_COUNTS = (3, 4)
+"""A table's direction counts: the number of directions per set (axes plus one or two extra)."""
 
 FORMAT = "anisosample-aligned-table"
 FORMAT_VERSION = 1
@@ -55,18 +55,20 @@ def _canonical_of(extra: tuple[int, ...]) -> tuple[tuple[int, ...], str]:
     return min(_images(extra))  # ties: the transform name decides; all give the same set
 
 
-def canonical_sets(kind: int) -> list[tuple[int, ...]]:
-    """The canonical extra-direction tuples of a table, sorted: 46 for ``kind=3``, 4,141 for 4.
+@renamed_keywords(kind="direction_count")
+def canonical_sets(direction_count: int) -> list[tuple[int, ...]]:
+    """The canonical extra-direction tuples of a table, sorted: 46 for ``direction_count=3``,
+    4,141 for 4.
 
     Found by enumerating every integer combination (with repetition for pairs, W's count) and
     keeping one representative per orbit of the four angle maps.
     """
-    return list(_canonical_sets(check_kind(kind)))
+    return list(_canonical_sets(check_direction_count(direction_count)))
 
 
 @functools.lru_cache(maxsize=2)
-def _canonical_sets(kind: int) -> tuple[tuple[int, ...], ...]:
-    if kind == 3:
+def _canonical_sets(direction_count: int) -> tuple[tuple[int, ...], ...]:
+    if direction_count == 3:
         combos = [(a,) for a in range(180)]
     else:
         combos = [(a, b) for a in range(180) for b in range(a, 180)]
@@ -78,7 +80,7 @@ class Canonical:
     """A request reduced by symmetry: the stored set ``extra`` and the ``transform`` that maps it
     to the requested directions (``requested`` = the extra directions asked for, sorted)."""
 
-    kind: int
+    direction_count: int
     extra: tuple[int, ...]
     transform: str
     requested: tuple[int, ...]
@@ -112,14 +114,15 @@ def _integer_directions(name: str, directions_deg) -> tuple[int, ...]:
     return tuple(int(x) for x in d)
 
 
-def canonicalize(directions_deg, *, kind: int | None = None) -> Canonical:
+@renamed_keywords(kind="direction_count")
+def canonicalize(directions_deg, *, direction_count: int | None = None) -> Canonical:
     """Reduce a request to its canonical set and the symmetry that maps that set back.
 
     ``directions_deg``: integer spectral directions in ``[0, 180)``; 0 and 90 (the axes) may be
     included or not -- they are always part of every set. What remains are the extra directions:
     one (3-direction table) or two (4-direction table); none means the axes-only set (``psi = 0``).
-    ``kind`` forces the table (3 or 4); a single extra direction in a 4-direction table is the pair
-    ``(a, a)``.
+    ``direction_count`` forces the table (3 or 4); a single extra direction in a 4-direction
+    table is the pair ``(a, a)``.
     """
     d = _integer_directions("directions_deg", directions_deg)
     extra = tuple(sorted({a for a in d if a not in AXES_DEG}))
@@ -128,18 +131,20 @@ def canonicalize(directions_deg, *, kind: int | None = None) -> Canonical:
             f"directions_deg may hold at most two directions besides 0 and 90 (tables of 3 or 4 "
             f"directions, W Sec. 5.4), got {list(d)}"
         )
-    if kind is None:
-        kind = 4 if len(extra) == 2 else 3
-    kind = check_kind(kind)
-    want = kind - 2
+    if direction_count is None:
+        direction_count = 4 if len(extra) == 2 else 3
+    direction_count = check_direction_count(direction_count)
+    want = direction_count - 2
     if len(extra) > want:
         raise ValueError(
-            f"a {kind}-direction table holds {want} extra direction(s), got {list(extra)}"
+            f"a {direction_count}-direction table holds {want} extra direction(s), "
+            f"got {list(extra)}"
         )
     padded = extra if extra else (0,)
     padded = padded + (padded[-1],) * (want - len(padded))
     canon, transform = _canonical_of(padded)
-    return Canonical(kind=kind, extra=canon, transform=transform, requested=extra)
+    return Canonical(direction_count=direction_count, extra=canon, transform=transform,
+                     requested=extra)
 
 
 def set_name(extra: tuple[int, ...]) -> str:
@@ -195,11 +200,12 @@ def apply_symmetry(points, transform: str) -> jax.Array:
     return jnp.asarray(transform_points(pts, transform))
 
 
-def check_kind(kind) -> int:
-    kind = check_int("kind", kind)
-    if kind not in KINDS:
-        raise ValueError(f"kind must be 3 or 4 (directions per set), got {kind}")
-    return kind
+def check_direction_count(direction_count) -> int:
+    direction_count = check_int("direction_count", direction_count)
+    if direction_count not in DIRECTION_COUNTS:
+        raise ValueError(f"direction_count must be 3 or 4 (directions per set), "
+                         f"got {direction_count}")
+    return direction_count
 
 
 # --- where tables live ----------------------------------------------------------------------------
@@ -211,10 +217,13 @@ def cache_dir() -> Path:
     return Path(base) / "anisosample" / "tables"
 
 
-def cache_table_path(kind: int, n: int, prefix: str = "none", sequence_from: int = 0) -> Path:
-    """Where the user cache keeps the ``kind``-direction table for ``n`` points (the default
+@renamed_keywords(kind="direction_count")
+def cache_table_path(direction_count: int, n: int, prefix: str = "none",
+                     sequence_from: int = 0) -> Path:
+    """Where the user cache keeps the ``direction_count``-direction table for ``n`` points (the
+    default
     ``out`` of a build and the target of on-demand lookups)."""
-    return cache_dir() / table_name(kind, n, prefix, sequence_from)
+    return cache_dir() / table_name(direction_count, n, prefix, sequence_from)
 
 
 def shipped_dir() -> Path:
@@ -228,24 +237,27 @@ def table_dirs() -> list[Path]:
     return [Path(p) for p in env.split(os.pathsep) if p] + [shipped_dir(), cache_dir()]
 
 
-def table_name(kind: int, n: int, prefix: str = "none", sequence_from: int = 0) -> str:
-    """``d{kind}_n{n}``; ``_seq{sequence_from}`` added for a table of progressive sequences
+@renamed_keywords(kind="direction_count")
+def table_name(direction_count: int, n: int, prefix: str = "none", sequence_from: int = 0) -> str:
+    """``d{direction_count}_n{n}``; ``_seq{sequence_from}`` added for a table of progressive
+    sequences
     (:func:`anisosample.synthesis.synthesize_sequence`) and ``_{prefix}`` for sets with a fixed
     prefix (:mod:`anisosample.prefix`): e.g. ``d3_n4096_seq256_dihedral-64``."""
-    return (f"d{kind}_n{n}" + (f"_seq{sequence_from}" if sequence_from else "")
+    return (f"d{direction_count}_n{n}" + (f"_seq{sequence_from}" if sequence_from else "")
             + ("" if prefix == "none" else f"_{prefix}"))
 
 
-def find_table(kind: int, n: int, *, root=None, prefix: str = "none",
+@renamed_keywords(kind="direction_count")
+def find_table(direction_count: int, n: int, *, root=None, prefix: str = "none",
                sequence_from: int = 0) -> Path | None:
-    """The directory of the ``kind``-direction table for ``n`` points (and ``prefix``), or
-    ``None``.
+    """The directory of the ``direction_count``-direction table for ``n`` points (and
+    ``prefix``), or ``None``.
 
     ``root``: a table directory itself or a directory holding :func:`table_name`; default: the
     search path :func:`table_dirs`.
     """
-    kind, n = check_kind(kind), check_int("n", n, minimum=2)
-    name = table_name(kind, n, prefix, sequence_from)
+    direction_count, n = check_direction_count(direction_count), check_int("n", n, minimum=2)
+    name = table_name(direction_count, n, prefix, sequence_from)
     roots = [Path(root)] if root is not None else table_dirs()
     for r in roots:
         if (r / "table.json").exists():
@@ -272,7 +284,8 @@ def points_checksum(points: np.ndarray) -> str:
 
 
 def settings_fingerprint(settings: dict) -> str:
-    """SHA-256 of the settings that determine a table's sets (n, kind, seed, synthesis)."""
+    """SHA-256 of the settings that determine a table's sets (n, the direction count -- stored
+    under its table.json key ``kind`` --, seed, synthesis)."""
     keys = ("n", "kind", "seed", "synthesis", "synthesis_resolved")
     text = json.dumps(_io.to_jsonable({k: settings.get(k) for k in keys}), sort_keys=True)
     return _sha256_bytes(text.encode())
@@ -290,7 +303,7 @@ class Table:
         return int(self.settings["n"])
 
     @property
-    def kind(self) -> int:
+    def direction_count(self) -> int:
         return int(self.settings["kind"])
 
     @property
@@ -301,7 +314,7 @@ class Table:
 
     def missing(self) -> list[tuple[int, ...]]:
         """The canonical sets (:func:`canonical_sets`) whose files are not in the table."""
-        return [e for e in canonical_sets(self.kind) if not self.has(e)]
+        return [e for e in canonical_sets(self.direction_count) if not self.has(e)]
 
     def set_path(self, extra: tuple[int, ...]) -> Path:
         return self.path / f"{set_name(extra)}.npz"
@@ -314,8 +327,10 @@ class Table:
         return read_set(self, extra)
 
 
-def open_table(path, *, n: int | None = None, kind: int | None = None) -> Table:
-    """Open and check a table directory (refuses other formats, versions, ``n`` or ``kind``)."""
+@renamed_keywords(kind="direction_count")
+def open_table(path, *, n: int | None = None, direction_count: int | None = None) -> Table:
+    """Open and check a table directory (refuses other formats, versions, ``n`` or
+    ``direction_count``)."""
     path = Path(path)
     meta_path = path / "table.json"
     if not meta_path.exists():
@@ -339,8 +354,9 @@ def open_table(path, *, n: int | None = None, kind: int | None = None) -> Table:
     table = Table(path, settings)
     if n is not None and table.n != n:
         raise ValueError(f"table {path} holds sets of n={table.n} points, asked for n={n}")
-    if kind is not None and table.kind != kind:
-        raise ValueError(f"table {path} is a {table.kind}-direction table, asked for {kind}")
+    if direction_count is not None and table.direction_count != direction_count:
+        raise ValueError(f"table {path} is a {table.direction_count}-direction table, "
+                         f"asked for {direction_count}")
     return table
 
 
@@ -352,7 +368,7 @@ def read_set(table: Table, extra: tuple[int, ...]) -> np.ndarray:
         raise FileNotFoundError(
             f"table {table.path} has no set for extra directions {list(extra)} (missing "
             f"{path.name}); finish it with `anisosample tables build --n {table.n} "
-            f"--directions {table.kind} --out {table.path}`"
+            f"--direction-count {table.direction_count} --out {table.path}`"
         )
     data = path.read_bytes()  # parsed from memory: np.load leaks the handle of a broken zip
     listed = table.settings.get("checksums", {}).get(path.name)

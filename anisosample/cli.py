@@ -353,8 +353,9 @@ def _add_directions(sub):
                         "axial) with a half-wheel key, grey hatched = no estimate")
     p.add_argument("--top-down", action="store_true",
                    help="the grid's first row is the largest y (renderer images)")
-    p.add_argument("--method", default="fixed", choices=["fixed", "gradient"],
+    p.add_argument("--estimator", default="fixed", choices=["fixed", "gradient"],
                    help="W Sec. 5.2: fixed-kappa search or gradient fit of (mu, kappa)")
+    _renamed_option(p, "--method", "--estimator")
     p.add_argument("--kappa", type=_finite_float, default=None,
                    help="vMF concentration (doubled angle)")
     p.add_argument("--threshold", type=_finite_float, default=None, help="confidence threshold")
@@ -368,7 +369,7 @@ def _run_directions(args):
     from . import directions, io
 
     values = io.load_grid(args.grid, top_down=args.top_down)
-    opts = {"method": args.method}
+    opts = {"estimator": args.estimator}
     for name, value in (("kappa", args.kappa), ("threshold", args.threshold),
                         ("sigma_px", args.sigma)):
         if value is not None:
@@ -417,8 +418,9 @@ def _add_tables(sub):
     tsub = p.add_subparsers(dest="tables_command", required=True, metavar="ACTION")
     b = tsub.add_parser("build", help="synthesize every canonical set (resumable)")
     b.add_argument("--n", type=int, required=True, help="points per set")
-    b.add_argument("--directions", type=int, choices=[3, 4], default=3,
+    b.add_argument("--direction-count", type=int, choices=[3, 4], default=3,
                    help="3 (axes + 1 direction, 46 sets) or 4 (axes + 2, 4141 sets)")
+    _renamed_option(b, "--directions", "--direction-count")
     b.add_argument("--out", default=None,
                    help="table directory (default: the user cache, see tables.cache_dir())")
     b.add_argument("--seed", type=_seed, default=0, help="integer seed of the JAX key")
@@ -447,8 +449,9 @@ def _add_tables(sub):
     e = tsub.add_parser("export", help="write a table's sets to one point file (UTK text or "
                                        "binary, .npz, ...) for other tools")
     e.add_argument("--n", type=int, required=True, help="points per set")
-    e.add_argument("--directions", type=int, choices=[3, 4], default=3,
+    e.add_argument("--direction-count", type=int, choices=[3, 4], default=3,
                    help="3 (axes + 1 direction) or 4 (axes + 2)")
+    _renamed_option(e, "--directions", "--direction-count")
     e.add_argument("--sets", default=None,
                    help="the sets' extra directions, e.g. 30,45,120 or 10:20,0:45 (any integer "
                         "degrees, reduced by symmetry as lookups do; missing sets are built on "
@@ -529,12 +532,13 @@ def _run_tables(args):
         return _run_tables_export(args)
     if args.tables_command == "info":
         tab = tables.open_table(args.path)
-        sets = tables.canonical_sets(tab.kind)
+        sets = tables.canonical_sets(tab.direction_count)
         have = [e for e in sets if tab.has(e)]
         for e in have:
             tab.load(e)
         missing = tab.missing()
-        print(f"{tab.path}: {tab.kind}-direction table, n={tab.n}, {len(have)}/{len(sets)} sets "
+        print(f"{tab.path}: {tab.direction_count}-direction table, n={tab.n}, "
+              f"{len(have)}/{len(sets)} sets "
               f"(all verified), complete={tab.complete}, seed={tab.settings['seed']}, "
               f"synthesis={tab.settings['synthesis']}"
               + (f"; missing: {', '.join(tables.set_name(e) for e in missing[:8])}"
@@ -544,13 +548,13 @@ def _run_tables(args):
     if args.processes != 1:
         _check_processes(args)
         out = Path(args.out) if args.out else tables.cache_table_path(
-            args.directions, args.n, args.prefix or "none", args.sequence_from or 0)
+            args.direction_count, args.n, args.prefix or "none", args.sequence_from or 0)
         if (out / "table.json").exists():  # a damaged or foreign table: one message, not P
-            tables.open_table(out, n=args.n, kind=args.directions)
+            tables.open_table(out, n=args.n, direction_count=args.direction_count)
         _run_local_processes(args.processes, lambda pid, port: _worker_argv(args, pid, port),
                              after_failure="; the same command resumes what they finished")
         tab = tables.open_table(out)
-        sets = tables.canonical_sets(tab.kind)
+        sets = tables.canonical_sets(tab.direction_count)
         print(f"table {tab.path}: {args.processes} local processes done; "
               f"{sum(tab.has(e) for e in sets)}/{len(sets)} sets, complete={tab.complete}")
         return
@@ -558,7 +562,7 @@ def _run_tables(args):
     opts = {k: v for k, v in (("recipe", args.recipe), ("steps", args.steps),
                               ("prefix", args.prefix), ("sequence_from", args.sequence_from))
             if v is not None}
-    summary = tables.build(args.n, args.directions, out=args.out, seed=args.seed,
+    summary = tables.build(args.n, args.direction_count, out=args.out, seed=args.seed,
                            sets=_parse_sets(args.sets), checkpoint_every=args.checkpoint_every,
                            batch=args.batch, warm_start=args.warm_start,
                            show_progress=not args.no_progress, **opts)
@@ -581,14 +585,14 @@ def _run_tables_export(args):
         raise FileExistsError(f"{out} exists; pass --force to replace it")
     if args.sets is not None:
         extras = _parse_sets(args.sets)
-        if not extras or any(len(e) != args.directions - 2 for e in extras):
-            raise ValueError(f"--sets must give {args.directions - 2} extra direction(s) per "
-                             f"set for a {args.directions}-direction table, got {args.sets!r}")
+        if not extras or any(len(e) != args.direction_count - 2 for e in extras):
+            raise ValueError(f"--sets must give {args.direction_count - 2} extra direction(s) per "
+                             f"set for a {args.direction_count}-direction table, got {args.sets!r}")
         requests = [[*tables.AXES_DEG, *e] for e in extras]
-        tables.ensure(requests, args.n, kind=args.directions, table=args.table,
+        tables.ensure(requests, args.n, direction_count=args.direction_count, table=args.table,
                       build_missing=False if args.no_build else (
                           True if args.table is not None else None))
-        sets = [tables.lookup(r, args.n, kind=args.directions, table=args.table)
+        sets = [tables.lookup(r, args.n, direction_count=args.direction_count, table=args.table)
                 for r in requests]
         dirs = [[*tables.AXES_DEG, *e] for e in extras]
         where = args.table or "the table search path"
@@ -596,21 +600,21 @@ def _run_tables_export(args):
         if args.no_build:
             raise ValueError("--no-build applies to --sets (without it, only the sets a table "
                              "holds are written)")
-        path = tables.find_table(args.directions, args.n, root=args.table)
+        path = tables.find_table(args.direction_count, args.n, root=args.table)
         if path is None:
             raise FileNotFoundError(
-                f"no {args.directions}-direction table for n={args.n} in "
+                f"no {args.direction_count}-direction table for n={args.n} in "
                 f"{args.table or 'the table search path'}; build it with "
-                f"`{tables.build_command(args.directions, args.n)}` or name sets with --sets")
+                f"`{tables.build_command(args.direction_count, args.n)}` or name sets with --sets")
         tab = tables.open_table(path)
-        held = [e for e in tables.canonical_sets(tab.kind) if tab.has(e)]
+        held = [e for e in tables.canonical_sets(tab.direction_count) if tab.has(e)]
         if not held:
             raise ValueError(f"table {path} holds no sets yet")
         sets = [tab.load(e) for e in held]
         dirs = [list(tables.set_directions(e)) for e in held]
         where = str(path)
-    meta = {"what": f"aligned sets of the {args.directions}-direction table for n={args.n}",
-            "n": args.n, "kind": args.directions, "directions_deg": dirs}
+    meta = {"what": f"aligned sets of the {args.direction_count}-direction table for n={args.n}",
+            "n": args.n, "direction_count": args.direction_count, "directions_deg": dirs}
     io.save_points(out, [np.asarray(s) for s in sets], meta, format=fmt, overwrite=args.force)
     print(f"wrote {len(sets)} set(s) of {args.n} points from {where} to {out} "
           f"({'; '.join(','.join(str(d) for d in ds) for ds in dirs[:4])}"
@@ -622,7 +626,7 @@ _AFFINITY_ENV = "ANISOSAMPLE_WORKER_CPUS"
 
 def _worker_argv(args, pid: int, port: int) -> list[str]:
     """The ``tables build`` command line of local worker ``pid`` of ``--processes``."""
-    argv = ["tables", "build", "--n", str(args.n), "--directions", str(args.directions),
+    argv = ["tables", "build", "--n", str(args.n), "--direction-count", str(args.direction_count),
             "--seed", str(args.seed), "--checkpoint-every", str(args.checkpoint_every),
             "--batch", str(args.batch), "--distributed", "--coordinator", f"127.0.0.1:{port}",
             "--num-processes", str(args.processes), "--process-id", str(pid)]
@@ -1077,7 +1081,7 @@ def _pixel_summary(result) -> str:
 
     rec = result.settings["blocks"]
     code = np.asarray(result.pixel_sampler)
-    if rec["method"] == "aligned-pixel":
+    if rec["point_set"] == "aligned-pixel":
         return (f"pixels: {int((code == 3).sum())} of {code.size} with their own direction "
                 f"(3-direction set), {int((code == 4).sum())} with two (corner, 4-direction "
                 f"set), {int((code == 5).sum())} without an edge ({rec['fallback']}, the prefix "
@@ -1185,6 +1189,23 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+class _RenamedOption(argparse.Action):
+    """An old option spelling, hidden from ``--help`` and refused with the new one's name
+    (docs/design.md, Vocabulary), e.g. ``directions --method`` -> ``--estimator``."""
+
+    def __init__(self, option_strings, dest, new: str, nargs="?", **kwargs):
+        self.new = new
+        super().__init__(option_strings, argparse.SUPPRESS, nargs=nargs,
+                         default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        parser.error(f"{option_string} is now {self.new} (docs/design.md, Vocabulary)")
+
+
+def _renamed_option(parser, old: str, new: str) -> None:
+    parser.add_argument(old, action=_RenamedOption, new=new)
 
 
 class _VersionAction(argparse.Action):

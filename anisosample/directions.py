@@ -33,7 +33,7 @@ Choices the paper leaves open, fixed here and documented:
   histogram bin; further directions at least ``min_separation_deg = 10`` from those found.
   kappa, floor and sigma were chosen on a sweep of random straight edges at 96^2 (kappa = 50
   with floor 1e-6 gave a 1.3-2 deg median error; kappa = 100 with floor 1e-3 about 0.7 deg).
-* Gradient fit (``method="gradient"``, W Fig. 4c): starts from the fixed-kappa result and fits
+* Gradient fit (``estimator="gradient"``, W Fig. 4c): starts from the fixed-kappa result and fits
   mu (continuous) and kappa with kappa bounded to ``[kappa_min_fit = 50, 1000]``. Without the
   lower bound the reverse KL of a histogram with a broad background (a polygon's corners) is
   lowest for an almost uniform q and the fit drifts there (with a bound of 10, mu was still
@@ -84,7 +84,7 @@ __all__ = [
     "default_options",
 ]
 
-METHODS = ("fixed", "gradient")
+ESTIMATORS = ("fixed", "gradient")
 
 
 # --- parameters ----------------------------------------------------------------------------------
@@ -105,7 +105,7 @@ class _Params:
     threshold: float = 0.12
     floor: float = 1e-3
     nodes: int = vmf.DEFAULT_NODES
-    method: str = "fixed"
+    estimator: str = "fixed"
     kappa_min_fit: float = 50.0
 
     @property
@@ -128,6 +128,9 @@ def default_options() -> dict:
 
 
 def _params(**kw) -> _Params:
+    if "method" in kw:  # the old spelling (docs/design.md, Vocabulary)
+        raise TypeError("the direction estimator is chosen by estimator= where it took method= "
+                        "(docs/design.md, Vocabulary)")
     known = {f.name for f in dataclasses.fields(_Params)}
     unknown = sorted(set(kw) - known)
     if unknown:  # a misspelled option must not fall back silently to its default
@@ -150,8 +153,8 @@ def _params(**kw) -> _Params:
             p[name] = check_positive_float(name, kw[name], allow_zero=True)
     if "nodes" in kw:
         p["nodes"] = check_int("nodes", kw["nodes"], minimum=1)
-    if "method" in kw:
-        p["method"] = check_choice("method", kw["method"], METHODS)
+    if "estimator" in kw:
+        p["estimator"] = check_choice("estimator", kw["estimator"], ESTIMATORS)
     params = _Params(**p)
     nb = 180.0 / params.bin_deg
     if abs(nb - round(nb)) > 1e-9 or round(nb) < 8:
@@ -168,7 +171,7 @@ class Estimate(NamedTuple):
 
     ``directions_deg`` in ``[0, 180)``; a slot with ``valid == False`` holds ``-1.0`` (never NaN).
     ``confidence`` is the normalised histogram mass within +-2 deg of the direction; ``kappa``
-    is the fitted concentration (the fixed ``kappa`` for ``method="fixed"``).
+    is the fitted concentration (the fixed ``kappa`` for ``estimator="fixed"``).
     """
 
     directions_deg: Float[Array, "... k"]
@@ -368,7 +371,7 @@ def _estimate_hist(hist, k: int, params: _Params) -> Estimate:
         win = available & (axial_distance_deg(centres, centres[seed]) <= params.window_deg)
         mu_deg = centres[jnp.argmin(jnp.where(win, obj, jnp.inf))]
         kap = kappa
-        if params.method == "gradient":
+        if params.estimator == "gradient":
             # refine (mu, kappa) continuously from the fixed-kappa result (W Fig. 4c)
             fit = vmf.fit_reverse_kl(
                 p_fit, jnp.radians(2.0 * mu_deg), kappa, floor=params.floor, nodes=params.nodes,
@@ -405,7 +408,7 @@ def _estimate_grid_jit(values, k, params):
 
 
 _DOC_OPTIONS = """
-    Options (keyword-only; defaults in the module docstring): ``method`` ("fixed": W Sec. 5.2's
+    Options (keyword-only; defaults in the module docstring): ``estimator`` ("fixed": W Sec. 5.2's
     fixed-kappa integer search; "gradient": optimistix fit of mu and kappa from the histogram
     maxima), ``kappa``, ``window_deg``, ``min_separation_deg``, ``threshold``,
     ``confidence_window_deg``, ``zero_window_deg``, ``floor``, ``nodes``; for grids also

@@ -53,7 +53,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validate import check_choice, check_directions_deg, check_int, check_positive_float
+from ._validate import (
+    check_choice,
+    check_directions_deg,
+    check_int,
+    check_positive_float,
+    renamed_keywords,
+)
 
 DESIGNS = ("rate", "paper")
 ROBUST_OFFSETS_DEG = (-1.0, -0.75, -0.5, -0.25, 0.25, 0.5, 0.75, 1.0)
@@ -262,10 +268,11 @@ def canonical_half_rows(freqs) -> np.ndarray:
     return np.where(flip[:, None], -v, v)
 
 
+@renamed_keywords(kind="name")
 def design(
     n: int,
     directions_deg,
-    kind: str = "rate",
+    name: str = "rate",
     *,
     length: float | None = None,
     width: float | None = None,
@@ -277,18 +284,18 @@ def design(
 ) -> FrequencySet:
     """The frequency set (and weights) for ``n`` points and the given spectral directions.
 
-    ``kind="rate"``: wedges of length ``n^0.8``, half-width ``max(1.5, t tan 2deg)``, disk of
+    ``name="rate"``: wedges of length ``n^0.8``, half-width ``max(1.5, t tan 2deg)``, disk of
     radius ``sqrt(n)``, weights :func:`edge_weights` with ``offsets_deg=ROBUST_OFFSETS_DEG``
     (pass ``offsets_deg=()`` for the aligned-only weights of issue 4 design c).
-    ``kind="paper"``: wedges of length ``3 sqrt(n)``, half-width ``max(1, t tan 2deg)``, no
+    ``name="paper"``: wedges of length ``3 sqrt(n)``, half-width ``max(1, t tan 2deg)``, no
     disk, uniform weights (W Sec. 4.1).  Any of ``length``, ``width``, ``angle_deg``,
     ``disk_radius`` (0 for none) overrides the design's value; ``weight_spread_deg``,
     ``core_deg`` and ``offsets_deg`` are passed to :func:`edge_weights` (``"rate"`` only).
     """
     n = check_int("n", n, minimum=2)
     directions_deg = check_directions_deg("directions_deg", directions_deg)
-    kind = check_choice("kind", kind, DESIGNS)
-    if kind == "rate":
+    name = check_choice("name", name, DESIGNS)
+    if name == "rate":
         p = {"length": n**0.8, "width": 1.5, "angle_deg": 2.0, "disk_radius": math.sqrt(n),
              "offsets_deg": list(ROBUST_OFFSETS_DEG)}
     else:
@@ -316,7 +323,7 @@ def design(
             p.pop(opt, None)
     w = (edge_weights(v, directions_deg, p.get("weight_spread_deg", 0.0),
                       p.get("core_deg", 0.0), p.get("offsets_deg", ()))
-         if kind == "rate" else np.ones(v.shape[0]))
-    params = {"design": kind, "n": n, "directions_deg": list(directions_deg), **p,
-              "weights": "edge" if kind == "rate" else "uniform", "size": int(v.shape[0])}
+         if name == "rate" else np.ones(v.shape[0]))
+    params = {"design": name, "n": n, "directions_deg": list(directions_deg), **p,
+              "weights": "edge" if name == "rate" else "uniform", "size": int(v.shape[0])}
     return _group(v, w, directions_deg, params)

@@ -455,7 +455,7 @@ def _map_arrays(estimate, block, shape, origin):
     """``(directions (rows, cols, k), valid, block, shape, origin)`` from what
     :func:`save_direction_map` accepts."""
     inner = getattr(estimate, "estimate", None)
-    if hasattr(estimate, "method") and hasattr(estimate, "block_px"):  # a BlockSampler
+    if hasattr(estimate, "point_set") and hasattr(estimate, "block_px"):  # a BlockSampler
         if inner is None:
             raise ValueError("this sampler holds no estimate to draw")
         estimate, inner = inner, getattr(inner, "estimate", None)

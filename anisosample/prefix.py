@@ -42,6 +42,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from . import metrics
 from ._validate import check_int, check_points
 
 __all__ = ["KINDS", "DEFAULT_PREFIX", "PMJ_KEY", "TABLE_SHIFTS", "DESIGN_ANGLES_DEG",
@@ -193,7 +194,7 @@ def _predicted_variance(k: int, radius: int):
             pts = (jnp.einsum("gij,kj->gki", ga, flat.reshape(k, 2)) + gb[:, None, :])
             ph = 2.0 * jnp.pi * pts.reshape(-1, 2) @ va.T
             c, s = jnp.mean(jnp.cos(ph), 0), jnp.mean(jnp.sin(ph), 0)
-            return jnp.sum(wa * (c * c + s * s))
+            return metrics.predicted_variance(c * c + s * s, wa, xp=jnp)  # P_S(v) = |mean|^2
 
         vg = jax.jit(jax.value_and_grad(value))
 

@@ -94,7 +94,8 @@ def aligned_set(extra_deg, n: int, key=None, *, table=None, build_missing: bool 
         raise ValueError(f"extra_deg must hold one or two integer directions other than the "
                          f"axes (from table_directions), got {list(extra)}")
     n = check_int("n", n, minimum=2)
-    where = dict(kind=len(extra) + 2, table=table, prefix=build_options.pop("prefix", None),
+    where = dict(direction_count=len(extra) + 2, table=table,
+                 prefix=build_options.pop("prefix", None),
                  sequence_from=build_options.pop("sequence_from", 0))
     _tables.ensure([extra], n, build_missing=build_missing, **where, **build_options)
     pts = _tables.lookup(extra, n, **where)
@@ -140,9 +141,10 @@ def aligned_sets(requests, n: int, *, table=None, build_missing: bool | None = N
     opts["show_progress"] = False
     for extra in bar(requests, desc=desc or f"aligned sets n={n}", unit="set",
                      disable=None if progress and len(requests) > 8 else True):
-        _tables.ensure([extra], n, kind=len(extra) + 2, table=table,
+        _tables.ensure([extra], n, direction_count=len(extra) + 2, table=table,
                        build_missing=build_missing, prefix=prefix, **opts)
-    return jnp.stack([_tables.lookup(extra, n, kind=len(extra) + 2, table=table, prefix=prefix)
+    return jnp.stack([_tables.lookup(extra, n, direction_count=len(extra) + 2, table=table,
+                                     prefix=prefix)
                       for extra in requests])
 
 

@@ -17,13 +17,15 @@ transform of ``g`` to the canonical set. The canonical representative of a pair 
 lexicographically smallest sorted image under the four maps (pairs with repetition, as counted
 by W).
 
-Store. A table is a directory ``d{kind}_n{n}/`` holding ``table.json`` (format version, kind, n,
-seed, synthesis options, package version and, once complete, the SHA-256 of every set file) and
-one ``.npz`` per canonical set (``psi_030.npz``, ``psi_010_045.npz``) with the points (float32)
-and metadata (canonical directions, the directions synthesized, the SHA-256 of the points, the
-settings fingerprint of the table). Every file is written atomically, so an interrupted build
-leaves only whole sets. A table whose format, kind, n or settings do not match, or a set file that
-is truncated, altered or from another table, is refused with a ``ValueError`` naming the file.
+Store. A table is a directory ``d{direction_count}_n{n}/`` (``d3_n4096/``) holding ``table.json``
+(format version, direction count -- stored under the key ``kind`` --, n, seed, synthesis
+options, package version and, once complete, the SHA-256 of every set file) and one ``.npz``
+per canonical set (``psi_030.npz``, ``psi_010_045.npz``) with the points (float32) and metadata
+(canonical directions, the directions synthesized, the SHA-256 of the points, the settings
+fingerprint of the table). Every file is written atomically, so an interrupted build leaves only
+whole sets. A table whose format, direction count, n or settings do not match, or a
+set file that is truncated, altered or from another table, is refused with a ``ValueError``
+naming the file.
 
 Where tables are found (:func:`table_dirs`): ``$ANISOSAMPLE_TABLES`` (``os.pathsep``-separated),
 the tables shipped in ``anisosample/data/tables``, and the user cache
@@ -75,9 +77,9 @@ import numpy as np
 from . import _table_build
 from ._table_store import ANGLE_MAPS as ANGLE_MAPS
 from ._table_store import AXES_DEG as AXES_DEG
+from ._table_store import DIRECTION_COUNTS as DIRECTION_COUNTS
 from ._table_store import FORMAT as FORMAT
 from ._table_store import FORMAT_VERSION as FORMAT_VERSION
-from ._table_store import KINDS as KINDS
 from ._table_store import TRANSFORMS as TRANSFORMS
 from ._table_store import Canonical as Canonical
 from ._table_store import Table as Table
@@ -99,12 +101,12 @@ from ._table_store import table_name as table_name
 from ._table_store import table_prefix as table_prefix
 from ._table_store import table_sequence_from as table_sequence_from
 from ._table_store import transform_points as transform_points
-from ._validate import check_int
+from ._validate import check_int, renamed_keywords
 from .prefix import check_table_prefix, restore_prefix
 
 __all__ = [
     "AXES_DEG",
-    "KINDS",
+    "DIRECTION_COUNTS",
     "FORMAT_VERSION",
     "Canonical",
     "canonical_sets",
@@ -127,7 +129,8 @@ __all__ = [
 # --- lookup ---------------------------------------------------------------------------------------
 
 
-def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
+@renamed_keywords(kind="direction_count")
+def lookup(directions_deg, n: int, *, direction_count: int | None = None, table=None,
            prefix: str | None = None, sequence_from: int = 0, **unexpected) -> jax.Array:
     """The aligned set of ``n`` points for integer ``directions_deg`` (W Sec. 5.4): a pure
     lookup, it never builds (:func:`ensure` builds what is missing, with progress, before).
@@ -139,15 +142,15 @@ def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
 
     ``prefix`` (W Sec. 7; :mod:`anisosample.prefix`): ``None``/``"none"`` (the tables W
     describes) or a symmetric ``"dihedral-<m>"`` (e.g. :data:`anisosample.prefix.DEFAULT_PREFIX`):
-    the set comes from the table ``d{kind}_n{n}_{prefix}`` and its first ``m`` points are the
-    prefix bit for bit, whatever the directions (the symmetry's shift and reordering of the
+    the set comes from the table ``d{direction_count}_n{n}_{prefix}`` and its first ``m`` points
+    are the prefix bit for bit, whatever the directions (the symmetry's shift and reordering of the
     prefix are undone, :func:`anisosample.prefix.restore_prefix`).
 
     ``sequence_from`` (0: a set): the progressive sequence of ``n`` points whose every nested
     power-of-two prefix from ``sequence_from`` up is aligned
     (:func:`anisosample.synthesis.synthesize_sequence`), from the table
-    ``d{kind}_n{n}_seq{sequence_from}``; the symmetry keeps the order of the points, so every
-    nested prefix of the served sequence is aligned for the requested directions.
+    ``d{direction_count}_n{n}_seq{sequence_from}``; the symmetry keeps the order of the points,
+    so every nested prefix of the served sequence is aligned for the requested directions.
 
     A set no table holds raises ``FileNotFoundError`` naming :func:`ensure` and the command that
     builds it (:func:`build_command`). Damaged or incompatible tables raise ``ValueError``.
@@ -156,21 +159,23 @@ def lookup(directions_deg, n: int, *, kind: int | None = None, table=None,
         raise TypeError(f"tables.lookup is a pure lookup and takes no {sorted(unexpected)}; "
                         "build missing sets first with tables.ensure(requests, n, ...) (its "
                         "build_missing, show_progress and synthesis options)")
-    canon = canonicalize(directions_deg, kind=kind)
+    canon = canonicalize(directions_deg, direction_count=direction_count)
     n = check_int("n", n, minimum=2)
     prefix = check_table_prefix(prefix)
     sequence_from = check_int("sequence_from", sequence_from, minimum=0)
-    path = find_table(canon.kind, n, root=table, prefix=prefix, sequence_from=sequence_from)
+    path = find_table(canon.direction_count, n, root=table, prefix=prefix,
+                      sequence_from=sequence_from)
     if path is None or not (path / f"{canon.name}.npz").exists():
         where, command = _where_and_command(canon, n, table, path, prefix, sequence_from)
         raise FileNotFoundError(
-            f"no {canon.kind}-direction table for n={n} with set {canon.name} in {where}; "
+            f"no {canon.direction_count}-direction table for n={n} with set {canon.name} in "
+            f"{where}; "
             f"build it with tables.ensure([{list(canon.extra)}], {n}"
             + (f", table={str(table)!r}, build_missing=True" if table is not None else "")
             + f") or `{command}`")
     set_file = Path(path) / f"{canon.name}.npz"
     st = set_file.stat()
-    pts, held = _load_verified(str(path), n, canon.kind, canon.extra, st.st_mtime_ns,
+    pts, held = _load_verified(str(path), n, canon.direction_count, canon.extra, st.st_mtime_ns,
                                st.st_size, (Path(path) / "table.json").stat().st_mtime_ns)
     if held != (prefix, sequence_from):
         raise ValueError(f"table {path} holds sets with (prefix, sequence_from) {held}, not "
@@ -184,12 +189,13 @@ def _where_and_command(canon, n, table, path, prefix, sequence_from) -> tuple[st
     where = table if table is not None else os.pathsep.join(map(str, table_dirs()))
     into = None if table is None else (
         path if path is not None
-        else Path(table) / table_name(canon.kind, n, prefix, sequence_from))
-    return where, build_command(canon.kind, n, [canon.extra], out=into, prefix=prefix,
+        else Path(table) / table_name(canon.direction_count, n, prefix, sequence_from))
+    return where, build_command(canon.direction_count, n, [canon.extra], out=into, prefix=prefix,
                                 sequence_from=sequence_from)
 
 
-def ensure(requests, n: int, *, kind: int | None = None, table=None,
+@renamed_keywords(kind="direction_count")
+def ensure(requests, n: int, *, direction_count: int | None = None, table=None,
            build_missing: bool | None = None, show_progress: bool = True,
            prefix: str | None = None, sequence_from: int = 0, **build_options) -> list:
     """Make the sets for ``requests`` (each a ``directions_deg`` of :func:`lookup`) available
@@ -199,7 +205,7 @@ def ensure(requests, n: int, *, kind: int | None = None, table=None,
     ``build_missing=False``). Returns the canonical names it built.
 
     A set no table on the search path holds is synthesized (one set at a time, with a progress
-    bar unless ``show_progress=False``) into the user cache's table for ``(kind, n)``
+    bar unless ``show_progress=False``) into the user cache's table for ``(direction_count, n)``
     (:func:`cache_dir`), or into the table on the search path that lacks it (finished with its
     own settings). A new 4-direction table is warm-started from the complete 3-direction table
     for ``n`` where one exists (:func:`anisosample._table_build.build_set`). ``build_options``
@@ -217,15 +223,17 @@ def ensure(requests, n: int, *, kind: int | None = None, table=None,
     sequence_from = check_int("sequence_from", sequence_from, minimum=0)
     built = []
     for request in requests:
-        canon = canonicalize(request, kind=kind)
-        path = find_table(canon.kind, n, root=table, prefix=prefix, sequence_from=sequence_from)
+        canon = canonicalize(request, direction_count=direction_count)
+        path = find_table(canon.direction_count, n, root=table, prefix=prefix,
+                          sequence_from=sequence_from)
         if path is not None and (path / f"{canon.name}.npz").exists():
             continue
         explicit = table is not None and build_missing is None
         if build_missing is False or explicit:
             where, command = _where_and_command(canon, n, table, path, prefix, sequence_from)
             raise FileNotFoundError(
-                f"no {canon.kind}-direction table for n={n} with set {canon.name} in {where}; "
+                f"no {canon.direction_count}-direction table for n={n} with set {canon.name} "
+                f"in {where}; "
                 f"build it with `{command}` "
                 + ("(or pass build_missing=True to build it there on demand)" if explicit else
                    "(or build on demand: the default, refused by build_missing=False / "
@@ -233,30 +241,31 @@ def ensure(requests, n: int, *, kind: int | None = None, table=None,
             )
         if table is not None:
             out = (path if path is not None
-                   else Path(table) / table_name(canon.kind, n, prefix, sequence_from))
+                   else Path(table) / table_name(canon.direction_count, n, prefix, sequence_from))
         elif path is not None and path.parent != shipped_dir():
             out = path  # a table on the search path (the cache, $ANISOSAMPLE_TABLES) lacks it
         else:
-            out = cache_table_path(canon.kind, n, prefix, sequence_from)
+            out = cache_table_path(canon.direction_count, n, prefix, sequence_from)
         opts = dict(build_options)
         if not (Path(out) / "table.json").exists():  # an existing table keeps its own settings
             if prefix != "none":
                 opts["prefix"] = prefix
             if sequence_from:
                 opts["sequence_from"] = sequence_from
-        _table_build.build_set(n, canon.kind, canon.extra, out=out,
+        _table_build.build_set(n, canon.direction_count, canon.extra, out=out,
                                show_progress=show_progress, **opts)
         built.append(canon.name)
     return built
 
 
-def build_command(kind: int, n: int, sets=None, *, out=None, prefix: str = "none",
+@renamed_keywords(kind="direction_count")
+def build_command(direction_count: int, n: int, sets=None, *, out=None, prefix: str = "none",
                   sequence_from: int = 0) -> str:
     """The ``anisosample tables build`` command that builds the canonical ``sets`` (extra
-    direction tuples, default: the whole table) of the ``kind``-direction table for ``n`` into
-    ``out`` (default: the user cache, where :func:`lookup` finds them) -- with the settings an
-    on-demand build uses, so the sets are the ones :func:`lookup` would have built."""
-    cmd = f"anisosample tables build --n {n} --directions {kind}"
+    direction tuples, default: the whole table) of the ``direction_count``-direction table for
+    ``n`` into ``out`` (default: the user cache, where :func:`lookup` finds them) -- with the
+    settings an on-demand build uses, so the sets are the ones :func:`lookup` would have built."""
+    cmd = f"anisosample tables build --n {n} --direction-count {direction_count}"
     if sets:
         cmd += " --sets " + ",".join(":".join(str(int(a)) for a in e) for e in sets)
     if sequence_from:
@@ -268,34 +277,38 @@ def build_command(kind: int, n: int, sets=None, *, out=None, prefix: str = "none
     return cmd
 
 
-def installed_sizes(kind: int) -> list[int]:
-    """The ``n`` of the ``kind``-direction tables on the search path (:func:`table_dirs`),
+@renamed_keywords(kind="direction_count")
+def installed_sizes(direction_count: int) -> list[int]:
+    """The ``n`` of the ``direction_count``-direction tables on the search path
+    (:func:`table_dirs`),
     complete or not, ascending. Other sizes are built on demand (any ``n >= 2``)."""
-    from ._table_store import check_kind
+    from ._table_store import check_direction_count
 
-    kind = check_kind(kind)
+    direction_count = check_direction_count(direction_count)
     out = set()
     for root in table_dirs():
-        for d in root.glob(f"d{kind}_n*"):
-            tail = d.name[len(f"d{kind}_n"):]
+        for d in root.glob(f"d{direction_count}_n*"):
+            tail = d.name[len(f"d{direction_count}_n"):]
             if tail.isdigit() and (d / "table.json").exists():
                 out.add(int(tail))
     return sorted(out)
 
 
 @functools.lru_cache(maxsize=64)
-def _load_verified(path: str, n: int, kind: int, extra, mtime_ns: int, size: int,
+def _load_verified(path: str, n: int, direction_count: int, extra, mtime_ns: int, size: int,
                    index_mtime_ns: int) -> np.ndarray:
     """Verified canonical set and its table's prefix, cached per file version (a renderer looks
     sets up per pixel)."""
-    tab = open_table(path, n=n, kind=kind)
+    tab = open_table(path, n=n, direction_count=direction_count)
     pts = tab.load(extra)
     pts.setflags(write=False)
     return pts, (table_prefix(tab), table_sequence_from(tab))
 
 
-def build(n: int, kind: int = 3, **options):
-    """Build (or finish) the ``kind``-direction table for ``n`` points (W Sec. 5.4); resumable.
+@renamed_keywords(kind="direction_count")
+def build(n: int, direction_count: int = 3, **options):
+    """Build (or finish) the ``direction_count``-direction table for ``n`` points (W Sec. 5.4);
+    resumable.
 
     Keyword options: ``out`` (table directory, default the user cache), ``seed``, ``sets`` (a
     subset of :func:`canonical_sets`), ``batch`` (sets per ``synthesize_batch`` loop; 1 =
@@ -306,4 +319,4 @@ def build(n: int, kind: int = 3, **options):
     ``jax.distributed.initialize()`` first and share ``out``. Returns a summary dict.
     Details: ``anisosample/_table_build.py``.
     """
-    return _table_build.build(n, kind, **options)
+    return _table_build.build(n, direction_count, **options)

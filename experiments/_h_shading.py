@@ -71,13 +71,13 @@ def triangle_methods():
     def base(p):
         return W.SphericalTriangle(verts, p)
 
-    def pw(kind):
-        return lambda p: W.compose(W.fit_pointwise(kind, _cos, [base(p)]), base(p))
+    def pw(family):
+        return lambda p: W.compose(W.fit_pointwise(family, _cos, [base(p)]), base(p))
 
-    def ls(kind):
+    def ls(family):
         def make(p):
-            init = W.fit_pointwise(kind, _cos, [base(p)])
-            return W.compose(W.fit_least_squares(kind, _cos, [base(p)], init=init), base(p))
+            init = W.fit_pointwise(family, _cos, [base(p)])
+            return W.compose(W.fit_least_squares(family, _cos, [base(p)], init=init), base(p))
 
         return make
 

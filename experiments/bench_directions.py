@@ -39,17 +39,17 @@ def main(argv=None):
     ap.add_argument("--blocks", type=int, default=80, help="blocks per side (80: 1280 px)")
     ap.add_argument("--samples", type=int, default=96, help="samples per block side")
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--method", default="fixed", choices=["fixed", "gradient"])
+    ap.add_argument("--estimator", default="fixed", choices=["fixed", "gradient"])
     args = ap.parse_args(argv)
     samples = jax.block_until_ready(make_samples(jax.random.key(0), args.blocks, args.samples))
     nb = args.blocks * args.blocks
     print(f"device: {jax.devices()[0]}, cpu_count: {os.cpu_count()}")
     print(f"{nb} blocks x {args.samples}^2 samples = {samples.size / 1e6:.1f} M samples, "
-          f"method={args.method}")
+          f"estimator={args.estimator}")
 
     def run():
         est = asp.directions.estimate_blocks(samples, k=2, samples_per_block=args.samples,
-                                             method=args.method)
+                                             estimator=args.estimator)
         return jax.block_until_ready(est)
 
     t0 = time.perf_counter()

@@ -1,6 +1,7 @@
 """Benchmark: aligned point-set tables (W Sec. 5.4) on this machine.
 
-Default (``--kind 4``): the 4-direction sets *on demand*, as a user meets them. For ``--sets``
+Default (``--direction-count 4``): the 4-direction sets *on demand*, as a user meets them. For
+``--sets``
 canonical 4-direction sets spread over the 4,141 (every ``4141 // sets``-th; ``--block K``:
 runs of ``K`` consecutive sets, as a whole table's build meets them), each is looked up
 with default arguments (``tables.lookup``) in an empty user cache, so each is synthesized (warm-
@@ -9,20 +10,21 @@ prints each set's wall time (compilation included) and the number of XLA compila
 (a set whose box shapes an earlier set had compiles nothing new), their mean, median and max,
 and the 4,141-set table projected from the mean. ``--batch B`` times the same sets
 through ``tables.build(..., batch=B)`` instead (groups of ``B`` sets per loop);
-``--processes P`` times the table's one command, ``anisosample tables build --n N --directions
+``--processes P`` times the table's one command, ``anisosample tables build --n N --direction-count
 4 --processes P``, on the same sets (P local workers, each pinned to its share of the cores).
 
 ``--compare-warm``: the warm start against a cold start (see :func:`_compare_warm`).
 
-``--kind 3``: time one set at ``--short`` and one at ``--long`` steps, fit
+``--direction-count 3``: time one set at ``--short`` and one at ``--long`` steps, fit
 ``t = fixed + steps * per_step`` and project the 46-set table.
 
 Targets (issue 16, 2 CPU cores): one 4-direction n = 4096 set on demand <= 10 s; the 4,141-set
 table <= 2 h projected from >= 20 sets. The machine is shared: the load average is printed before
 and after (other work inflates the wall times); run it under ``nice -n 10``.
 
-    python experiments/bench_tables.py [--n 4096] [--kind 4 --sets 20] [--batch B | --processes P]
-    python experiments/bench_tables.py --kind 3 [--short 10 --long 40]
+    python experiments/bench_tables.py [--n 4096] [--direction-count 4 --sets 20]
+        [--batch B | --processes P]
+    python experiments/bench_tables.py --direction-count 3 [--short 10 --long 40]
     python experiments/bench_tables.py --compare-warm [--pairs 2]
 """
 
@@ -78,7 +80,7 @@ def _four_direction(args):
         if args.processes > 1:  # the table's one command, on P local pinned workers
             spec = ",".join(":".join(str(a) for a in e) for e in pick)
             cmd = [sys.executable, "-m", "anisosample", "tables", "build", "--n", str(args.n),
-                   "--directions", "4", "--sets", spec, "--processes", str(args.processes),
+                   "--direction-count", "4", "--sets", spec, "--processes", str(args.processes),
                    "--out", os.path.join(tmp, "d4"), "--no-progress"]
             t0 = time.perf_counter()
             done = subprocess.run(cmd, capture_output=True, text=True)
@@ -205,18 +207,18 @@ def main(argv=None):
     p = common.parser("bench_tables", __doc__.splitlines()[0], scale=False, out=False,
         seed=None, fresh=False)
     p.add_argument("--n", type=int, default=4096)
-    p.add_argument("--kind", type=int, default=4, choices=[3, 4])
+    p.add_argument("--direction-count", type=int, default=4, choices=[3, 4])
     p.add_argument("--sets", type=int, default=20, help="4-direction sets to time")
     p.add_argument("--block", type=int, default=1,
                    help="time runs of this many consecutive canonical sets (a whole table's "
                         "build meets the box shapes of its neighbours, compiled once; spread "
                         "single sets each compile their own)")
-    p.add_argument("--batch", type=int, default=1, help="sets per loop (kind 4, tables.build)")
+    p.add_argument("--batch", type=int, default=1, help="sets per loop (4 directions)")
     p.add_argument("--processes", type=int, default=1,
-                   help="time `anisosample tables build --processes P` (kind 4) instead")
+                   help="time `anisosample tables build --processes P` (4 directions) instead")
     p.add_argument("--recipe", default="rate", choices=["rate", "paper"])
-    p.add_argument("--short", type=int, default=10, help="steps of the short run (kind 3)")
-    p.add_argument("--long", type=int, default=40, help="steps of the long run (kind 3)")
+    p.add_argument("--short", type=int, default=10, help="steps of the short run (3 directions)")
+    p.add_argument("--long", type=int, default=40, help="steps of the long run (3 directions)")
     p.add_argument("--compare-warm", action="store_true",
                    help="warm vs cold 4-direction sets at n = 256 and 4096 (quality, edge slope)")
     p.add_argument("--pairs", type=int, default=2, help="direction pairs for --compare-warm")
@@ -238,7 +240,7 @@ def main(argv=None):
     if args.compare_warm:
         _compare_warm(args)
     else:
-        (_four_direction if args.kind == 4 else _three_direction)(args)
+        (_four_direction if args.direction_count == 4 else _three_direction)(args)
     print(f"load average after: {os.getloadavg()}")
 
 

@@ -47,11 +47,11 @@ def _cos(w):
     return jnp.maximum(jnp.dot(w, NORMAL), 0.0)
 
 
-def chain(kind, origin):
+def chain(family, origin):
     rect = W.SphericalRectangle(CORNER, EU, EV, origin)
-    if kind is None:
+    if family is None:
         return rect
-    return W.compose(W.fit_pointwise(kind, _cos, [rect]), rect)
+    return W.compose(W.fit_pointwise(family, _cos, [rect]), rect)
 
 
 def main(argv=None):
@@ -68,17 +68,17 @@ def main(argv=None):
         [1.0, 1.0, 0.0]
     )
     fixed_origin = jnp.asarray([0.1, -0.2, 0.0], jnp.float32)
-    kinds = {"rectangle": None, "+ bilinear": W.Bilinear, "+ biquadratic": W.Biquadratic}
+    families = {"rectangle": None, "+ bilinear": W.Bilinear, "+ biquadratic": W.Biquadratic}
     print(f"device: {jax.devices()[0]}, {os.cpu_count()} CPUs; n = {args.n}; "
           f"load average {os.getloadavg()[0]:.1f}")
     cases = {}
     for workload in ("sample", "fit+sample"):
-        for name, kind in kinds.items():
+        for name, family in families.items():
             if workload == "sample":
                 fn = jax.jit(lambda w, uu: jax.vmap(w.sample_and_pdf)(uu))
-                cases[workload, name] = (fn, (chain(kind, fixed_origin), u))
+                cases[workload, name] = (fn, (chain(family, fixed_origin), u))
             else:
-                fn = jax.jit(jax.vmap(lambda o, uu, k=kind: chain(k, o).sample_and_pdf(uu)))
+                fn = jax.jit(jax.vmap(lambda o, uu, k=family: chain(k, o).sample_and_pdf(uu)))
                 cases[workload, name] = (fn, (origins, u))
     best = {}
     for _ in range(args.rounds):

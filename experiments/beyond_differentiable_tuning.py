@@ -27,7 +27,7 @@ Per method and shading point:
   divided by their number.
 
 Summary: mean variance and its improvement over uniform; geometric means over shading points of
-the variance ratio to the point-wise and least-squares fits of the same kind; the fraction of
+the variance ratio to the point-wise and least-squares fits of the same family; the fraction of
 shading points where the minimum-variance fit is at least as good (within 1e-4), and where the
 least-squares fit is worse than the point-wise one.
 
@@ -111,10 +111,10 @@ def methods():
     keep = ("uniform solid angle", "+ bilinear (point-wise)", "+ biquadratic (point-wise)",
             "+ bilinear (least squares)", "+ biquadratic (least squares)")
 
-    def mv(kind, **options):
+    def mv(family, **options):
         def make(p):
-            init = W.fit_pointwise(kind, _cos, [_base(p)])
-            fit = W.fit_min_variance(kind, _cos, [_base(p)], init=init, **options)
+            init = W.fit_pointwise(family, _cos, [_base(p)])
+            fit = W.fit_min_variance(family, _cos, [_base(p)], init=init, **options)
             return W.compose(fit, _base(p))
 
         return make
@@ -222,15 +222,15 @@ def summarize(rows, exact):
             relative_std=float(np.sqrt(np.mean(v)) / np.mean(exact)),
             seconds_per_fit=r["seconds_per_fit"],
         )
-        kind = next((k for k in ("bilinear", "biquadratic") if k in name), None)
-        if kind and "least squares" in name:
-            ratio = v / np.asarray(rows[f"+ {kind} (point-wise)"]["variance"])
+        family = next((k for k in ("bilinear", "biquadratic") if k in name), None)
+        if family and "least squares" in name:
+            ratio = v / np.asarray(rows[f"+ {family} (point-wise)"]["variance"])
             s["geomean_ratio_to_point_wise"] = float(np.exp(np.mean(np.log(ratio))))
             s["max_ratio_to_point_wise"] = float(np.max(ratio))
             s["fraction_worse_than_point_wise"] = float(np.mean(ratio > 1 + 1e-4))
-        if kind and "min variance" in name:
+        if family and "min variance" in name:
             for ref in ("point-wise", "least squares"):
-                vr = np.asarray(rows[f"+ {kind} ({ref})"]["variance"])
+                vr = np.asarray(rows[f"+ {family} ({ref})"]["variance"])
                 ratio = v / vr
                 key = _slug(ref)
                 s[f"geomean_ratio_to_{key}"] = float(np.exp(np.mean(np.log(ratio))))
@@ -412,14 +412,14 @@ def plot(data, settings, out):
     g = settings["grid"]
     rows = data["per_point"]
     logs = {
-        kind: np.log10(
-            np.asarray(rows[f"+ {kind} (min variance)"]["variance"])
-            / np.asarray(rows[f"+ {kind} (least squares)"]["variance"])
+        family: np.log10(
+            np.asarray(rows[f"+ {family} (min variance)"]["variance"])
+            / np.asarray(rows[f"+ {family} (least squares)"]["variance"])
         )
-        for kind in ("bilinear", "biquadratic")
+        for family in ("bilinear", "biquadratic")
     }
     lim = max(1.0, float(np.ceil(max(np.max(np.abs(v)) for v in logs.values()))))
-    for ax, (kind, lg) in zip(axes[0][2:], logs.items(), strict=True):
+    for ax, (family, lg) in zip(axes[0][2:], logs.items(), strict=True):
         im = ax.imshow(
             lg.reshape(g, g),
             origin="lower",
@@ -429,7 +429,7 @@ def plot(data, settings, out):
             vmax=lim,
         )
         ax.set_title(
-            f"triangle, {kind}, per shading point:\nlog10 Var(min variance) / Var(least squares)",
+            f"triangle, {family}, per shading point:\nlog10 Var(min variance) / Var(least squares)",
             fontsize=8,
         )
         ax.set_xlabel("shading point x")

@@ -13,7 +13,7 @@ Cases (anisosample.integrands; fresh random parameters per instance, seed fixed)
 Each integrand is sampled on s x s cell centres (s = 64, 96, 128) and estimated with the
 defaults of ``anisosample.directions.estimate`` (k = 2), all instances of one size at once via
 ``estimate_blocks``: ``table`` with the fixed-kappa search (the default, W Sec. 5.2), and
-``table_gradient`` with ``method="gradient"`` (96^2 only). A true direction counts as found
+``table_gradient`` with ``estimator="gradient"`` (96^2 only). A true direction counts as found
 when an estimate lies within ``tol_deg`` (3 deg) of it. Angular error = distance from the true
 direction to the nearest estimate.
 
@@ -82,7 +82,7 @@ def make_case(case, rng):
     raise ValueError(case)
 
 
-def evaluate(case, size, n, rng, bar, method="fixed"):
+def evaluate(case, size, n, rng, bar, estimator="fixed"):
     x = directions.block_grid(size)
     grids, truths = [], []
     for _ in range(n):
@@ -91,7 +91,7 @@ def evaluate(case, size, n, rng, bar, method="fixed"):
         truths.append(truth)
         bar.update()
     est = directions.estimate_blocks(np.concatenate(grids, axis=1), k=2, samples_per_block=size,
-                                     method=method)
+                                     estimator=estimator)
     d = np.asarray(est.directions_deg)[0]
     v = np.asarray(est.valid)[0]
     conf = np.asarray(est.confidence)[0]
@@ -185,7 +185,7 @@ def main(argv=None):
             rows[str(size)], table[str(size)] = {}, {}
             for ci, case in enumerate(CASES):
                 part = part_dir / f"{size}_{case}.json"
-                part_settings = {**settings, "size": size, "case": case, "method": "fixed"}
+                part_settings = {**settings, "size": size, "case": case, "estimator": "fixed"}
                 if (cached := common.reuse(part, part_settings, args.fresh)) is not None:
                     r = cached["rows"]
                     bar.update(n)
@@ -200,13 +200,13 @@ def main(argv=None):
         rows_g, table_g = {}, {}
         for ci, case in enumerate(CASES):
             part = part_dir / f"96_{case}_gradient.json"
-            part_settings = {**settings, "size": 96, "case": case, "method": "gradient"}
+            part_settings = {**settings, "size": 96, "case": case, "estimator": "gradient"}
             if (cached := common.reuse(part, part_settings, args.fresh)) is not None:
                 r = cached["rows"]
                 bar.update(n)
             else:
                 rng = np.random.default_rng([SEED, ci])
-                r = evaluate(case, 96, n, rng, bar, method="gradient")
+                r = evaluate(case, 96, n, rng, bar, estimator="gradient")
                 asp.io.save_json(part, {"settings": part_settings, "rows": r}, overwrite=True)
             rows_g[case] = r
             table_g[case] = summarize(case, r)

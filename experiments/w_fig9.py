@@ -141,10 +141,11 @@ def _lookup(extra, n):
     if not extra:
         return None
     try:  # the installed tables (shipped, user cache), then this experiment's own
-        return tables.lookup(extra, n, kind=2 + len(extra))
+        return tables.lookup(extra, n, direction_count=2 + len(extra))
     except FileNotFoundError:
-        tables.ensure([extra], n, kind=2 + len(extra), table=W.TABLES, build_missing=True)
-        return tables.lookup(extra, n, kind=2 + len(extra), table=W.TABLES)
+        tables.ensure([extra], n, direction_count=2 + len(extra), table=W.TABLES,
+                      build_missing=True)
+        return tables.lookup(extra, n, direction_count=2 + len(extra), table=W.TABLES)
 
 
 def method_sets(cname, true_dirs, block_dirs, n, pmj):

@@ -396,8 +396,10 @@ api("frequencies-design-n-zero", lambda d: A().frequencies.design(0, [0, 90]), V
     r"n must be >= ", owner=Q)
 api("frequencies-design-direction-200", lambda d: A().frequencies.design(64, [200]), ValueError,
     r"directions_deg must lie in \[0, 180\)", owner=Q)
-api("frequencies-design-kind", lambda d: A().frequencies.design(64, [0, 90], kind="x"),
-    ValueError, r"kind must be one of", owner=Q)
+api("frequencies-design-name", lambda d: A().frequencies.design(64, [0, 90], name="x"),
+    ValueError, r"name must be one of", owner=Q)
+api("frequencies-design-old-kind-keyword", lambda d: A().frequencies.design(64, [0, 90],
+    kind="paper"), TypeError, r"design\(\) takes name= where it took kind=", owner=Q)
 api("frequencies-disk-negative", lambda d: A().frequencies.disk(-1.0), ValueError,
     r"radius must be finite and > 0", owner=Q)
 api("frequencies-disk-nan", lambda d: A().frequencies.disk(NAN), ValueError,
@@ -582,12 +584,14 @@ api("tables-load-deleted-set", lambda d: A().tables.lookup([30], 256, table=d / 
     FileNotFoundError, r"psi_030", owner=T)
 api("tables-deleted-set-not-complete", lambda d: _assert_incomplete(d / "table_missing"),
     (), r"", owner=T, report=True)
-api("tables-canonical-kind-5", lambda d: A().tables.canonical_sets(5), ValueError,
-    r"kind must be", owner=T)
+api("tables-canonical-direction-count-5", lambda d: A().tables.canonical_sets(5), ValueError,
+    r"direction_count must be", owner=T)
+api("tables-lookup-old-kind-keyword", lambda d: A().tables.lookup([0, 90, 30], 64, kind=3),
+    TypeError, r"lookup\(\) takes direction_count= where it took kind=", owner=T)
 api("tables-build-n-zero", lambda d: A().tables.build(0, 3, out=d / "t0"), ValueError,
     r"n must be >= ", owner=T)
-api("tables-build-kind-5", lambda d: A().tables.build(64, 5, out=d / "t5"), ValueError,
-    r"kind must be", owner=T)
+api("tables-build-direction-count-5", lambda d: A().tables.build(64, 5, out=d / "t5"),
+    ValueError, r"direction_count must be", owner=T)
 api("tables-canonicalize-nan", lambda d: A().tables.canonicalize([NAN]), ValueError,
     r"directions_deg", owner=T)
 
@@ -620,8 +624,10 @@ api("directions-bool-grid", lambda d: A().directions.estimate(np.zeros((32, 32),
     TypeError, r"values must be a real-valued array, got dtype bool", owner=D)
 api("directions-k-float", lambda d: A().directions.estimate(np.load(d / "grid.npy"), k=1.5),
     TypeError, r"k must be an integer", owner=D)
-api("directions-method-unknown", lambda d: A().directions.estimate(np.load(d / "grid.npy"),
-    method="hough"), ValueError, r"method must be one of", owner=D)
+api("directions-estimator-unknown", lambda d: A().directions.estimate(np.load(d / "grid.npy"),
+    estimator="hough"), ValueError, r"estimator must be one of", owner=D)
+api("directions-old-method-keyword", lambda d: A().directions.estimate(np.load(d / "grid.npy"),
+    method="gradient"), TypeError, r"estimator= where it took method=", owner=D)
 api("directions-kappa-negative", lambda d: A().directions.estimate(np.load(d / "grid.npy"),
     kappa=-1.0), ValueError, r"kappa must be finite and > 0", owner=D)
 api("directions-sigma-nan", lambda d: A().directions.estimate(np.load(d / "grid.npy"),
@@ -1114,6 +1120,10 @@ cli("directions-k-negative", "directions {d}/grid.npy -k -1", r"k must be >= 0")
 cli("directions-block-zero", "directions {d}/grid.npy --block 0", r"samples_per_block must be")
 cli("directions-kappa-negative", "directions {d}/grid.npy --kappa -1",
     r"kappa must be finite and > 0")
+cli("directions-old-method-option", "directions {d}/grid.npy --method gradient",
+    r"--method is now --estimator")
+cli("directions-estimator-unknown", "directions {d}/grid.npy --estimator hough",
+    r"argument --estimator: invalid choice: 'hough'")
 cli("directions-sigma-inf", "directions {d}/grid.npy --sigma inf",
     r"argument --sigma: expected a finite number")
 cli("directions-output-without-block", "directions {d}/grid.npy -o {o}/m.png",
@@ -1131,8 +1141,12 @@ cli("tables-info-bitflipped-set", "tables info {d}/table_flipped", r"psi_045\.np
 cli("tables-info-deleted-set", "tables info {d}/table_missing",
     r"(45/46|missing).*psi_030|psi_030.*(missing|incomplete)", report=True)
 cli("tables-build-n-zero", "tables build --n 0 --out {o}/t0", r"n must be >= ")
-cli("tables-build-kind-5", "tables build --n 64 --directions 5 --out {o}/t5",
-    r"argument --directions: invalid choice: 5")
+cli("tables-build-direction-count-5", "tables build --n 64 --direction-count 5 --out {o}/t5",
+    r"argument --direction-count: invalid choice: 5")
+cli("tables-build-old-directions-option", "tables build --n 64 --directions 4 --out {o}/t4",
+    r"--directions is now --direction-count")
+cli("tables-export-old-directions-option", "tables export --n 64 --directions 4 -o {o}/t.npz",
+    r"--directions is now --direction-count")
 cli("tables-build-bad-sets", "tables build --n 64 --sets 1:2:x --out {o}/tb",
     r"--sets must look like")
 cli("tables-build-process-without-distributed", "tables build --n 64 --process-id 1 --out {o}/t",

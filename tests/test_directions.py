@@ -113,10 +113,10 @@ def test_two_edges_both_found():
     assert directions.estimate(grid(f), k=0) == ()
 
 
-def test_gradient_method_agrees_with_fixed_kappa_search():
+def test_gradient_estimator_agrees_with_fixed_kappa_search():
     f = integrands.edges([55.0, 150.0], center=(0.48, 0.52), radius=0.22)
     fixed = directions.estimate(grid(f), k=2, details=True)
-    grad = directions.estimate(grid(f), k=2, method="gradient", details=True)
+    grad = directions.estimate(grid(f), k=2, estimator="gradient", details=True)
     assert bool(jnp.all(fixed.valid)) and bool(jnp.all(grad.valid))
     for a, b in zip(np.sort(fixed.directions_deg), np.sort(grad.directions_deg), strict=True):
         assert float(axial_distance_deg(a, b)) <= 1.5
@@ -200,8 +200,8 @@ def test_bad_input_raises_value_errors():
         directions.estimate_from_histogram(jnp.zeros((0,)))
     with pytest.raises(ValueError, match="bins"):
         directions.estimate_from_histogram(jnp.ones(90))
-    with pytest.raises(ValueError, match="method"):
-        directions.estimate(ok, method="argmax")
+    with pytest.raises(ValueError, match="estimator"):
+        directions.estimate(ok, estimator="argmax")
     with pytest.raises(ValueError, match="bin_deg"):
         directions.orientation_histogram(ok, bin_deg=7.0)
     with pytest.raises(ValueError, match="multiples of samples_per_block"):

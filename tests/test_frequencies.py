@@ -39,11 +39,11 @@ def test_disk_half_set():
     assert 2 * len(v) == full
 
 
-@pytest.mark.parametrize("kind", ["rate", "paper"])
+@pytest.mark.parametrize("name", ["rate", "paper"])
 @pytest.mark.parametrize("dirs", [(0.0, 90.0, 30.0), (0.0, 90.0, 67.0, 140.0)])
-def test_design_invariants(kind, dirs):
+def test_design_invariants(name, dirs):
     n = 1024
-    fs = fr.design(n, dirs, kind)
+    fs = fr.design(n, dirs, name)
     v = fs.freqs.astype(np.int64)
     canon = fr.canonical_half(v)
     assert len(canon) == len(v)  # one of each +-v, no zero
@@ -83,8 +83,10 @@ def test_bad_input():
         fr.design(64, [0.0, 180.0])
     with pytest.raises(ValueError, match="directions_deg"):
         fr.design(64, [10.0, 10.0])
-    with pytest.raises(ValueError, match="kind"):
+    with pytest.raises(ValueError, match="name must be one of"):
         fr.design(64, [0.0], "fancy")
+    with pytest.raises(TypeError, match=r"design\(\) takes name= where it took kind="):
+        fr.design(64, [0.0], kind="paper")
     with pytest.raises(ValueError, match="empty"):
         fr.design(64, [0.0], "paper", length=0.5, width=0.0)
     with pytest.raises(ValueError, match="at least one"):

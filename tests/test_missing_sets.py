@@ -35,10 +35,10 @@ def fake_builder(monkeypatch):
     """Replace the on-demand builder by one that writes random points (recording its calls)."""
     calls = []
 
-    def build_set(n, kind, extra, *, out, show_progress=True, **options):
-        calls.append(dict(n=n, kind=kind, extra=tuple(extra), out=Path(out),
+    def build_set(n, direction_count, extra, *, out, show_progress=True, **options):
+        calls.append(dict(n=n, direction_count=direction_count, extra=tuple(extra), out=Path(out),
                           show_progress=show_progress))
-        tab = _table_build.create_table(out, n, kind, synthesis={"steps": 1})
+        tab = _table_build.create_table(out, n, direction_count, synthesis={"steps": 1})
         pts = np.random.default_rng(len(calls)).random((n, 2), dtype=np.float32)
         _table_build.write_set(tab, extra, pts)
 
@@ -59,11 +59,11 @@ def test_points_aligned_builds_any_n_by_default_and_no_build_names_the_command(
     args = ["points", "aligned", "-n", "1000", "--directions", "0,90,30", "-o", str(out)]
     assert cli.main([*args, "--no-build"]) == 2
     err = capsys.readouterr().err
-    assert "`anisosample tables build --n 1000 --directions 3 --sets 30`" in err, err
+    assert "`anisosample tables build --n 1000 --direction-count 3 --sets 30`" in err, err
     assert "build_missing=True" not in err.split("(")[0]  # no Python hint as the fix
     assert fake_builder == [] and not out.exists()
     assert cli.main(args) == 0  # the default: built on demand, into the user cache
-    assert [(c["n"], c["kind"], c["extra"]) for c in fake_builder] == [(1000, 3, (30,))]
+    assert [(c["n"], c["direction_count"], c["extra"]) for c in fake_builder] == [(1000, 3, (30,))]
     assert fake_builder[0]["out"] == tables.cache_table_path(3, 1000)
     assert fake_builder[0]["show_progress"] is True
     assert np.load(out).shape == (1000, 2)
@@ -71,10 +71,10 @@ def test_points_aligned_builds_any_n_by_default_and_no_build_names_the_command(
     four = ["points", "aligned", "-n", "64", "--directions", "0,90,30,70", "-o",
             str(tmp_path / "q.npy")]
     assert cli.main([*four, "--no-build"]) == 2
-    canon = tables.canonicalize([30, 70], kind=4).extra
-    assert f"--directions 4 --sets {canon[0]}:{canon[1]}`" in capsys.readouterr().err
+    canon = tables.canonicalize([30, 70], direction_count=4).extra
+    assert f"--direction-count 4 --sets {canon[0]}:{canon[1]}`" in capsys.readouterr().err
     assert cli.main(four) == 0
-    assert fake_builder[-1]["extra"] == canon and fake_builder[-1]["kind"] == 4
+    assert fake_builder[-1]["extra"] == canon and fake_builder[-1]["direction_count"] == 4
 
 
 def test_variance_aligned_builds_by_default_and_refuses_with_no_build(cache, fake_builder,
@@ -82,7 +82,8 @@ def test_variance_aligned_builds_by_default_and_refuses_with_no_build(cache, fak
     base = ["variance", "--integrand", "halfplane:30,0.1", "--sampler", "aligned", "--directions",
             "0,90,30", "--n", "16,32", "--realizations", "4"]
     assert cli.main([*base, "--no-build", "-o", str(tmp_path / "a.json")]) == 2
-    assert "`anisosample tables build --n 16 --directions 3 --sets 30`" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "`anisosample tables build --n 16 --direction-count 3 --sets 30`" in err
     assert fake_builder == []
     assert cli.main([*base, "-o", str(tmp_path / "b.json")]) == 0
     assert sorted(c["n"] for c in fake_builder) == [16, 32]
@@ -99,7 +100,8 @@ def test_the_no_build_command_builds_exactly_the_refused_set(cache):
     pts = selection.aligned_set((40, 110), 16, build_missing=False)
     assert pts.shape == (16, 2)
     tab = tables.open_table(tables.cache_table_path(4, 16))
-    assert tab.has(tables.canonicalize((40, 110), kind=4).extra) and len(tab.missing()) == 4140
+    assert tab.has(tables.canonicalize((40, 110), direction_count=4).extra)
+    assert len(tab.missing()) == 4140
 
 
 def test_api_default_builds_any_n_with_progress_and_refuses_on_request(cache, capfd):
@@ -111,7 +113,8 @@ def test_api_default_builds_any_n_with_progress_and_refuses_on_request(cache, ca
     assert pts.shape == (100, 2) and np.all((pts >= 0) & (pts < 1))
     assert "synthesize n=100" in capfd.readouterr().err
     assert tables.open_table(tables.cache_table_path(3, 100)).has((25,))
-    with pytest.raises(FileNotFoundError, match=r"tables build --n 100 --directions 3 --sets 35"):
+    with pytest.raises(FileNotFoundError,
+                       match=r"tables build --n 100 --direction-count 3 --sets 35"):
         samplers.get("aligned", directions_deg=[35], build_missing=False)(jax.random.key(0), 100)
     quiet = samplers.get("aligned", directions_deg=[45], steps=2, show_progress=False)
     assert quiet(jax.random.key(1), 100).shape == (100, 2)
@@ -141,11 +144,11 @@ def test_render_no_build_refuses_after_the_estimate_with_the_commands(cache, tmp
             "--pixel-center", "--no-build", "-o", str(out)]
     assert cli.main(args) == 2
     err = capsys.readouterr().err
-    assert "anisosample tables build --n 24 --directions 3 --sets " in err, err
+    assert "anisosample tables build --n 24 --direction-count 3 --sets " in err, err
     assert "installed tables' sizes (3-direction n = 256, 4096" in err
     assert not out.exists() and not (cache / "d3_n24").exists()
     scene = render.load_xml(CORNELL, width=16, height=16)
-    with pytest.raises(FileNotFoundError, match="--n 24 --directions 3"):
+    with pytest.raises(FileNotFoundError, match="--n 24 --direction-count 3"):
         render.render(scene, jax.random.key(0), spp=24, sampler="aligned", pixel_center=True,
                       sampler_options=dict(block_px=8, samples=48, build_missing=False),
                       progress=False)

@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parent.parent
 # --- symmetry reduction -------------------------------------------------------------------------
 
 
-def _orbit_count(kind):
+def _orbit_count(direction_count):
     """Brute force, independent of tables.py: union-find over the 8 elements of D4 acting on
     direction vectors (rounded back to integer axial angles)."""
     mats = []
@@ -46,7 +46,7 @@ def _orbit_count(kind):
         v = m @ np.array([np.cos(np.radians(a)), np.sin(np.radians(a))])
         return int(round(np.degrees(np.arctan2(v[1], v[0])))) % 180
 
-    if kind == 3:
+    if direction_count == 3:
         items = [(a,) for a in range(180)]
     else:
         items = [(a, b) for a in range(180) for b in range(a, 180)]
@@ -60,10 +60,10 @@ def _orbit_count(kind):
     return orbits
 
 
-@pytest.mark.parametrize("kind, count", [(3, 46), (4, 4141)])
-def test_counts(kind, count):
-    assert len(tables.canonical_sets(kind)) == count
-    assert _orbit_count(kind) == count
+@pytest.mark.parametrize("direction_count, count", [(3, 46), (4, 4141)])
+def test_counts(direction_count, count):
+    assert len(tables.canonical_sets(direction_count)) == count
+    assert _orbit_count(direction_count) == count
 
 
 def test_three_direction_rows_of_the_fact_sheet():
@@ -87,10 +87,11 @@ def test_canonical_is_constant_on_orbits_and_maps_back():
     maps = tables.ANGLE_MAPS
     for _ in range(200):
         pair = tuple(int(a) for a in rng.integers(0, 180, 2))
-        c = tables.canonicalize(list(set(pair)) if pair[0] != pair[1] else [pair[0]], kind=4)
+        c = tables.canonicalize(list(set(pair)) if pair[0] != pair[1] else [pair[0]],
+                                direction_count=4)
         for g in maps.values():
             img = sorted({g(a) for a in pair})
-            assert tables.canonicalize(img, kind=4).extra == c.extra
+            assert tables.canonicalize(img, direction_count=4).extra == c.extra
         # the transform carries the canonical set's directions back to the request
         back = {maps[c.transform](a) for a in c.extra} | {0, 90}
         assert back == set(pair) | {0, 90}
@@ -135,19 +136,29 @@ def test_canonicalize_bad_input(bad, err, match):
         tables.canonicalize(bad)
 
 
-def test_kind_bad_input():
-    with pytest.raises(ValueError, match="kind must be 3 or 4"):
+def test_direction_count_bad_input():
+    with pytest.raises(ValueError, match="direction_count must be 3 or 4"):
         tables.canonical_sets(5)
+    # the old keyword (docs/design.md, Vocabulary) is refused with the new one's name
+    for call in (lambda: tables.canonicalize([10], kind=3),
+                 lambda: tables.lookup([10], 64, kind=3),
+                 lambda: tables.ensure([[10]], 64, kind=3),
+                 lambda: tables.canonical_sets(kind=3),
+                 lambda: tables.build(64, kind=3),
+                 lambda: tables.find_table(kind=3, n=64),
+                 lambda: tables.open_table(".", kind=3)):
+        with pytest.raises(TypeError, match=r"takes direction_count= where it took kind="):
+            call()
     with pytest.raises(ValueError, match="holds 1 extra"):
-        tables.canonicalize([10, 20], kind=3)
+        tables.canonicalize([10, 20], direction_count=3)
 
 
 # --- store and lookup (fake tables: random points, no synthesis) ----------------------------------
 
 
-def _fake_table(root, n=32, kind=3, sets=((0,), (30,)), seed=0):
-    tab = _table_build.create_table(Path(root) / tables.table_name(kind, n), n, kind, seed=seed,
-                                    synthesis={"steps": 1})
+def _fake_table(root, n=32, direction_count=3, sets=((0,), (30,)), seed=0):
+    tab = _table_build.create_table(Path(root) / tables.table_name(direction_count, n), n,
+                                    direction_count, seed=seed, synthesis={"steps": 1})
     rng = np.random.default_rng(seed)
     for e in sets:
         _table_build.write_set(tab, e, rng.random((n, 2), dtype=np.float32))
@@ -166,9 +177,9 @@ def test_lookup_applies_the_symmetry(tmp_path):
 
 
 def test_four_direction_lookup(tmp_path):
-    tab = _fake_table(tmp_path, kind=4, sets=[(10, 110), (0, 30)])
+    tab = _fake_table(tmp_path, direction_count=4, sets=[(10, 110), (0, 30)])
     c = tables.canonicalize([0, 90, 20, 100])
-    assert (c.kind, c.extra, c.transform) == (4, (10, 110), "rotate90")
+    assert (c.direction_count, c.extra, c.transform) == (4, (10, 110), "rotate90")
     got = np.asarray(tables.lookup([100, 20], 32, table=tmp_path))
     np.testing.assert_array_equal(got, np.asarray(tables.apply_symmetry(tab.load((10, 110)),
                                                                         "rotate90")))
@@ -178,7 +189,7 @@ def test_four_direction_lookup(tmp_path):
 
 def test_lookup_missing_and_incompatible(tmp_path):
     tab = _fake_table(tmp_path)
-    with pytest.raises(FileNotFoundError, match="tables build --n 64 --directions 3"):
+    with pytest.raises(FileNotFoundError, match="tables build --n 64 --direction-count 3"):
         tables.lookup([0, 90, 30], 64, table=tmp_path)
     with pytest.raises(ValueError, match="holds sets of n=32 points, asked for n=64"):
         tables.lookup([0, 90, 30], 64, table=tab.path)
@@ -260,10 +271,10 @@ def test_aligned_sampler_given_directions(tmp_path, getkey):
     # two directions: the 4-direction set, and no 4-direction table is an error naming its
     # build (never the 3-direction set of the strongest one in its place)
     two = asp.samplers.get("aligned", directions_deg=[30, 100], table=tmp_path)
-    assert two.directions_deg == (30, 100) and two.canonical.kind == 4
-    with pytest.raises(FileNotFoundError, match="--directions 4"):
+    assert two.directions_deg == (30, 100) and two.canonical.direction_count == 4
+    with pytest.raises(FileNotFoundError, match="--direction-count 4"):
         two(key, 32)
-    four = _fake_table(tmp_path, kind=4, sets=[two.canonical.extra])
+    four = _fake_table(tmp_path, direction_count=4, sets=[two.canonical.extra])
     d = (np.asarray(two(key, 32)) - np.asarray(tables.apply_symmetry(
         four.load(two.canonical.extra), two.canonical.transform))) % 1.0
     assert np.allclose(np.sin(2 * np.pi * (d - d[0])), 0, atol=1e-5)
@@ -392,20 +403,20 @@ def test_batched_build_shards_groups_over_two_devices(tmp_path):
     assert not np.array_equal(b.load((10,)), b.load((30,)))
 
 
-@pytest.mark.parametrize("kind", [3, 4])
-def test_build_over_two_processes_with_jax_distributed(tmp_path, kind):
+@pytest.mark.parametrize("direction_count", [3, 4])
+def test_build_over_two_processes_with_jax_distributed(tmp_path, direction_count):
     """Two processes joined by jax.distributed (a localhost coordinator, as two hosts would be)
     share one --out: process p builds the sets i with i % 2 == p, and every set equals the
     single-process build. 3 directions: two hosts' commands (--distributed ... --process-id p);
     4 directions: the 4,141-set table's one command on one machine, ``--processes 2`` (two
     local workers pinned to a core each, where the machine has two)."""
-    sets = "0,10,20,45" if kind == 3 else "0:0,10:20,20:50,30:45"
-    extras = ([(0,), (10,), (20,), (45,)] if kind == 3
+    sets = "0,10,20,45" if direction_count == 3 else "0:0,10:20,20:50,30:45"
+    extras = ([(0,), (10,), (20,), (45,)] if direction_count == 3
               else [(0, 0), (10, 20), (20, 50), (30, 45)])
     run_dir, ref_dir = tmp_path / "two_hosts", tmp_path / "one_host"
-    common = ["--n", "32", "--directions", str(kind), "--sets", sets, "--steps", "6",
+    common = ["--n", "32", "--directions", str(direction_count), "--sets", sets, "--steps", "6",
               "--seed", "2", "--out", str(run_dir)]
-    if kind == 3:
+    if direction_count == 3:
         common += ["--distributed", "--coordinator", f"127.0.0.1:{free_port()}",
                    "--num-processes", "2"]
         procs = []
@@ -426,7 +437,8 @@ def test_build_over_two_processes_with_jax_distributed(tmp_path, kind):
         assert "2 local processes done; 4/4141 sets" in done.stdout, done.stdout
         built = [o.split(" set")[0] for o in done.stdout.split("built ")[1:]]
     assert built == ["2", "2"], built  # 4 sets, 2 per process
-    tables.build(32, kind, out=ref_dir, sets=extras, steps=6, seed=2, show_progress=False)
+    tables.build(32, direction_count, out=ref_dir, sets=extras, steps=6, seed=2,
+                 show_progress=False)
     a, b = tables.open_table(ref_dir), tables.open_table(run_dir)
     for e in extras:
         np.testing.assert_array_equal(a.load(e), b.load(e))

@@ -11,7 +11,7 @@ import numpy as np
 import scipy.integrate
 import scipy.special
 
-from .._validate import check_choice, check_positive_float
+from .._validate import check_choice, check_positive_float, renamed_keywords
 from ._base import Integrand, as_float, check_frequencies_any, check_point2, check_real
 
 
@@ -270,13 +270,14 @@ class Texture(Integrand):
             out = out + np.where((v[..., 0] == kx) & (v[..., 1] == ky), c, 0.0)
         return out
 
-def smooth_texture(kind: str = "default") -> Texture:
+@renamed_keywords(kind="name")
+def smooth_texture(name: str = "default") -> Texture:
     """The smooth texture of our W Fig. 6 "with texture" integrands: positive, low frequency.
 
     ``1 + 0.35 cos(2 pi (x + 2y) + 0.3) + 0.25 cos(2 pi (3x - y) + 1.1) + 0.15 cos(2 pi (2x + 3y))``
     (values in [0.25, 1.75]).
     """
-    check_choice("kind", kind, ["default"])
+    check_choice("name", name, ["default"])
     return Texture([(1, 2), (3, -1), (2, 3)], [0.35, 0.25, 0.15], [0.3, 1.1, 0.0], offset=1.0)
 
 class Textured(Integrand):

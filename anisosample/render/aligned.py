@@ -12,7 +12,7 @@ made by :func:`block_sampler`; the steps live in their own modules:
   missing sets are built on demand with progress, before any rendering (the one rule of
   :func:`anisosample.tables.lookup`; ``build_missing=False`` refuses and names the command).
   No direction: the base sampler (pmj02bn, W: "an existing anisotropic sampling pattern").
-  ``method="sheared"`` gives pmj02bn sheared to the block's strongest direction (Singh & Jarosz
+  ``point_set="sheared"`` gives pmj02bn sheared to the block's strongest direction (Singh & Jarosz
   2017) instead, for comparisons.
 * **The gate (beyond W)**: pixels of a block with a set whose probe shows no jump
   (:func:`anisosample.render.estimation.probe_discontinuous`: fully lit, fully occluded) use the
@@ -35,7 +35,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import selection
-from .._validate import check_choice, check_int, check_key
+from .._validate import check_choice, check_int, check_key, renamed_keywords
 from ..plot import direction_rgb as direction_rgb  # re-exports: see the note below __all__
 from ..plot import save_direction_map as save_direction_map
 from .estimation import BlockEstimate as BlockEstimate
@@ -48,14 +48,14 @@ from .options import IntegratorOptions
 from .scene import Scene
 
 __all__ = [
-    "BLOCK_SAMPLERS", "METHODS", "PIXEL_CODES", "BlockSampler", "block_sampler", "block_sets",
+    "BLOCK_SAMPLERS", "PIXEL_CODES", "POINT_SETS", "BlockSampler", "block_sampler", "block_sets",
     "render_chunk_sets", "resolve_sampler", "table_direction",
 ]
 # Also importable from here, as before the split (scripts use them): BlockEstimate,
 # estimate_blocks, estimation_grid, block_grid_values, strongest_directions (render.estimation),
 # aligned_set (selection), direction_rgb, save_direction_map (plot).
 
-METHODS = ("aligned", "sheared", "pmj02bn")
+POINT_SETS = ("aligned", "sheared", "pmj02bn")
 """Per-block point-set choices: the aligned table set, pmj02bn sheared to the block's strongest
 direction (Singh & Jarosz 2017), plain pmj02bn (W Sec. 5.4, Figs. 8-9)."""
 
@@ -86,12 +86,12 @@ aligned_set = selection.aligned_set
 
 def block_sets(direction_deg: float | None, n: int, key, *, table=None,
                build_missing: bool | None = None) -> dict[str, jax.Array]:
-    """The point set of every method in :data:`METHODS` for a block whose strongest direction
+    """The point set of every choice in :data:`POINT_SETS` for a block whose strongest direction
     is ``direction_deg`` (None: no extra direction); ``aligned`` is its 3-direction set.
 
     ``key`` is split into two: pmj02bn from the first (the fallback, and the set the ``sheared``
-    method shears), the aligned set's toroidal shift from the second. Without a direction (or
-    one that rounds onto an axis, for ``aligned``) a method falls back to the pmj02bn set.
+    choice shears), the aligned set's toroidal shift from the second. Without a direction (or
+    one that rounds onto an axis, for ``aligned``) a choice falls back to the pmj02bn set.
     ``table``, ``build_missing``: the table lookup's (:func:`anisosample.tables.lookup`; a
     missing set is built unless ``build_missing=False``).
     """
@@ -129,7 +129,7 @@ class BlockSampler:
     them; the renderer shifts each pixel's set toroidally with the pixel's own key.
     """
 
-    method: str
+    point_set: str
     block_px: int
     width: int
     height: int
@@ -147,13 +147,13 @@ class BlockSampler:
 
     @property
     def name(self) -> str:
-        """The sampler's name in render settings: the method."""
-        return self.method
+        """The sampler's name in render settings: its point set."""
+        return self.point_set
 
     def _set_ids(self) -> list:
         """Per block (row-major) the identity of its set: None (base), a tuple of integer extra
         directions (aligned) or a float direction (sheared)."""
-        if self.method == "aligned":
+        if self.point_set == "aligned":
             return [e if e else None for e in self.block_extra]
         return [float(d) if v else None for d, v in
                 zip(self.directions_deg.reshape(-1), self.valid.reshape(-1), strict=True)]
@@ -162,7 +162,7 @@ class BlockSampler:
     def table_directions(self) -> tuple[tuple[int, ...], ...]:
         """The distinct aligned sets this sampler needs, as extra-direction tuples (one
         direction: a 3-direction set, two: a 4-direction set; empty unless aligned)."""
-        if self.method != "aligned":
+        if self.point_set != "aligned":
             return ()
         return tuple(sorted({i for i in self._set_ids() if i is not None}))
 
@@ -194,14 +194,14 @@ class BlockSampler:
         missing = []
         for extra in self.table_directions:
             try:
-                tables.lookup(extra, n, kind=len(extra) + 2, table=self.table)
+                tables.lookup(extra, n, direction_count=len(extra) + 2, table=self.table)
             except FileNotFoundError:
                 missing.append(extra)
         if missing and (self.build_missing is False
                         or (self.build_missing is None and self.table is not None)):
             cmds = []
             for kd in sorted({len(e) + 2 for e in missing}):
-                sets = sorted({tables.canonicalize(e, kind=kd).extra for e in missing
+                sets = sorted({tables.canonicalize(e, direction_count=kd).extra for e in missing
                                if len(e) + 2 == kd})
                 out = None
                 if self.table is not None:
@@ -223,7 +223,7 @@ class BlockSampler:
         opts["show_progress"] = bool(progress) and opts.get("show_progress", True)
         for extra in bar(missing, desc=f"aligned sets n={n}", unit="set",
                          disable=None if progress and missing else True):
-            tables.ensure([extra], n, kind=len(extra) + 2, table=self.table,
+            tables.ensure([extra], n, direction_count=len(extra) + 2, table=self.table,
                           build_missing=self.build_missing, **opts)
 
     def point_sets(self, key, n: int) -> tuple[jax.Array, np.ndarray]:
@@ -241,7 +241,7 @@ class BlockSampler:
         where = {i: j for j, i in enumerate(distinct)}
         sets = [base]
         for i in distinct[1:]:
-            if self.method == "aligned":
+            if self.point_set == "aligned":
                 sets.append(selection.aligned_set(i, n, table=self.table,
                                                   build_missing=self.build_missing,
                                                   **self.build_options))
@@ -257,14 +257,14 @@ class BlockSampler:
     def settings(self) -> dict:
         """What a render records about the sampler (EXR metadata)."""
         code = self.pixel_sampler
-        s = dict(method=self.method, base=self.base, block_px=self.block_px, k=self.k,
+        s = dict(point_set=self.point_set, base=self.base, block_px=self.block_px, k=self.k,
                  gate=self.gate, blocks_with_direction=int(self.valid.sum()),
                  blocks_with_set=sum(i is not None for i in self._set_ids()),
                  blocks=int(self.valid.size), pixels=int(code.size),
                  pixels_with_block_set=int((code == 2).sum()),
                  pixels_in_blocks_without_set=int((code == 0).sum()),
                  pixels_gated=int((code == 1).sum()))
-        if self.method == "aligned":
+        if self.point_set == "aligned":
             sets = self.table_directions
             s["sets_3_directions_deg"] = [e[0] for e in sets if len(e) == 1]
             s["sets_4_directions_deg"] = [list(e) for e in sets if len(e) == 2]
@@ -282,9 +282,10 @@ class BlockSampler:
         return s
 
 
+@renamed_keywords(method="point_set")
 def block_sampler(
     scene: Scene,
-    method: str = "aligned",
+    point_set: str = "aligned",
     *,
     block_px: int = 16,
     samples: int = 96,
@@ -302,7 +303,7 @@ def block_sampler(
 ) -> BlockSampler:
     """The per-block sampler of W Sec. 5.4 for ``scene``, to pass as ``render(sampler=...)``.
 
-    ``method``: ``"aligned"`` (per block the table set for its estimated directions: one ->
+    ``point_set``: ``"aligned"`` (per block the table set for its estimated directions: one ->
     3 directions, two -> W's 4 directions; ``base`` elsewhere) or ``"sheared"`` (``base``
     sheared to the strongest direction, Singh & Jarosz 2017). Estimates the directions with
     :func:`~anisosample.render.estimation.estimate_blocks` (``block_px``, ``samples``, ``k``,
@@ -319,12 +320,12 @@ def block_sampler(
     """
     from .. import samplers
 
-    check_choice("method", method, BLOCK_SAMPLERS)
+    check_choice("point_set", point_set, BLOCK_SAMPLERS)
     check_choice("base", base, samplers.BASELINES)
     k = check_int("k", k, minimum=1, maximum=2)
     if build_missing is not None and not isinstance(build_missing, bool):
         raise TypeError(f"build_missing must be None, True or False, got {build_missing!r}")
-    gate = (method == "aligned") if gate is None else bool(gate)
+    gate = (point_set == "aligned") if gate is None else bool(gate)
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
     options = estimation_options(options).for_scene(scene)
@@ -349,7 +350,7 @@ def block_sampler(
     extra = tuple(selection.table_directions([x for x, y in zip(dd, vv, strict=True) if y], k)
                   for dd, vv in zip(dirs.reshape(-1, dirs.shape[-1]),
                                     ok.reshape(-1, ok.shape[-1]), strict=True))
-    return BlockSampler(method, estimate.block_px, scene.width, scene.height, d, v, estimate,
+    return BlockSampler(point_set, estimate.block_px, scene.width, scene.height, d, v, estimate,
                         options, base, table, build_missing, k, gate, extra,
                         dict(build_options or {}))
 

@@ -97,7 +97,7 @@ def eval_bsdf(materials: Materials, mat, n, wi, wo) -> Float[Array, "3"]:
     """BSDF value times ``cos(theta_o)`` (RGB)."""
     li, lo, _ = _local(materials, mat, n, wi, wo)
     ok = (li[2] > 0) & (lo[2] > 0)
-    kind = materials.kind[mat]
+    material = materials.material[mat]
     diffuse = materials.reflectance[mat] * (lo[2] / jnp.pi)
     if not materials.has_glossy:
         return jnp.where(ok, diffuse, 0.0)
@@ -108,9 +108,9 @@ def eval_bsdf(materials: Materials, mat, n, wi, wo) -> Float[Array, "3"]:
     g = ggx_g1(li, h, alpha) * ggx_g1(lo, h, alpha)
     f = fresnel_conductor(dot(li, h), materials.eta[mat], materials.k[mat])
     cond = materials.specular[mat] * f * (d * g / (4 * jnp.maximum(li[2], 1e-20)))
-    val = jnp.where(kind == DIFFUSE, diffuse, jnp.where(kind == CONDUCTOR, cond, 0.0))
+    val = jnp.where(material == DIFFUSE, diffuse, jnp.where(material == CONDUCTOR, cond, 0.0))
     if materials.has_plastic:
-        val = jnp.where(kind == PLASTIC,
+        val = jnp.where(material == PLASTIC,
                         plastic.eval_plastic(plastic_parameters(materials, mat), li, lo), val)
     return jnp.where(ok, val, 0.0)
 
@@ -130,9 +130,9 @@ def pdf_bsdf(materials: Materials, mat, n, wi, wo) -> Float[Array, ""]:
         / jnp.maximum(li[2], 1e-20)
     )
     cond = vis / (4 * jnp.maximum(dot(lo, h), 1e-20))
-    p = jnp.where(materials.kind[mat] == DIFFUSE, lo[2] / jnp.pi, cond)
+    p = jnp.where(materials.material[mat] == DIFFUSE, lo[2] / jnp.pi, cond)
     if materials.has_plastic:
-        p = jnp.where(materials.kind[mat] == PLASTIC,
+        p = jnp.where(materials.material[mat] == PLASTIC,
                       plastic.pdf_plastic(plastic_parameters(materials, mat), li, lo), p)
     return jnp.where(ok, p, 0.0)
 
@@ -182,10 +182,10 @@ def sample_bsdf(materials: Materials, mat, n, wi, u: Float[Array, "2"]):
     lo_d = jnp.stack([r * jnp.cos(phi), r * jnp.sin(phi), jnp.sqrt(jnp.maximum(1 - u[0], 0.0))])
     m = _sample_ggx_vndf(li, materials.alpha[mat], u)
     lo_c = 2 * dot(li, m) * m - li
-    lo = jnp.where(materials.kind[mat] == DIFFUSE, lo_d, lo_c)
+    lo = jnp.where(materials.material[mat] == DIFFUSE, lo_d, lo_c)
     if materials.has_plastic:
         lo_p = plastic.sample_plastic(plastic_parameters(materials, mat), li, u, _sample_ggx_vndf)
-        lo = jnp.where(materials.kind[mat] == PLASTIC, lo_p, lo)
+        lo = jnp.where(materials.material[mat] == PLASTIC, lo_p, lo)
     wo = lo[0] * s + lo[1] * t + lo[2] * n
     p = pdf_bsdf(materials, mat, n, wi, wo)
     return wo, jnp.where(li[2] > 0, p, 0.0)

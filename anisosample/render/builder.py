@@ -53,7 +53,7 @@ def _transform_normal(m: np.ndarray, n) -> np.ndarray:
 
 @dataclass
 class _Material:
-    kind: int
+    material: int
     reflectance: tuple = (0.5, 0.5, 0.5)
     specular: tuple = (1.0, 1.0, 1.0)
     alpha: float = 0.1
@@ -204,7 +204,7 @@ class SceneBuilder:
     def _add_emitter(self, prims: dict, delta: bool) -> np.ndarray:
         """One emitter of the light primitives ``prims`` (a :func:`_light_block`), picked by
         area (each with probability 1 if ``delta``); returns their indices."""
-        start = sum(len(b["kind"]) for b in self._lights)
+        start = sum(len(b["shape"]) for b in self._lights)
         areas = np.asarray(prims["area"], np.float64)
         if not delta:
             if not np.all(np.isfinite(areas)) or areas.sum() <= 0:
@@ -418,7 +418,7 @@ class SceneBuilder:
             aspect=aspect,
             aperture_radius=aperture_radius,
             focus_distance=focus_distance,
-            kind=THINLENS if thinlens else PERSPECTIVE,
+            projection=THINLENS if thinlens else PERSPECTIVE,
             width=int(width),
             height=int(height),
             rfilter=rfilter,
@@ -459,7 +459,7 @@ class SceneBuilder:
 
         mats = self._materials or [_Material(DIFFUSE)]
         materials = Materials(
-            kind=i32([m.kind for m in mats]),
+            material=i32([m.material for m in mats]),
             reflectance=f32([m.reflectance for m in mats]),
             specular=f32([m.specular for m in mats]),
             alpha=f32([m.alpha for m in mats]),
@@ -471,14 +471,14 @@ class SceneBuilder:
             spec_weight=f32([m.spec_weight for m in mats]),
             flags=i32([m.flags for m in mats]),
             distribution=i32([m.distribution for m in mats]),
-            has_glossy=any(m.kind != DIFFUSE for m in mats),
-            has_plastic=any(m.kind == PLASTIC for m in mats),
+            has_glossy=any(m.material != DIFFUSE for m in mats),
+            has_plastic=any(m.material == PLASTIC for m in mats),
         )
 
         L = lambda name: np.concatenate([b[name] for b in self._lights])  # noqa: E731
         uv = L("uv")
         lights = Lights(
-            kind=i32(L("kind")),
+            shape=i32(L("shape")),
             p0=f32(L("p0")),
             e1=f32(L("e1")),
             e2=f32(L("e2")),
@@ -497,7 +497,7 @@ class SceneBuilder:
             delta=i32([e.delta for e in self._emitters]),
             patch=i32(L("patch")),
             n_prims=len(uv),
-            kinds=tuple(int(k) for k in np.unique(L("kind"))),
+            shapes=tuple(int(k) for k in np.unique(L("shape"))),
         )
 
         if self._textures:
@@ -518,7 +518,7 @@ class SceneBuilder:
             aspect=f32(c["aspect"]),
             aperture_radius=f32(c["aperture_radius"]),
             focus_distance=f32(c["focus_distance"]),
-            kind=c["kind"],
+            projection=c["projection"],
             width=c["width"],
             height=c["height"],
             rfilter=c["rfilter"],
@@ -597,15 +597,15 @@ def _rgb(v) -> np.ndarray:
     return a
 
 
-def _light_block(kind, p0, e1, e2, n, area, radiance, texture, uv=None, patch=-1) -> dict:
-    """Light primitives of one ``kind`` as arrays with a leading axis of ``k``: ``p0, e1, e2,
+def _light_block(shape, p0, e1, e2, n, area, radiance, texture, uv=None, patch=-1) -> dict:
+    """Light primitives of one ``shape`` as arrays with a leading axis of ``k``: ``p0, e1, e2,
     n`` ``(k, 3)`` (or ``(3,)`` for one), ``area`` ``(k,)`` or one number, one ``radiance``
     (RGB), ``texture`` and ``patch`` index, corner ``uv`` ``(k, 3, 2)`` (default zeros)."""
     p0 = np.asarray(p0, np.float64).reshape(-1, 3)
     k = len(p0)
     vec = lambda a: np.broadcast_to(np.asarray(a, np.float64), (k, 3))  # noqa: E731
     return {
-        "kind": np.full(k, kind),
+        "shape": np.full(k, shape),
         "p0": p0,
         "e1": vec(e1),
         "e2": vec(e2),

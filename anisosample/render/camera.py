@@ -41,7 +41,7 @@ def generate_ray(
     near = jnp.stack(
         [(1 - 2 * film[0]) * tan, (1 - 2 * film[1]) * tan / camera.aspect, jnp.float32(1.0)]
     )
-    if camera.kind == THINLENS:
+    if camera.projection == THINLENS:
         if square_aperture:
             ax, ay = 2 * lens[0] - 1, 2 * lens[1] - 1
         else:

@@ -132,7 +132,7 @@ def sample_function(scene: Scene, options: IntegratorOptions):
 
     def g(x, film, other, bsdf_u):
         if options.dimension == "light":
-            lens = other if scene.camera.kind == THINLENS else jnp.full(2, 0.5, jnp.float32)
+            lens = other if scene.camera.projection == THINLENS else jnp.full(2, 0.5, jnp.float32)
             light = x
         else:
             lens, light = x, other
@@ -335,7 +335,7 @@ def pixel_samples(scene: Scene, g, x, key, q, spp: int, start: int,
     # Draw only the random numbers this configuration uses.
     half = jnp.full((k, 2), 0.5, jnp.float32)
     # (dimension "lens" implies point lights only: no light sample is needed.)
-    need_other = options.dimension == "light" and scene.camera.kind == THINLENS
+    need_other = options.dimension == "light" and scene.camera.projection == THINLENS
     other = stream(k_other) if need_other else half
     bsdf_u = stream(k_bsdf) if options.mis else half
     return jax.vmap(g)(x, film, other, bsdf_u)

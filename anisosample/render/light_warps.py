@@ -61,14 +61,15 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 
 from .. import warps as W
+from .._validate import renamed_keywords
 from ._vec import dot, norm
 from .bsdf import eval_bsdf
 from .patch import SeenPatch
 from .scene import (
-    LIGHT_KIND_NAMES,
     LIGHT_PARALLELOGRAM,
     LIGHT_PATCH,
     LIGHT_POINT,
+    LIGHT_SHAPE_NAMES,
     LIGHT_TRIANGLE,
     LUMINANCE,
     Scene,
@@ -127,16 +128,16 @@ def check_light_warp(scene: Scene, light_warp: str) -> str:
         if light_warp == "none":
             return light_warp
         allowed, label = APPLIES_TO[light_warp], f"light_warp={light_warp!r}"
-    kinds = np.asarray(scene.lights.kind)
+    shapes = np.asarray(scene.lights.shape)
     emitters = np.asarray(scene.lights.emitter)
-    names = " and ".join(LIGHT_KIND_NAMES[k] for k in allowed)
-    for i, k in enumerate(kinds):
+    names = " and ".join(LIGHT_SHAPE_NAMES[k] for k in allowed)
+    for i, k in enumerate(shapes):
         if int(k) != LIGHT_POINT and int(k) not in allowed:
             raise ValueError(
                 f"{label} applies to {names} lights only; light primitive {i}"
-                f" (emitter {int(emitters[i])}) is a {LIGHT_KIND_NAMES[int(k)]}"
+                f" (emitter {int(emitters[i])}) is a {LIGHT_SHAPE_NAMES[int(k)]}"
             )
-    if not np.any(np.isin(kinds, allowed)):
+    if not np.any(np.isin(shapes, allowed)):
         raise ValueError(
             f"{label} applies to {names} lights; this scene has"
             " only point lights (nothing to warp)"
@@ -144,29 +145,30 @@ def check_light_warp(scene: Scene, light_warp: str) -> str:
     return light_warp
 
 
-def base_warp(scene: Scene, kind: int, prim, origin, technique: str) -> W.AbstractWarp:
-    """The base technique of light primitive ``prim`` of (static) ``kind`` seen from ``origin``."""
+@renamed_keywords(kind="shape")
+def base_warp(scene: Scene, shape: int, prim, origin, technique: str) -> W.AbstractWarp:
+    """The base technique of light primitive ``prim`` of (static) ``shape`` seen from ``origin``."""
     lights = scene.lights
     p0, e1, e2 = lights.p0[prim], lights.e1[prim], lights.e2[prim]
     solid = technique == "solid_angle"
-    if kind == LIGHT_PARALLELOGRAM:
+    if shape == LIGHT_PARALLELOGRAM:
         return W.SphericalRectangle(p0, e1, e2, origin) if solid else W.Parallelogram(p0, e1, e2)
-    if kind == LIGHT_TRIANGLE:
+    if shape == LIGHT_TRIANGLE:
         verts = jnp.stack([p0, p0 + e1, p0 + e2])
         return W.SphericalTriangle(verts, origin) if solid else W.TriangleArea(verts)
-    if kind == LIGHT_PATCH:
+    if shape == LIGHT_PATCH:
         patch = _patch(scene, prim, origin)
         if technique == "parametric":
             return patch
         return W.Compose(W.Bilinear(patch.corner_area_elements()), patch)
-    raise ValueError(f"no warp chain for light kind {LIGHT_KIND_NAMES.get(kind, kind)!r}")
+    raise ValueError(f"no warp chain for light shape {LIGHT_SHAPE_NAMES.get(shape, shape)!r}")
 
 
-def _polygon(scene: Scene, kind: int, prim) -> Array:
+def _polygon(scene: Scene, shape: int, prim) -> Array:
     """The vertices of a triangle (3) or parallelogram (4) light primitive, in order."""
     lights = scene.lights
     p0, e1, e2 = lights.p0[prim], lights.e1[prim], lights.e2[prim]
-    if kind == LIGHT_PARALLELOGRAM:
+    if shape == LIGHT_PARALLELOGRAM:
         return jnp.stack([p0, p0 + e1, p0 + e1 + e2, p0 + e2])
     return jnp.stack([p0, p0 + e1, p0 + e2])
 
@@ -194,10 +196,11 @@ def light_warp_name(light_warp) -> str:
         light_warp, "__name__", "custom")
 
 
+@renamed_keywords(kind="shape")
 def chain(
-    scene: Scene, kind: int, prim, rec: Receiver, technique: str, light_warp
+    scene: Scene, shape: int, prim, rec: Receiver, technique: str, light_warp
 ) -> W.AbstractWarp:
-    """The warp chain of ``light_warp`` on primitive ``prim`` (static ``kind``) for ``rec``:
+    """The warp chain of ``light_warp`` on primitive ``prim`` (static ``shape``) for ``rec``:
     maps ``u`` in ``[0, 1]^2`` to a direction (``measure == "solid angle"``) or a point on the
     light (``"area"``); its ``pdf`` is H Algorithm 2."""
     nf = rec.facing_normal()
@@ -211,16 +214,16 @@ def chain(
         axis = jnp.where(dot(p0 - rec.origin, nl) >= 0, nl, -nl)  # towards the light's plane
         return W.CosineSphericalTriangle(verts, rec.origin, jnp.where(above, nf, axis))
     if light_warp == "projected-solid-angle":
-        return W.ProjectedSphericalPolygon(_polygon(scene, kind, prim), rec.origin, nf)
+        return W.ProjectedSphericalPolygon(_polygon(scene, shape, prim), rec.origin, nf)
     if light_warp == "ltc":
         from .ltc import frame as ltc_frame
         from .ltc import m_inv_for
 
         m_inv = m_inv_for(scene.materials, rec.material, nf, rec.wi)
-        return W.LTCPolygon(_polygon(scene, kind, prim), rec.origin, ltc_frame(nf, rec.wi), m_inv)
+        return W.LTCPolygon(_polygon(scene, shape, prim), rec.origin, ltc_frame(nf, rec.wi), m_inv)
     if light_warp == "patch-three-warp":
         return W.patch_three_warp(_patch(scene, prim, rec.origin), rec.origin, nf)
-    base = base_warp(scene, kind, prim, rec.origin, technique)
+    base = base_warp(scene, shape, prim, rec.origin, technique)
     if callable(light_warp):
         return light_warp(base, rec)
     if light_warp == "none":

@@ -127,29 +127,29 @@ def _uv_of_point(lights, prim, p):
     return uv0 + a * (lights.uv1[prim] - uv0) + b * (lights.uv2[prim] - uv0)
 
 
-def _area_point(kind: int, lights, prim, u):
+def _area_point(shape: int, lights, prim, u):
     """Uniform-by-area point of a parallelogram or triangle (the solid-angle fallback)."""
     p0, e1, e2 = lights.p0[prim], lights.e1[prim], lights.e2[prim]
-    if kind == LIGHT_PARALLELOGRAM:
+    if shape == LIGHT_PARALLELOGRAM:
         return p0 + u[0] * e1 + u[1] * e2
     s = jnp.sqrt(u[0])
     return p0 + s * (1 - u[1]) * e1 + s * u[1] * e2
 
 
-def _sample_kind(scene: Scene, kind: int, prim, u, rec: Receiver, technique, light_warp):
-    """``(p, n, uv, pdf)`` on primitive ``prim`` of static ``kind``; ``pdf`` per unit area on
+def _sample_shape(scene: Scene, shape: int, prim, u, rec: Receiver, technique, light_warp):
+    """``(p, n, uv, pdf)`` on primitive ``prim`` of static ``shape``; ``pdf`` per unit area on
     the primitive (without the selection probability)."""
     lights = scene.lights
     p0 = lights.p0[prim]
-    if kind == LIGHT_POINT:
+    if shape == LIGHT_POINT:
         return p0, lights.normal[prim], jnp.zeros(2, jnp.float32), jnp.ones((), jnp.float32)
-    if kind == LIGHT_SPHERE:  # uniform by area
+    if shape == LIGHT_SPHERE:  # uniform by area
         z = 1 - 2 * u[0]
         r = jnp.sqrt(jnp.maximum(1 - z * z, 0.0))
         phi = 2 * jnp.pi * u[1]
         n = jnp.stack([r * jnp.cos(phi), r * jnp.sin(phi), z])
         return p0 + lights.e1[prim][0] * n, n, jnp.zeros(2, jnp.float32), _inv_area(lights, prim)
-    warp = chain(scene, kind, prim, rec, technique, light_warp)
+    warp = chain(scene, shape, prim, rec, technique, light_warp)
     steps = warp.warps if isinstance(warp, Compose) else (warp,)
     y, pdf = u, jnp.ones((), jnp.float32)
     for w in steps[:-1]:  # H Algorithm 1, keeping the last warp's input (a patch's (u, v))
@@ -157,7 +157,7 @@ def _sample_kind(scene: Scene, kind: int, prim, u, rec: Receiver, technique, lig
         pdf = pdf * j
     x, j = steps[-1].sample_and_pdf(y)
     pdf = pdf * j
-    if kind == LIGHT_PATCH:
+    if shape == LIGHT_PATCH:
         return x, steps[-1].normal(y), y, pdf
     nl = lights.normal[prim]
     if warp.measure == "solid angle":  # where the ray origin + t x meets the light's plane
@@ -166,7 +166,7 @@ def _sample_kind(scene: Scene, kind: int, prim, u, rec: Receiver, technique, lig
         p = rec.origin + t * x
         pdf = _solid_angle_to_area(pdf, x, nl, t * t)
         pdf = jnp.where(jnp.isfinite(pdf) & (pdf > 0) & (t > 0), pdf, 0.0)
-        p = jnp.where(solid_angle_valid(warp), p, _area_point(kind, lights, prim, u))
+        p = jnp.where(solid_angle_valid(warp), p, _area_point(shape, lights, prim, u))
         pdf = _or_area_fallback(warp, pdf, lights, prim)
     else:
         p = x
@@ -190,14 +190,14 @@ def _or_area_fallback(warp, pdf, lights, prim):
     return jnp.where(solid_angle_valid(warp), pdf, _inv_area(lights, prim))
 
 
-def _by_kind(scene: Scene, prim, per_kind):
-    """``per_kind(kind)`` for the kinds present in the scene, selected by ``prim``'s kind."""
-    kinds = scene.lights.kinds
-    outs = [per_kind(k) for k in kinds]
-    if len(kinds) == 1:
+def _by_shape(scene: Scene, prim, per_shape):
+    """``per_shape(shape)`` for the shapes present in the scene, selected by ``prim``'s shape."""
+    shapes = scene.lights.shapes
+    outs = [per_shape(k) for k in shapes]
+    if len(shapes) == 1:
         return outs[0]
-    which = scene.lights.kind[prim]
-    conds = [which == k for k in kinds]
+    which = scene.lights.shape[prim]
+    conds = [which == k for k in shapes]
     return jax.tree.map(lambda *xs: jnp.select(conds, list(xs), xs[-1]), *outs)
 
 
@@ -225,22 +225,22 @@ def sample_light(
     lights = scene.lights
     prim, x0 = select(scene, x[0])
     u = jnp.stack([x0, x[1]])
-    p, n, uv, pdf = _by_kind(
-        scene, prim, lambda k: _sample_kind(scene, k, prim, u, rec, technique, light_warp)
+    p, n, uv, pdf = _by_shape(
+        scene, prim, lambda k: _sample_shape(scene, k, prim, u, rec, technique, light_warp)
     )
-    delta = lights.kind[prim] == LIGHT_POINT
+    delta = lights.shape[prim] == LIGHT_POINT
     n_em = lights.start.shape[0]
     pdf = jnp.where(delta, 1.0 / n_em, pdf * lights.prim_prob[prim] / n_em)
     return LightSample(p=p, n=n, radiance=emitted(scene, prim, uv), pdf=pdf, delta=delta, prim=prim)
 
 
-def _pdf_kind(scene: Scene, kind: int, prim, p, rec: Receiver, technique, light_warp):
+def _pdf_shape(scene: Scene, shape: int, prim, p, rec: Receiver, technique, light_warp):
     lights = scene.lights
-    if kind == LIGHT_POINT:  # no ray hits a point light
+    if shape == LIGHT_POINT:  # no ray hits a point light
         return jnp.zeros((), jnp.float32)
-    if kind == LIGHT_SPHERE:
+    if shape == LIGHT_SPHERE:
         return _inv_area(lights, prim)
-    warp = chain(scene, kind, prim, rec, technique, light_warp)
+    warp = chain(scene, shape, prim, rec, technique, light_warp)
     if warp.measure != "solid angle":
         return warp.pdf(p)  # H Algorithm 2
     v = p - rec.origin
@@ -262,5 +262,6 @@ def light_pdf(
     same receiver (for MIS): H Algorithm 2 through the same chain from the same origin."""
     rec = _receiver(rec)
     lights = scene.lights
-    pdf = _by_kind(scene, prim, lambda k: _pdf_kind(scene, k, prim, p, rec, technique, light_warp))
+    pdf = _by_shape(scene, prim,
+                    lambda k: _pdf_shape(scene, k, prim, p, rec, technique, light_warp))
     return pdf * lights.prim_prob[prim] / lights.start.shape[0]

@@ -198,4 +198,4 @@ def m_inv_for(materials, mat, n, wi) -> Float[Array, "3 3"]:
     conductors, the identity (the clamped cosine) otherwise."""
     table = ggx_table()
     m_inv = lookup(table, materials.alpha[mat], jnp.dot(n, wi))
-    return jnp.where(materials.kind[mat] == CONDUCTOR, m_inv, jnp.eye(3, dtype=jnp.float32))
+    return jnp.where(materials.material[mat] == CONDUCTOR, m_inv, jnp.eye(3, dtype=jnp.float32))

@@ -39,7 +39,7 @@ _FLAGS = ("mis", "pixel_center", "square_aperture")
 
 def default_dimension(scene: Scene) -> str:
     """``"lens"`` for a thin-lens scene lit by point lights only, else ``"light"``."""
-    if scene.camera.kind == THINLENS and not scene.has_area_lights:
+    if scene.camera.projection == THINLENS and not scene.has_area_lights:
         return "lens"
     return "light"
 
@@ -99,7 +99,7 @@ class IntegratorOptions:
                             f"{type(scene).__name__}")
         dimension = default_dimension(scene) if self.dimension == "auto" else self.dimension
         check_light_warp(scene, self.light_warp)
-        if dimension == "lens" and scene.camera.kind != THINLENS:
+        if dimension == "lens" and scene.camera.projection != THINLENS:
             raise ValueError("dimension='lens' needs a thinlens sensor; this scene's is "
                              "perspective")
         if dimension == "lens" and scene.has_area_lights:

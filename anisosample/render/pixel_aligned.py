@@ -106,7 +106,7 @@ class PixelSampler:
 
     def settings(self) -> dict:
         """What a render records about the sampler (EXR metadata); the render adds the counts."""
-        return dict(method="aligned-pixel", k=self.k, fallback=FALLBACK,
+        return dict(point_set="aligned-pixel", k=self.k, fallback=FALLBACK,
                     search=self.search._asdict())
 
 
@@ -195,7 +195,7 @@ def exact_values(scene: Scene, options: IntegratorOptions) -> bool:
     """Whether a pixel's render samples (``options`` resolved) are values of its 2D integrand
     (pixel centre, no MIS, no random lens), so the search reads the prefix's samples instead of
     re-evaluating them."""
-    lens_random = options.dimension == "light" and scene.camera.kind == THINLENS
+    lens_random = options.dimension == "light" and scene.camera.projection == THINLENS
     return options.pixel_center and not options.mis and not lens_random
 
 

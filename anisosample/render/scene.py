@@ -24,13 +24,14 @@ from jaxtyping import Array, Float, Int
 from .bvh import BVH
 from .patch import Patches
 
-# Material kinds.
+# Materials (Materials.material).
 DIFFUSE, CONDUCTOR, PLASTIC = 0, 1, 2
-# Light primitive kinds.
+# Light primitive shapes (Lights.shape).
 LIGHT_PARALLELOGRAM, LIGHT_TRIANGLE, LIGHT_SPHERE, LIGHT_POINT = 0, 1, 2, 3
 LIGHT_PATCH = 4  # bilinear patch (render/patch.py)
-LIGHT_KIND_NAMES = {0: "parallelogram", 1: "triangle", 2: "sphere", 3: "point", 4: "bilinear patch"}
-# Camera kinds.
+LIGHT_SHAPE_NAMES = {0: "parallelogram", 1: "triangle", 2: "sphere", 3: "point",
+                     4: "bilinear patch"}
+# Camera projections (Camera.projection).
 PERSPECTIVE, THINLENS = 0, 1
 LUMINANCE = (0.212671, 0.715160, 0.072169)  # linear sRGB (Rec. 709) luminance weights
 
@@ -47,7 +48,7 @@ class Camera(eqx.Module):
     aspect: Float[Array, ""]  # width / height
     aperture_radius: Float[Array, ""]
     focus_distance: Float[Array, ""]
-    kind: int = eqx.field(static=True)
+    projection: int = eqx.field(static=True)  # PERSPECTIVE or THINLENS
     width: int = eqx.field(static=True)
     height: int = eqx.field(static=True)
     # The film's reconstruction filter (render/film.py): "box" or "gaussian" (with its stddev
@@ -59,7 +60,7 @@ class Camera(eqx.Module):
 class Materials(eqx.Module):
     """Material table, one row per material (H Sec. 4.3 uses GGX conductors and plastics)."""
 
-    kind: Int[Array, " m"]
+    material: Int[Array, " m"]  # DIFFUSE, CONDUCTOR or PLASTIC
     reflectance: Float[Array, "m 3"]  # diffuse albedo (diffuse, plastic)
     specular: Float[Array, "m 3"]  # specular reflectance factor (conductor, plastic)
     alpha: Float[Array, " m"]  # GGX roughness (isotropic)
@@ -96,7 +97,7 @@ class Lights(eqx.Module):
     probabilities (proportional to area) are ``prim_prob``.
     """
 
-    kind: Int[Array, " l"]
+    shape: Int[Array, " l"]  # LIGHT_PARALLELOGRAM, ... (LIGHT_SHAPE_NAMES)
     p0: Float[Array, "l 3"]
     e1: Float[Array, "l 3"]
     e2: Float[Array, "l 3"]
@@ -115,7 +116,7 @@ class Lights(eqx.Module):
     delta: Int[Array, " e"]  # 1 for point emitters
     patch: Int[Array, " l"]  # bilinear patch lights: index into Scene.patches, else -1
     n_prims: int = eqx.field(static=True, default=0)  # static: 1 lets kernels skip selection
-    kinds: tuple = eqx.field(static=True, default=(0, 1, 2, 3, 4))  # the kinds present (static)
+    shapes: tuple = eqx.field(static=True, default=(0, 1, 2, 3, 4))  # the shapes present
 
 
 class Scene(eqx.Module):

@@ -300,8 +300,11 @@ def test_bad_block_options(scene, kwargs, match):
 
 
 def test_bad_choices(scene, est):
-    with pytest.raises(ValueError, match="method must be one of"):
+    with pytest.raises(ValueError, match="point_set must be one of"):
         aligned.block_sampler(scene, "aligned3", estimate=est)
+    with pytest.raises(TypeError, match=r"block_sampler\(\) takes point_set= where it took "
+                                        r"method="):
+        aligned.block_sampler(scene, method="sheared", estimate=est)
     with pytest.raises(TypeError, match="block_px must be an integer"):
         aligned.estimate_blocks(scene, block_px=8.0)
     with pytest.raises(TypeError, match="estimate must be a BlockEstimate"):
@@ -344,7 +347,7 @@ def four_tables(tmp_path_factory, scene, est):
     tab = _table_build.create_table(root / tables.table_name(4, SPP), SPP, 4,
                                     synthesis={"steps": 1})
     rng = np.random.default_rng(0)
-    for e in {tables.canonicalize(e, kind=4).extra for e in pairs}:
+    for e in {tables.canonicalize(e, direction_count=4).extra for e in pairs}:
         _table_build.write_set(tab, e, rng.random((SPP, 2), dtype=np.float32))
     return root
 
@@ -366,7 +369,8 @@ def test_two_directions_take_the_four_direction_set(scene, est, four_tables, tmp
         for b in range(SIZE // BLOCK):
             extra = _extra(est, a, b, 2)
             got = np.asarray(sets[pix[a * BLOCK, b * BLOCK]])
-            want = sets[0] if not extra else tables.lookup(extra, SPP, kind=len(extra) + 2)
+            want = (sets[0] if not extra else
+                    tables.lookup(extra, SPP, direction_count=len(extra) + 2))
             np.testing.assert_array_equal(got, np.asarray(want))
             kinds.append(len(extra) + 2 if extra else 0)
     rec = s.settings()
@@ -374,7 +378,7 @@ def test_two_directions_take_the_four_direction_set(scene, est, four_tables, tmp
     assert rec["blocks_with_3_direction_set"] == kinds.count(3) >= 1
     assert all(len(e) == 2 for e in rec["sets_4_directions_deg"])
     monkeypatch.delenv("ANISOSAMPLE_TABLES")
-    with pytest.raises(FileNotFoundError, match="--directions 4"):
+    with pytest.raises(FileNotFoundError, match="--direction-count 4"):
         s.check_tables(SPP)
 
 
@@ -387,10 +391,10 @@ def test_missing_sets_are_built_on_demand(scene, est, tmp_path, monkeypatch):
     one = dataclasses.replace(s, block_extra=((30, 100),) + ((),) * 15)
     assert one.table_directions == ((30, 100),)
     with pytest.raises(FileNotFoundError):
-        tables.lookup((30, 100), 16, kind=4)
+        tables.lookup((30, 100), 16, direction_count=4)
     one.check_tables(16, progress=False)
     assert (tables.cache_dir() / "d4_n16").is_dir()
-    pts = tables.lookup((30, 100), 16, kind=4)
+    pts = tables.lookup((30, 100), 16, direction_count=4)
     sets, _ = one.point_sets(jax.random.key(0), 16)
     np.testing.assert_array_equal(np.asarray(sets[1]), np.asarray(pts))
     assert one.settings()["sets_4_directions_deg"] == [[30, 100]]
@@ -407,8 +411,8 @@ def test_a_block_marked_without_direction_gets_no_set(scene, est):
     d[0, 1], v[0, 1] = (-1.0, -1.0), (False, False)  # none
     d[0, 2], v[0, 2] = (0.3, -1.0), (True, False)  # valid, but rounds onto an axis: no set
     fake = est._replace(estimate=e._replace(directions_deg=jnp.asarray(d), valid=jnp.asarray(v)))
-    for method in aligned.BLOCK_SAMPLERS:
-        s = aligned.block_sampler(scene, method, estimate=fake, gate=False, build_missing=False)
+    for point_set in aligned.BLOCK_SAMPLERS:
+        s = aligned.block_sampler(scene, point_set, estimate=fake, gate=False, build_missing=False)
         assert s.valid[0, 0] and s.directions_deg[0, 0] == 40.0
         assert not s.valid[0, 1] and s.directions_deg[0, 1] == -1.0
         np.testing.assert_array_equal(s.valid, v.any(-1))
@@ -419,7 +423,7 @@ def test_a_block_marked_without_direction_gets_no_set(scene, est):
         rec = s.settings()
         assert rec["blocks_with_set"] == int(has.sum()) <= rec["blocks_with_direction"]
         assert rec["pixels"] == (code == 2).sum() + rec["pixels_in_blocks_without_set"]
-    assert s.method == "sheared" and s.valid[0, 2] and has[0, 2]  # sheared: any direction
+    assert s.point_set == "sheared" and s.valid[0, 2] and has[0, 2]  # sheared: any direction
     al = aligned.block_sampler(scene, "aligned", estimate=fake, gate=False, build_missing=False)
     assert al.block_extra[0] == (40,) and al.block_extra[2] == ()  # 0.3 rounds onto 0
 
@@ -437,7 +441,7 @@ def test_progress_false_silences_the_on_demand_builds(scene, est, tmp_path, monk
         one = dataclasses.replace(s, block_extra=(extra,) + ((),) * 15)
         R.render(scene, jax.random.key(0), sampler=one, progress=progress, **opts)
         out, err = capfd.readouterr()
-        assert tables.lookup(extra, 16, kind=4).shape == (16, 2)
+        assert tables.lookup(extra, 16, direction_count=4).shape == (16, 2)
         if progress:
             assert "synthesize n=16" in err and "render" in err
         else:

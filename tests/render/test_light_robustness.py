@@ -116,7 +116,7 @@ def _area_point(kind, scene, u):
 def _polygon(scene):
     L = scene.lights
     p0, e1, e2 = (np.asarray(v[0], np.float64) for v in (L.p0, L.e1, L.e2))
-    if int(L.kind[0]) == LIGHT_PARALLELOGRAM:
+    if int(L.shape[0]) == LIGHT_PARALLELOGRAM:
         return np.stack([p0, p0 + e1, p0 + e1 + e2, p0 + e2])
     return np.stack([p0, p0 + e1, p0 + e2])
 

@@ -61,7 +61,7 @@ def plane_under_light(kind="triangle", width=16, height=16, albedo=0.5, radiance
 def _light_polygon(scene):
     L = scene.lights
     p0, e1, e2 = (np.asarray(v[0], np.float64) for v in (L.p0, L.e1, L.e2))
-    if int(L.kind[0]) == 0:  # parallelogram
+    if int(L.shape[0]) == 0:  # parallelogram
         return np.stack([p0, p0 + e1, p0 + e1 + e2, p0 + e2])
     return np.stack([p0, p0 + e1, p0 + e2])
 

@@ -252,7 +252,7 @@ def test_default_bilinear_shape_is_the_rectangle(tmp_path):
 
 def test_shipped_scene_loads_and_all_techniques_agree():
     scene = R.load_xml(SCENE_XML, width=12, height=12)
-    assert scene.has_patches and int(scene.lights.kind[0]) == 4
+    assert scene.has_patches and int(scene.lights.shape[0]) == 4
     assert float(scene.lights.area[0]) == pytest.approx(P.patch_area(TWISTED), rel=1e-6)
     f = R.pixel_integrand(scene, (6, 9), channel="r", technique="parametric")
     g = R.pixel_integrand(scene, (6, 9), channel="r", technique="area")

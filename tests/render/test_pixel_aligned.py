@@ -78,7 +78,7 @@ def test_record(cornell):
     # one bisection
     assert np.all(extra[code == 5] <= 16 + 4) and np.all(extra[code == 5] >= 16)
     b = res.settings["blocks"]
-    assert b["method"] == "aligned-pixel" and b["prefix"] == "dihedral-16"
+    assert b["point_set"] == "aligned-pixel" and b["prefix"] == "dihedral-16"
     assert b["reused_samples_per_pixel"] == 16
     assert b["pixels_with_3_direction_set"] == int((code == 3).sum())
     assert b["estimation_samples_per_pixel"] == pytest.approx(float(extra.mean()), abs=1e-3)
