@@ -73,11 +73,16 @@ def reuse(path: Path, settings: dict, fresh: bool):
     return None
 
 
-def reuse_or_compute(path: Path, settings: dict, fresh: bool, compute, *, field: str = "curve"):
+def reuse_or_compute(path: Path, settings: dict, fresh: bool, compute, *, field: str = "curve",
+                     reused=None):
     """``compute()``'s result, saved at ``path`` as ``{"settings": ..., field: ...}``; a later
-    run with the same ``settings`` (and no ``fresh``) reuses the saved value instead."""
+    run with the same ``settings`` (and no ``fresh``) reuses the saved value instead (and calls
+    ``reused()`` if given: a progress bar skips the part). One such file a part keeps a long
+    experiment resumable: an interrupted run redoes only the parts it had not saved."""
     cached = reuse(path, settings, fresh)
     if cached is not None:
+        if reused is not None:
+            reused()
         return cached[field]
     value = compute()
     asp.io.save_json(path, {"settings": settings, field: value}, overwrite=True)
@@ -89,35 +94,48 @@ RECORD_KEYS = ("experiment", "settings", "provenance", "seconds", "command")
 
 
 def run(name: str, doc: str | None, scales: dict, compute, *, figure=None, report=None,
-        arguments=None, settings=None, seed: int | None = 0, argv=None) -> dict:
+        arguments=None, settings=None, seed: int | None = 0, argv=None, record: str | None = None,
+        outputs=(), adjust=None) -> dict:
     """One experiment on the shared harness; returns its numbers.
 
-    1. Arguments: :func:`parser` (``seed`` as there), plus ``arguments(p)``'s own options.
+    1. Arguments: :func:`parser` (``seed`` as there), plus ``arguments(p)``'s own options;
+       ``adjust(args)``, if given, may then change the parsed arguments (a per-case ``--out``).
     2. Settings: ``settings(scales[args.scale], args)`` if given, else ``{**scales[scale],
        "scale": ..., "seed": ...}`` (no seed when ``seed`` is None).
-    3. Numbers: the record ``--out/<name>.json`` when it was made with these settings (rerun
-       reuse, :func:`reuse`; ``--fresh`` recomputes), else ``compute(settings, args)`` (a dict),
-       written as that record (:func:`write_record`).
-    4. ``figure(numbers, args)``, then ``report(numbers, args)`` (what the script prints).
+    3. Numbers: the record ``--out/<record>`` (``record`` is a file name formatted with the
+       arguments, e.g. ``"w_fig4_{scale}.json"``; default ``"<name>.json"``) when it was made
+       with these settings and every file of ``outputs`` (names under ``--out``, formatted the
+       same way) is there (rerun reuse, :func:`reuse`; ``--fresh`` recomputes), else
+       ``compute(settings, args)`` (a dict), written as that record (:func:`write_record`).
+       ``compute`` may write more files under ``--out``: figures drawn from arrays the record
+       does not keep, images; name them in ``outputs``. Long computations keep resumable parts
+       of their own with :func:`reuse_or_compute` (one settings-checked file a part).
+    4. ``figure(numbers, args)`` (a figure drawn from the record alone, redrawn on reuse), then
+       ``report(numbers, args)`` (what the script prints); ``args.settings`` holds the settings.
     """
     p = parser(name, doc, seed=seed)
     if arguments is not None:
         arguments(p)
     args = p.parse_args(argv)
+    if adjust is not None:
+        adjust(args)
     started = time.time()
     cfg = scales[args.scale]
     if settings is not None:
         chosen = settings(cfg, args)
     else:
         chosen = {**cfg, "scale": args.scale, **({} if seed is None else {"seed": args.seed})}
-    path = args.out / f"{name}.json"
-    record = reuse(path, chosen, args.fresh)
-    if record is not None:
-        data = {k: v for k, v in record.items() if k not in RECORD_KEYS}
+    args.settings = chosen
+    fields = {**vars(args), "name": name}
+    path = args.out / (record or "{name}.json").format(**fields)
+    found = reuse(path, chosen, args.fresh)
+    if found is not None and all((args.out / o.format(**fields)).exists() for o in outputs):
+        data = {k: v for k, v in found.items() if k not in RECORD_KEYS}
         print(f"reusing {path}")
     else:
+        args.out.mkdir(parents=True, exist_ok=True)
         data = compute(chosen, args)
-        write_record(args.out, name, data, chosen, started)
+        write_record(args.out, path.stem, data, chosen, started, experiment=name)
     if figure is not None:
         figure(data, args)
     if report is not None:
@@ -172,11 +190,13 @@ def portable_path(value):
         return f"<outside>/{path.name}"
 
 
-def write_record(out: Path, name: str, data: dict, settings: dict, started: float) -> Path:
+def write_record(out: Path, name: str, data: dict, settings: dict, started: float, *,
+                 experiment: str | None = None) -> Path:
     """``out/<name>.json`` with the numbers, the settings (paths made repository-relative by
-    :func:`portable_path`), the package version and the machine."""
+    :func:`portable_path`), the package version and the machine; its ``"experiment"`` is
+    ``experiment`` (default ``name``)."""
     record = {
-        "experiment": name,
+        "experiment": experiment or name,
         "settings": {key: portable_path(value) for key, value in settings.items()},
         "provenance": asp.io.provenance(),
         "seconds": round(time.time() - started, 2),

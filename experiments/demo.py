@@ -9,8 +9,6 @@ Owen-scrambled Sobol' (W Fig. 6). Prints the fitted slopes and where the figure 
 
 from __future__ import annotations
 
-import time
-
 import common
 import jax
 import numpy as np
@@ -22,14 +20,15 @@ NAME = "demo"
 EXTRA_DIRECTION = 30.0
 
 
-def main(argv=None):
-    args = common.parser(NAME, __doc__).parse_args(argv)
-    started = time.time()
+SCALES = {"small": dict(log2_ns=list(range(6, 11)), realizations=256),
+          "paper": dict(log2_ns=list(range(8, 15)), realizations=2048)}
+
+
+def compute(settings, args):
+    """Our sets (cached in ``sets/``), the convergence of every sampler, the figure."""
     out = args.out
-    out.mkdir(parents=True, exist_ok=True)
-    small = args.scale == "small"
-    ns = [2**m for m in (range(6, 11) if small else range(8, 15))]
-    realizations = 256 if small else 2048
+    ns = [2**m for m in settings["log2_ns"]]
+    realizations = settings["realizations"]
     key = jax.random.key(args.seed)
     f = asp.integrands.edges([EXTRA_DIRECTION])
     directions = (0.0, 90.0, EXTRA_DIRECTION)
@@ -98,20 +97,23 @@ def main(argv=None):
     plot.spectrum_panel(
         axes[0, 1], grid, n=n_show, title=f"our set, n = {n_show}", directions_deg=directions
     )
-    png = plot.save_figure(fig, out / NAME)[0]
-    js = common.write_record(
-        out,
-        NAME,
-        {"ns": ns, "realizations": realizations, "integrand": "edges([30])", "samplers": record},
-        vars(args) | {"out": str(out)},
-        started,
-    )
+    plot.save_figure(fig, out / NAME)
+    return {"ns": ns, "realizations": realizations, "integrand": "edges([30])",
+            "samplers": record}
+
+
+def report(data, args):
     print("\nvariance slopes (log Var vs log N, 95% interval):")
-    for label, r in record.items():
+    for label, r in data["samplers"].items():
         print(
             f"  {label:26s} {r['slope']:+.2f}  [{r['slope_ci'][0]:+.2f}, {r['slope_ci'][1]:+.2f}]"
         )
-    print(f"\nfigure:  {png}\nnumbers: {js}")
+    print(f"\nfigure:  {args.out / NAME}.png\nnumbers: {args.out / NAME}.json")
+
+
+def main(argv=None):
+    return common.run(NAME, __doc__, SCALES, compute, report=report, argv=argv,
+                      outputs=(f"{NAME}.png",))
 
 
 if __name__ == "__main__":

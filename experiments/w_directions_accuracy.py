@@ -25,7 +25,6 @@ from __future__ import annotations
 import common
 import numpy as np
 
-import anisosample as asp
 from anisosample import directions, integrands, metrics
 from anisosample.progress import progress
 
@@ -160,68 +159,51 @@ def plot(res, path):
     plt.close(fig)
 
 
-def main(argv=None):
-    ap = common.parser(NAME, __doc__.splitlines()[0], seed=None)
-    ap.add_argument("--force", dest="fresh", action="store_true", help="the same as --fresh")
-    args = ap.parse_args(argv)
-    out = args.out
-    out.mkdir(parents=True, exist_ok=True)
-    n = SCALES[args.scale]["n"]
-    json_path = out / f"w_directions_accuracy_{args.scale}.json"
-    # per-(size, case) partial results are kept so an interrupted run resumes
-    part_dir = out / f"parts_{args.scale}"
+def settings_of(cfg, args) -> dict:
+    return {"scale": args.scale, "instances_per_case": cfg["n"], "sizes": SIZES,
+            "tol_deg": TOL_DEG, "seed": SEED, "k": 2,
+            "estimator": "anisosample.directions defaults (fixed kappa)",
+            "defaults": directions.default_options()}
+
+
+def compute(settings, args):
+    """Every (size, case) part, each kept in ``parts_<scale>/`` so an interrupted run resumes."""
+    n = settings["instances_per_case"]
+    part_dir = args.out / f"parts_{args.scale}"
     part_dir.mkdir(exist_ok=True)
-    settings = {"scale": args.scale, "instances_per_case": n, "sizes": SIZES,
-                "tol_deg": TOL_DEG, "seed": SEED, "k": 2,
-                "estimator": "anisosample.directions defaults (fixed kappa)",
-                "defaults": directions.default_options()}
-    res = common.reuse(json_path, settings, args.fresh)
-    if res is not None:
-        print(f"reusing {json_path}")
-    else:
-        rows, table = {}, {}
-        bar = progress(total=n * (len(SIZES) + 1) * len(CASES), desc="integrands")
-        for size in SIZES:
-            rows[str(size)], table[str(size)] = {}, {}
-            for ci, case in enumerate(CASES):
-                part = part_dir / f"{size}_{case}.json"
-                part_settings = {**settings, "size": size, "case": case, "estimator": "fixed"}
-                if (cached := common.reuse(part, part_settings, args.fresh)) is not None:
-                    r = cached["rows"]
-                    bar.update(n)
-                else:
-                    # the same integrands at every size: seed by case only
-                    rng = np.random.default_rng([SEED, ci])
-                    r = evaluate(case, size, n, rng, bar)
-                    asp.io.save_json(part, {"settings": part_settings, "rows": r},
-                                     overwrite=True)
-                rows[str(size)][case] = r
-                table[str(size)][case] = summarize(case, r)
-        rows_g, table_g = {}, {}
+    bar = progress(total=n * (len(SIZES) + 1) * len(CASES), desc="integrands")
+
+    def part(name, size, case, ci, estimator):
+        # the same integrands at every size: seed by case only
+        return common.reuse_or_compute(
+            part_dir / f"{name}.json",
+            {**settings, "size": size, "case": case, "estimator": estimator}, args.fresh,
+            lambda: evaluate(case, size, n, np.random.default_rng([SEED, ci]), bar,
+                             estimator=estimator),
+            field="rows", reused=lambda: bar.update(n))
+
+    rows, table = {}, {}
+    for size in SIZES:
+        rows[str(size)], table[str(size)] = {}, {}
         for ci, case in enumerate(CASES):
-            part = part_dir / f"96_{case}_gradient.json"
-            part_settings = {**settings, "size": 96, "case": case, "estimator": "gradient"}
-            if (cached := common.reuse(part, part_settings, args.fresh)) is not None:
-                r = cached["rows"]
-                bar.update(n)
-            else:
-                rng = np.random.default_rng([SEED, ci])
-                r = evaluate(case, 96, n, rng, bar, estimator="gradient")
-                asp.io.save_json(part, {"settings": part_settings, "rows": r}, overwrite=True)
-            rows_g[case] = r
-            table_g[case] = summarize(case, r)
-        bar.close()
-        res = {
-            "settings": settings,
-            "provenance": asp.io.provenance(),
-            "table": table,
-            "table_gradient": {"96": table_g},
-            "rows": rows,
-            "rows_gradient": {"96": rows_g},
-        }
-        asp.io.save_json(json_path, res, overwrite=True)
-    png = out / f"w_directions_accuracy_{args.scale}.png"
-    plot(res, png)
+            r = part(f"{size}_{case}", size, case, ci, "fixed")
+            rows[str(size)][case] = r
+            table[str(size)][case] = summarize(case, r)
+    rows_g, table_g = {}, {}
+    for ci, case in enumerate(CASES):
+        r = part(f"96_{case}_gradient", 96, case, ci, "gradient")
+        rows_g[case] = r
+        table_g[case] = summarize(case, r)
+    bar.close()
+    return {
+        "table": table,
+        "table_gradient": {"96": table_g},
+        "rows": rows,
+        "rows_gradient": {"96": rows_g},
+    }
+
+
+def report(res, args):
     for size in SIZES:
         for case in CASES:
             t = res["table"][str(size)][case]
@@ -233,7 +215,18 @@ def main(argv=None):
         cells = ", ".join(f"{k}={v:.3f}" if isinstance(v, float) else f"{k}={v}"
                           for k, v in t.items())
         print(f"  96^2 {case:20s} (gradient) {cells}")
-    print(f"wrote {png} and {json_path}")
+    stem = args.out / f"{NAME}_{args.scale}"
+    print(f"wrote {stem}.png and {stem}.json")
+
+
+def main(argv=None):
+    return common.run(
+        NAME, __doc__.splitlines()[0], SCALES, compute, seed=None, argv=argv,
+        arguments=lambda p: p.add_argument("--force", dest="fresh", action="store_true",
+                                           help="the same as --fresh"),
+        settings=settings_of, record=NAME + "_{scale}.json",
+        figure=lambda res, args: plot(res, args.out / f"{NAME}_{args.scale}.png"),
+        report=report)
 
 
 if __name__ == "__main__":

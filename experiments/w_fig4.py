@@ -23,7 +23,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-import anisosample as asp
 from anisosample import vmf
 from anisosample.progress import progress
 
@@ -85,10 +84,10 @@ def settings_of(scale) -> dict:
             "floor": vmf.DEFAULT_FLOOR, "nodes": vmf.DEFAULT_NODES}
 
 
-def compute(scale):
-    n = SCALES[scale]["samples"]
-    key_a, key_b = jax.random.split(jax.random.key(4))
-    res = {"settings": settings_of(scale), "provenance": asp.io.provenance()}
+def compute(settings, args):
+    n = settings["samples"]
+    key_a, key_b = jax.random.split(jax.random.key(settings["seed"]))
+    res = {}
     steps = progress(total=5, desc="w_fig4")
     one = sampled_hist(key_a, mixture_masses(MODES[:1]), n)
     two = sampled_hist(key_b, mixture_masses(MODES), n)
@@ -115,6 +114,7 @@ def compute(scale):
     }
     steps.update()
     steps.close()
+    plot(res, args.out / f"w_fig4_{args.scale}.png")  # drawn once, with the record
     return res
 
 
@@ -166,21 +166,9 @@ def plot(res, path):
     plt.close(fig)
 
 
-def main(argv=None):
-    ap = common.parser("w_fig4", __doc__.splitlines()[0], seed=None)
-    ap.add_argument("--force", dest="fresh", action="store_true", help="the same as --fresh")
-    args = ap.parse_args(argv)
-    out = args.out
-    out.mkdir(parents=True, exist_ok=True)
-    json_path = out / f"w_fig4_{args.scale}.json"
-    res = common.reuse(json_path, settings_of(args.scale), args.fresh)
-    if res is not None:
-        print(f"reusing {json_path}")
-    else:
-        res = compute(args.scale)
-        asp.io.save_json(json_path, res, overwrite=True)
-    png = out / f"w_fig4_{args.scale}.png"
-    plot(res, png)
+def report(res, args):
+    json_path = args.out / f"w_fig4_{args.scale}.json"
+    png = args.out / f"w_fig4_{args.scale}.png"
     print(f"(a) one mode:  MLE mu={res['a']['mle']['mu_deg']:.2f}, "
           f"reverse KL mu={res['a']['reverse_kl'][0]['mu_deg']:.2f}")
     print(f"(b) two modes: MLE mu={res['b']['mle']['mu_deg']:.2f}, "
@@ -196,6 +184,15 @@ def main(argv=None):
           + ", ".join(f"{r['mu_deg']:.2f} (kappa {r['kappa']:.2f})" for r in e["reverse_kl"])
           + "; fixed kappa " + ", ".join(f"{r['mu_deg']:.0f}" for r in e["fixed_kappa"]))
     print(f"wrote {png} and {json_path}")
+
+
+def main(argv=None):
+    return common.run(
+        "w_fig4", __doc__.splitlines()[0], SCALES, compute, seed=None, argv=argv,
+        arguments=lambda p: p.add_argument("--force", dest="fresh", action="store_true",
+                                           help="the same as --fresh"),
+        settings=lambda cfg, args: settings_of(args.scale), record="w_fig4_{scale}.json",
+        outputs=("w_fig4_{scale}.png",), report=report)
 
 
 if __name__ == "__main__":

@@ -7,8 +7,6 @@ an EXR per spectrum and a JSON of every plotted number.
 
 from __future__ import annotations
 
-import time
-
 import common
 import jax
 import numpy as np
@@ -20,22 +18,22 @@ NAME = "w_fig5_baselines"
 SHEAR_DEG = 30.0
 
 
-def main(argv=None):
-    args = common.parser(NAME, __doc__).parse_args(argv)
-    started = time.time()
-    n = 4096
-    realizations = {"small": 16, "paper": 256}[args.scale]
+SCALES = {"small": dict(n=4096, realizations=16), "paper": dict(n=4096, realizations=256)}
+CASES = [
+    ("random", {}),
+    ("jittered", {}),
+    ("cmj", {}),
+    ("sobol-owen", {}),
+    ("pmj02bn", {}),
+    ("sheared", {"base": "pmj02bn", "direction_deg": SHEAR_DEG}),
+]
+
+
+def compute(settings, args):
+    """The expected spectra (cached in ``spectra.npz``), their figure and EXRs, the numbers."""
+    n, realizations = settings["n"], settings["realizations"]
     radius = 2 * int(np.sqrt(n))
     out = args.out
-    out.mkdir(parents=True, exist_ok=True)
-    cases = [
-        ("random", {}),
-        ("jittered", {}),
-        ("cmj", {}),
-        ("sobol-owen", {}),
-        ("pmj02bn", {}),
-        ("sheared", {"base": "pmj02bn", "direction_deg": SHEAR_DEG}),
-    ]
     cache = out / "spectra.npz"
     grids = {}
     if cache.exists() and not args.fresh:
@@ -43,7 +41,7 @@ def main(argv=None):
         if meta.get("realizations") == realizations and meta.get("seed") == args.seed:
             grids = arrays
     key = jax.random.key(args.seed)
-    for i, (name, opts) in enumerate(cases):
+    for i, (name, opts) in enumerate(CASES):
         label = name if not opts else f"sheared pmj02bn {SHEAR_DEG:g}deg"
         if label in grids:
             continue
@@ -92,26 +90,28 @@ def main(argv=None):
         }
     axes[1, 0].set_ylabel("radial N<P>")
     axes[2, 0].set_ylabel("angular N<P> (|v| 8..128)")
-    pngs = plot.save_figure(fig, out / NAME, formats=("png", "pdf"))
-    json_path = common.write_record(
-        out,
-        NAME,
-        {
-            "n": n,
-            "radius": radius,
-            "realizations": realizations,
-            "radial_radii": list(range(1, radius + 1)),
-            "angular_centres_deg": centres.tolist(),
-            "samplers": record,
-        },
-        vars(args) | {"out": str(args.out)},
-        started,
-    )
-    print(f"figure: {pngs[0]}\nnumbers: {json_path}")
-    for label, r in record.items():
+    plot.save_figure(fig, out / NAME, formats=("png", "pdf"))
+    return {
+        "n": n,
+        "radius": radius,
+        "realizations": realizations,
+        "radial_radii": list(range(1, radius + 1)),
+        "angular_centres_deg": centres.tolist(),
+        "samplers": record,
+    }
+
+
+def report(data, args):
+    print(f"figure: {args.out / NAME}.png\nnumbers: {args.out / NAME}.json")
+    for label, r in data["samplers"].items():
         print(
             f"  {label:24s} mean N<P> for |v| <= sqrt(n)/2: {r['mean_nP_within_sqrt_n_over_2']:.3f}"
         )
+
+
+def main(argv=None):
+    return common.run(NAME, __doc__, SCALES, compute, report=report, argv=argv,
+                      outputs=(f"{NAME}.png",))
 
 
 if __name__ == "__main__":

@@ -64,3 +64,63 @@ def test_the_default_out_is_the_repository_results_folder(tmp_path):
                      "print(common.same_settings({'a': [1, 2]}, {'a': (1, 2)}))\n")
     lines = _run(probe, tmp_path)
     assert lines == [str(REPO / "results" / "w_fig3"), "['out', 'scale']", "True"]
+
+
+PARTS = '''
+import sys
+sys.path.insert(0, {experiments!r})
+import common
+
+SCALES = {{"small": {{"parts": [1, 2, 3]}}, "paper": {{"parts": [1, 2, 3, 4]}}}}
+
+
+def compute(settings, args):
+    def part(i):
+        print("computing part", i)
+        return i * i
+
+    squares = [common.reuse_or_compute(args.out / "parts" / f"{{i}}.json",
+                                       {{**settings, "part": i}}, args.fresh,
+                                       lambda i=i: part(i), field="square",
+                                       reused=lambda i=i: print("reused part", i))
+               for i in settings["parts"]]
+    (args.out / f"{{args.tag}}.txt").write_text(str(sum(squares)))  # an extra output
+    return {{"squares": squares}}
+
+
+if __name__ == "__main__":
+    common.run("parts", None, SCALES, compute, seed=None, record="parts_{{scale}}.json",
+               outputs=("{{tag}}.txt",),
+               arguments=lambda p: p.add_argument("--tag", default="sum"),
+               adjust=lambda args: setattr(args, "out", args.out / args.tag),
+               report=lambda data, args: print("report", data["squares"]))
+'''
+
+
+def test_run_keeps_parts_extra_outputs_and_a_named_record(tmp_path):
+    """Per-part caches (common.reuse_or_compute) resume an interrupted run; the record's name
+    follows the arguments; a record whose extra outputs are gone is recomputed; ``adjust``
+    changes the parsed arguments first."""
+    script = tmp_path / "parts.py"
+    script.write_text(PARTS.format(experiments=str(REPO / "experiments")))
+    base = tmp_path / "out"
+    first = _run(script, tmp_path, "--out", str(base))
+    out = base / "sum"  # adjust: --out/<tag>
+    assert first == ["computing part 1", "computing part 2", "computing part 3",
+                     "report [1, 4, 9]"]
+    record = json.loads((out / "parts_small.json").read_text())
+    assert record["experiment"] == "parts" and record["squares"] == [1, 4, 9]
+    assert record["settings"] == {"parts": [1, 2, 3], "scale": "small"}
+    assert (out / "sum.txt").read_text() == "14"
+    assert _run(script, tmp_path, "--out", str(base)) == [
+        f"reusing {out / 'parts_small.json'}", "report [1, 4, 9]"]
+    # the extra output gone: the record is recomputed, from the parts already saved but one
+    (out / "sum.txt").unlink()
+    (out / "parts" / "2.json").unlink()
+    assert _run(script, tmp_path, "--out", str(base)) == [
+        "reused part 1", "computing part 2", "reused part 3", "report [1, 4, 9]"]
+    # another scale: its own record, parts recomputed (their settings differ)
+    assert _run(script, tmp_path, "--out", str(base), "--scale", "paper")[-1] == \
+        "report [1, 4, 9, 16]"
+    assert (out / "parts_paper.json").exists() and (out / "parts_small.json").exists()
+    assert _run(script, tmp_path, "--out", str(base), "--fresh")[:1] == ["computing part 1"]
