@@ -8,7 +8,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from anisosample import synthesis
+from anisosample import plot, synthesis
 from anisosample import variance as V
 
 BASELINE_SCALES = {
@@ -75,3 +75,19 @@ def summarize(rows, ns, cfg, mode, patterns):
         "ci_low": [r.ci_low for r in rows], "ci_high": [r.ci_high for r in rows],
         "fit": fit.as_dict(),
     }
+
+
+def curves_panel(ax, ns, curves: dict) -> None:
+    """Every curve record of ``curves`` (``{label: summarize(...)}``, or any record with
+    ``variance``, ``ci_low``, ``ci_high`` and ``fit``) on one log-log panel, the fitted slope and
+    its 95 % interval in the legend."""
+    for label, c in curves.items():
+        fit = c["fit"]
+        plot.convergence_panel(ax, ns, c["variance"], label=label, slope=fit["slope"],
+                               slope_ci=(fit["ci_low"], fit["ci_high"]),
+                               lower=c["ci_low"], upper=c["ci_high"])
+
+
+def slopes(curves: dict) -> str:
+    """``"label: slope  label: slope ..."`` of curve records, for a script's report."""
+    return "  ".join(f"{s}: {c['fit']['slope']:+.2f}" for s, c in curves.items())

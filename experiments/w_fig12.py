@@ -28,9 +28,7 @@ Writes ``results/w_fig12/w_fig12.png`` and ``w_fig12.json``; reuses finished cur
 
 from __future__ import annotations
 
-import json
 import math
-import time
 
 import _w_render as W
 import common
@@ -38,8 +36,8 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from _w_variance import curves_panel
 
-import anisosample as asp
 from anisosample import directions, metrics, plot, warps
 from anisosample import variance as V
 from anisosample.progress import progress
@@ -91,13 +89,38 @@ def spectrum_image(values: np.ndarray) -> np.ndarray:
     return np.log10(P + 1e-12 * P.max())
 
 
-def main(argv=None):
-    p = common.parser(NAME, __doc__.splitlines()[0])
+def arguments(p):
     p.add_argument("--beta", type=float, default=55.0, help="angle of n from +z (degrees)")
     p.add_argument("--alpha", type=float, default=20.0, help="azimuth of n (degrees)")
-    args = p.parse_args(argv)
-    started = time.time()
-    cfg = SCALES[args.scale]
+
+
+def settings_of(cfg, args) -> dict:
+    return {**cfg, "scale": args.scale, "seed": args.seed, "alpha_deg": args.alpha,
+            "beta_deg": args.beta}
+
+
+def curves_of(f, d0, ns, cfg, exact, k, mname):
+    """pmj02bn's and the aligned set's convergence under one map."""
+    aligned = (lambda kk, n, d=d0: W.aligned_set(d, n, kk)) if d0 is not None else "pmj02bn"
+    table = {"pmj02bn": ("pmj02bn", cfg["patterns"]), f"aligned 3-dir {d0}": (aligned, 1)}
+    curves = {}
+    for label, (smp, pats) in table.items():
+        rows = [V.estimate_variance(f, smp, n, k, cfg["realizations"], exact,
+                                    randomization="shift", patterns=pats)
+                for n in progress(ns, desc=f"{mname} {label}", leave=False)]
+        var = [r.variance for r in rows]
+        se = [r.std_error for r in rows]
+        curves[label] = {"variance": var, "std_error": se,
+                         "ci_low": [r.ci_low for r in rows],
+                         "ci_high": [r.ci_high for r in rows],
+                         "fit": V.fit_slope(ns, var, se).as_dict()}
+    return curves
+
+
+def compute(settings, args):
+    """Per map: the grid's edge spread, the estimated directions, the curves (each map's kept in
+    ``curves/<map>.json``), and the figure (drawn from the grids, ``<map>_grid.npy``)."""
+    cfg = settings
     out = args.out
     (out / "curves").mkdir(parents=True, exist_ok=True)
     a, b = math.radians(args.alpha), math.radians(args.beta)
@@ -106,8 +129,6 @@ def main(argv=None):
     exact = 2.0 * (math.pi - b)
     ns = [2**k for k in cfg["log2_ns"]]
     key = jax.random.key(args.seed)
-    settings = {**cfg, "scale": args.scale, "seed": args.seed, "alpha_deg": args.alpha,
-                "beta_deg": args.beta}
     results = {}
     for mi, (mname, cls) in enumerate(progress(list(MAPS.items()), desc=NAME)):
         f = HemisphereEdge(cls(), normal, exact)
@@ -116,27 +137,10 @@ def main(argv=None):
         est = directions.estimate(metrics.grid_values(f, 96), k=2)
         rounded = [W.aligned_usable(d) for d in est]
         d0 = next((d for d in rounded if d is not None), None)
-        path = out / "curves" / f"{mname}.json"
-        cached = common.cached_json(path, args.fresh)
-        if cached is not None and cached.get("settings") == settings:
-            curves = cached["curves"]
-        else:
-            k = jax.random.fold_in(key, mi)
-            aligned = (lambda kk, n, d=d0: W.aligned_set(d, n, kk)) if d0 is not None else "pmj02bn"
-            table = {"pmj02bn": ("pmj02bn", cfg["patterns"]),
-                     f"aligned 3-dir {d0}": (aligned, 1)}
-            curves = {}
-            for label, (smp, pats) in table.items():
-                rows = [V.estimate_variance(f, smp, n, k, cfg["realizations"], exact,
-                                            randomization="shift", patterns=pats)
-                        for n in progress(ns, desc=f"{mname} {label}", leave=False)]
-                var = [r.variance for r in rows]
-                se = [r.std_error for r in rows]
-                curves[label] = {"variance": var, "std_error": se,
-                                 "ci_low": [r.ci_low for r in rows],
-                                 "ci_high": [r.ci_high for r in rows],
-                                 "fit": V.fit_slope(ns, var, se).as_dict()}
-            asp.io.save_json(path, {"settings": settings, "curves": curves}, overwrite=True)
+        curves = common.reuse_or_compute(
+            out / "curves" / f"{mname}.json", settings, args.fresh,
+            lambda f=f, d0=d0, mi=mi, mname=mname: curves_of(
+                f, d0, ns, cfg, exact, jax.random.fold_in(key, mi), mname), field="curves")
         results[mname] = {"estimated_deg": list(est), "table_direction_deg": d0,
                           "edge_spread": sp, "curves": curves,
                           "grid_min": float(values.min()), "grid_max": float(values.max())}
@@ -160,19 +164,17 @@ def main(argv=None):
             axes[row, 2].axvline(d, color="r", lw=0.8)
         axes[row, 2].set_xlabel("deg (estimates in red)", fontsize=7)
         ax = axes[row, 3]
-        for label, c in r["curves"].items():
-            fit = c["fit"]
-            plot.convergence_panel(ax, ns, c["variance"], label=label, slope=fit["slope"],
-                                   slope_ci=(fit["ci_low"], fit["ci_high"]),
-                                   lower=c["ci_low"], upper=c["ci_high"])
+        curves_panel(ax, ns, r["curves"])
         ax.legend(fontsize=6, loc="lower left")
         ax.set_title(f"{mname} mapping", fontsize=8)
-    pngs = plot.save_figure(fig, out / NAME, formats=("png",))
-    json_path = common.write_record(out, NAME, {"ns": ns, "exact": exact,
-                                                "normal": np.asarray(normal).tolist(),
-                                                "maps": results}, settings, started)
-    print(f"figure: {pngs[0]}\nnumbers: {json_path}")
-    for mname, r in results.items():
+    plot.save_figure(fig, out / NAME, formats=("png",))
+    return {"ns": ns, "exact": exact, "normal": np.asarray(normal).tolist(), "maps": results}
+
+
+def report(data, args):
+    print(f"figure: {args.out / NAME}.png\nnumbers: {args.out / NAME}.json")
+    ns = data["ns"]
+    for mname, r in data["maps"].items():
         sp = r["edge_spread"]
         print(f"  {mname}: estimated {[round(d, 1) for d in r['estimated_deg']]}; edge-direction "
               f"mass within +-{sp['share_within_deg']:g} deg of {sp['top_deg']:.0f}: "
@@ -181,7 +183,11 @@ def main(argv=None):
             fit = c["fit"]
             print(f"    {label:22s} slope {fit['slope']:+.3f} [{fit['ci_low']:+.3f}, "
                   f"{fit['ci_high']:+.3f}]  Var@{ns[-1]} {c['variance'][-1]:.3e}")
-    return json.loads(json_path.read_text())
+
+
+def main(argv=None):
+    return common.run(NAME, __doc__.splitlines()[0], SCALES, compute, arguments=arguments,
+                      settings=settings_of, report=report, argv=argv, outputs=(f"{NAME}.png",))
 
 
 if __name__ == "__main__":

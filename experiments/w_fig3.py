@@ -17,7 +17,7 @@ import common
 import jax
 import numpy as np
 
-from anisosample import io, losses, metrics, plot, spectrum, synthesis
+from anisosample import losses, metrics, plot, spectrum, synthesis
 from anisosample.progress import progress
 
 SCALES = {"small": dict(n=512, steps=300), "paper": dict(n=4096, steps=1500)}
@@ -33,17 +33,18 @@ def nn_distances(points) -> np.ndarray:
     return metrics.nearest_neighbour_distance(points) * np.sqrt(np.shape(points)[0])
 
 
-def main(argv=None):
-    # fixed keys; the sets are reused when made with the same settings (load_or_synthesize)
-    args = common.parser("w_fig3", __doc__.splitlines()[0], seed=None, fresh=False).parse_args(
-        argv)
-    cfg = SCALES[args.scale]
+def settings_of(cfg, args) -> dict:
+    return {"scale": args.scale, "n": cfg["n"], "directions_deg": DIRS, "recipe": "paper",
+            "steps": cfg["steps"], "variants": VARIANTS,
+            "defaults": synthesis.recipe_defaults("paper")}
+
+
+def compute(settings, args):
+    """The three sets (fixed keys; each reused when made with the same settings,
+    load_or_synthesize), their statistics and the figure."""
     out = args.out
-    n = cfg["n"]
-    res = {"settings": {"scale": args.scale, "n": n, "directions_deg": DIRS, "recipe": "paper",
-                        "steps": cfg["steps"], "variants": VARIANTS,
-                        "defaults": synthesis.recipe_defaults("paper")},
-           "provenance": io.provenance(), "sets": {}}
+    n = settings["n"]
+    res = {"sets": {}}
     import matplotlib
 
     matplotlib.use("Agg")
@@ -52,8 +53,8 @@ def main(argv=None):
     for col, (label, kw) in enumerate(progress(list(VARIANTS.items()), desc="w_fig3")):
         slug = label.replace(" ", "_")
         result = synthesis.load_or_synthesize(
-            out / f"{slug}.npz", jax.random.key(3), n, DIRS, recipe="paper", steps=cfg["steps"],
-            show_progress=True, **kw)
+            out / f"{slug}.npz", jax.random.key(3), n, DIRS, recipe="paper",
+            steps=settings["steps"], show_progress=True, **kw)
         pts = result.points
         nn = nn_distances(pts)
         sw = {f"{d:g}": float(losses.sliced_wasserstein_loss(pts, [d])) for d in DIRS}
@@ -75,11 +76,20 @@ def main(argv=None):
         ax.set_title(f"{label}\nNN min {nn.min():.2f}, p1 {np.percentile(nn, 1):.2f}",
                      fontsize=8)
         plot.spectrum_panel(axes[1][col], grid, n=n, title=f"n P_S, |v| <= {radius}")
-        print(f"{label}: nn min {nn.min():.3f} p1 {np.percentile(nn, 1):.3f} mean "
-              f"{nn.mean():.3f}; n*L_SW1D {sw}", flush=True)
-    paths = plot.save_figure(fig, out / "w_fig3")
-    io.save_json(out / "w_fig3.json", res, overwrite=True)
-    print(f"wrote {paths[0]} and {out / 'w_fig3.json'}")
+    plot.save_figure(fig, out / "w_fig3")
+    return res
+
+
+def report(res, args):
+    for label, r in res["sets"].items():
+        print(f"{label}: nn min {r['nn_distance_min']:.3f} p1 {r['nn_distance_p01']:.3f} mean "
+              f"{r['nn_distance_mean']:.3f}; n*L_SW1D {r['n_sw_per_direction']}", flush=True)
+    print(f"wrote {args.out / 'w_fig3.png'} and {args.out / 'w_fig3.json'}")
+
+
+def main(argv=None):
+    return common.run("w_fig3", __doc__.splitlines()[0], SCALES, compute, seed=None, argv=argv,
+                      settings=settings_of, report=report, outputs=("w_fig3.png",))
 
 
 if __name__ == "__main__":
