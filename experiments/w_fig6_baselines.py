@@ -17,9 +17,6 @@ number, the fits, settings, provenance). Finished curves are reused on rerun (``
 
 from __future__ import annotations
 
-import json
-import time
-
 import _w_variance as WV
 import common
 import jax
@@ -79,10 +76,9 @@ def integrand_figure(cases, out, radius=48, m=256):
     return plot.save_figure(fig, out / f"{NAME}_integrands", formats=("png",))
 
 
-def main(argv=None):
-    args = common.parser(NAME, __doc__.splitlines()[0]).parse_args(argv)
-    started = time.time()
-    cfg = SCALES[args.scale]
+def compute(settings, args):
+    """Every (integrand, sampler) curve, each kept in ``curves/`` (resumable)."""
+    cfg = settings
     ns = [2**k for k in cfg["log2_ns"]]
     out = args.out
     (out / "curves").mkdir(parents=True, exist_ok=True)
@@ -98,42 +94,47 @@ def main(argv=None):
         sampler, mode = sampler_table(dirs, memo_pmj, memo_sheared)[sname]
         slug = f"{label}__{sname}".replace(" ", "_").replace("+", "plus")
         path = out / "curves" / f"{slug}.json"
-        settings = {"scale": args.scale, "seed": args.seed, "ns": ns, **cfg}
         curve = common.reuse_or_compute(
-            path, settings, args.fresh,
+            path, {"scale": args.scale, "seed": args.seed, "ns": ns, **SCALES[args.scale]},
+            args.fresh,
             lambda f=f, sampler=sampler, mode=mode: measure(f, sampler, mode, ns, key, cfg))
         entry = results.setdefault(label, {
             "integrand": type(f).__name__, "edge_directions_deg": dirs,
             "integral": f.integral, "samplers": {}})
         entry["samplers"][sname] = curve
-
-    fig, axes = plot.new_figure(2, 4, size=3.4)
-    for j, k in enumerate(EDGES):
-        for i, suffix in enumerate(["", " + texture"]):
-            label = f"{k} edge{'s' if k > 1 else ''}{suffix}"
-            ax = axes[i, j]
-            for sname, c in results[label]["samplers"].items():
-                fit = c["fit"]
-                plot.convergence_panel(ax, ns, c["variance"], label=sname, slope=fit["slope"],
-                                       slope_ci=(fit["ci_low"], fit["ci_high"]),
-                                       lower=c["ci_low"], upper=c["ci_high"])
-            dirs = ", ".join(f"{d:g}" for d in EDGES[k])
-            ax.set_title(f"{label} ({dirs} deg)", fontsize=9)
-            ax.legend(fontsize=5.5, loc="lower left")
-    pngs = plot.save_figure(fig, out / NAME, formats=("png",))
-    pngs += integrand_figure(cases, out)
-    json_path = common.write_record(out, NAME, {
+    return {
         "ns": ns, "fit_min_n": cfg["fit_min_n"], "realizations": cfg["realizations"],
         "texture": {"freqs": integrands.smooth_texture().freqs,
                     "amplitudes": integrands.smooth_texture().amplitudes,
                     "phases": integrands.smooth_texture().phases},
         "cases": results,
-    }, vars(args) | {"out": str(args.out)}, started)
-    print(f"figure: {pngs[0]}\nnumbers: {json_path}")
-    for label, entry in results.items():
-        print(f"  {label:20s} " + "  ".join(
-            f"{s}: {c['fit']['slope']:+.2f}" for s, c in entry["samplers"].items()))
-    return json.loads(json_path.read_text())
+    }
+
+
+def figure(data, args):
+    ns, results = data["ns"], data["cases"]
+    fig, axes = plot.new_figure(2, 4, size=3.4)
+    for j, k in enumerate(EDGES):
+        for i, suffix in enumerate(["", " + texture"]):
+            label = f"{k} edge{'s' if k > 1 else ''}{suffix}"
+            ax = axes[i, j]
+            WV.curves_panel(ax, ns, results[label]["samplers"])
+            dirs = ", ".join(f"{d:g}" for d in EDGES[k])
+            ax.set_title(f"{label} ({dirs} deg)", fontsize=9)
+            ax.legend(fontsize=5.5, loc="lower left")
+    plot.save_figure(fig, args.out / NAME, formats=("png",))
+    integrand_figure(integrand_cases(), args.out)
+
+
+def report(data, args):
+    print(f"figure: {args.out / NAME}.png\nnumbers: {args.out / NAME}.json")
+    for label, entry in data["cases"].items():
+        print(f"  {label:20s} " + WV.slopes(entry["samplers"]))
+
+
+def main(argv=None):
+    return common.run(NAME, __doc__.splitlines()[0], SCALES, compute, figure=figure,
+                      report=report, argv=argv)
 
 
 if __name__ == "__main__":
