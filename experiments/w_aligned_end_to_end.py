@@ -33,12 +33,10 @@ sets are reused on rerun (``--fresh`` redoes the curves).
 
 from __future__ import annotations
 
-import json
-import time
-
 import common
 import jax
 import numpy as np
+from _w_variance import curves_panel
 
 import anisosample as asp
 from anisosample import integrands, plot, tables
@@ -63,21 +61,33 @@ def _random_edges(rng, count: int) -> list[float]:
             return a
 
 
-def main(argv=None):
-    p = common.parser(NAME, __doc__.splitlines()[0])
+def arguments(p):
     p.add_argument("--max-log2n", type=int, default=None, help="stop the sweep at 2^K points")
     p.add_argument("--angle", type=float, default=None,
                    help="edge normal in degrees (default: drawn from the seed; one-edge only)")
     p.add_argument("--case", choices=list(CASES), default="one-edge",
                    help="integrand: one edge (3 directions), two edges (4 directions, k=2), "
                         "four edges (3 directions on more edges than they cover)")
-    args = p.parse_args(argv)
+
+
+def adjust(args):
+    """Other cases write to their own folder by default."""
     if args.case != "one-edge" and args.out == common.ROOT / "results" / NAME:
         args.out = common.ROOT / "results" / f"{NAME}_{args.case.replace('-', '_')}"
-    started = time.time()
-    cfg = dict(SCALES[args.scale])
+
+
+def settings_of(cfg, args) -> dict:
+    cfg = dict(cfg)
     if args.max_log2n is not None:
         cfg["log2_ns"] = [k for k in cfg["log2_ns"] if k <= args.max_log2n]
+    return {**cfg, "scale": args.scale, "seed": args.seed, "case": args.case,
+            "angle": args.angle}
+
+
+def compute(settings, args):
+    """The integrand, its aligned sampler (sets built on demand into ``tables/``) and every
+    sampler's curve (each kept in ``curves/``, resumable)."""
+    cfg = settings
     ns = [2**k for k in cfg["log2_ns"]]
     out = args.out
     (out / "curves").mkdir(parents=True, exist_ok=True)
@@ -105,41 +115,28 @@ def main(argv=None):
         "pmj02bn": ("pmj02bn", "shift", cfg["patterns"]),
         "sobol-owen": ("sobol-owen", "fresh+shift", 1),
     }
-    settings = {"scale": args.scale, "seed": args.seed, "ns": ns, "angle": angle, **cfg}
+    curve_settings = {"scale": args.scale, "seed": args.seed, "ns": ns, "angle": angle,
+                      **SCALES[args.scale], "log2_ns": cfg["log2_ns"]}
     if args.case != "one-edge":  # (the one-edge settings stay as they were: reruns reuse them)
-        settings.update(case=args.case, edge_angles=edge_angles)
-    curves = {}
-    for label, (sampler, mode, patterns) in progress(list(samplers.items()), desc=NAME):
-        path = out / "curves" / f"{label.split()[0]}.json"
-        cached = common.cached_json(path, args.fresh)
-        if cached is not None and cached.get("settings") == settings:
-            curves[label] = cached["curve"]
-            continue
+        curve_settings.update(case=args.case, edge_angles=edge_angles)
+
+    def curve(sampler, mode, patterns, label):
         rows = []
         for n in progress(ns, desc=label, leave=False):
             rows.append(V.estimate_variance(f, sampler, n, key, cfg["realizations"], f.integral,
                                             randomization=mode, patterns=patterns))
         fit = V.fit_slope(ns, [r.variance for r in rows], [r.std_error for r in rows])
-        curve = {"randomization": mode, "patterns": patterns,
-                 "variance": [r.variance for r in rows], "std_error": [r.std_error for r in rows],
-                 "ci_low": [r.ci_low for r in rows], "ci_high": [r.ci_high for r in rows],
-                 "fit": fit.as_dict()}
-        asp.io.save_json(path, {"settings": settings, "curve": curve}, overwrite=True)
-        curves[label] = curve
+        return {"randomization": mode, "patterns": patterns,
+                "variance": [r.variance for r in rows], "std_error": [r.std_error for r in rows],
+                "ci_low": [r.ci_low for r in rows], "ci_high": [r.ci_high for r in rows],
+                "fit": fit.as_dict()}
 
-    fig, axes = plot.new_figure(1, 1, size=4.2)
-    ax = axes[0, 0]
-    for label, c in curves.items():
-        fit = c["fit"]
-        plot.convergence_panel(ax, ns, c["variance"], label=label, slope=fit["slope"],
-                               slope_ci=(fit["ci_low"], fit["ci_high"]),
-                               lower=c["ci_low"], upper=c["ci_high"])
-    ax.set_title(f"{args.case}: edges at {', '.join(f'{a:.1f}' for a in edge_angles)} deg, "
-                 f"estimated {list(aligned.directions_deg)}", fontsize=9)
-    ax.legend(fontsize=7, loc="lower left")
-    pngs = plot.save_figure(fig, out / NAME, formats=("png",))
+    curves = {label: common.reuse_or_compute(
+        out / "curves" / f"{label.split()[0]}.json", curve_settings, args.fresh,
+        lambda s=s, m=m, p=p, label=label: curve(s, m, p, label))
+        for label, (s, m, p) in progress(list(samplers.items()), desc=NAME)}
     tab = tables.find_table(len(aligned.directions_deg) + 2, ns[0], root=out / "tables")
-    json_path = common.write_record(out, NAME, {
+    return {
         "ns": ns, "angle_deg": angle, "case": args.case, "edge_angles_deg": edge_angles,
         "estimated_deg": list(aligned.estimated_deg),
         "used_deg": list(aligned.directions_deg),
@@ -147,13 +144,32 @@ def main(argv=None):
                       "transform": aligned.canonical.transform} if aligned.canonical else None,
         "table_settings": tables.open_table(tab).settings if tab else None,
         "integral": f.integral, "curves": curves,
-    }, vars(args) | {"out": str(args.out)}, started)
-    print(f"figure: {pngs[0]}\nnumbers: {json_path}")
-    for label, c in curves.items():
+    }
+
+
+def figure(data, args):
+    fig, axes = plot.new_figure(1, 1, size=4.2)
+    ax = axes[0, 0]
+    curves_panel(ax, data["ns"], data["curves"])
+    ax.set_title(f"{data['case']}: edges at "
+                 f"{', '.join(f'{a:.1f}' for a in data['edge_angles_deg'])} deg, "
+                 f"estimated {list(data['used_deg'])}", fontsize=9)
+    ax.legend(fontsize=7, loc="lower left")
+    plot.save_figure(fig, args.out / NAME, formats=("png",))
+
+
+def report(data, args):
+    print(f"figure: {args.out / NAME}.png\nnumbers: {args.out / NAME}.json")
+    for label, c in data["curves"].items():
         fit = c["fit"]
         print(f"  {label:22s} slope {fit['slope']:+.3f} "
               f"[{fit['ci_low']:+.3f}, {fit['ci_high']:+.3f}]")
-    return json.loads(json_path.read_text())
+
+
+def main(argv=None):
+    return common.run(NAME, __doc__.splitlines()[0], SCALES, compute, arguments=arguments,
+                      adjust=adjust, settings=settings_of, figure=figure, report=report,
+                      argv=argv)
 
 
 if __name__ == "__main__":

@@ -93,34 +93,34 @@ if __name__ == "__main__":
                outputs=("{{tag}}.txt",),
                arguments=lambda p: p.add_argument("--tag", default="sum"),
                adjust=lambda args: setattr(args, "out", args.out / args.tag),
-               report=lambda data, args: print("report", data["squares"]))
+               report=lambda data, args: print("report", data["squares"], args.settings["scale"]))
 '''
 
 
 def test_run_keeps_parts_extra_outputs_and_a_named_record(tmp_path):
     """Per-part caches (common.reuse_or_compute) resume an interrupted run; the record's name
     follows the arguments; a record whose extra outputs are gone is recomputed; ``adjust``
-    changes the parsed arguments first."""
+    changes the parsed arguments first; ``args.settings`` holds the settings."""
     script = tmp_path / "parts.py"
     script.write_text(PARTS.format(experiments=str(REPO / "experiments")))
     base = tmp_path / "out"
     first = _run(script, tmp_path, "--out", str(base))
     out = base / "sum"  # adjust: --out/<tag>
     assert first == ["computing part 1", "computing part 2", "computing part 3",
-                     "report [1, 4, 9]"]
+                     "report [1, 4, 9] small"]
     record = json.loads((out / "parts_small.json").read_text())
     assert record["experiment"] == "parts" and record["squares"] == [1, 4, 9]
     assert record["settings"] == {"parts": [1, 2, 3], "scale": "small"}
     assert (out / "sum.txt").read_text() == "14"
     assert _run(script, tmp_path, "--out", str(base)) == [
-        f"reusing {out / 'parts_small.json'}", "report [1, 4, 9]"]
+        f"reusing {out / 'parts_small.json'}", "report [1, 4, 9] small"]
     # the extra output gone: the record is recomputed, from the parts already saved but one
     (out / "sum.txt").unlink()
     (out / "parts" / "2.json").unlink()
     assert _run(script, tmp_path, "--out", str(base)) == [
-        "reused part 1", "computing part 2", "reused part 3", "report [1, 4, 9]"]
+        "reused part 1", "computing part 2", "reused part 3", "report [1, 4, 9] small"]
     # another scale: its own record, parts recomputed (their settings differ)
     assert _run(script, tmp_path, "--out", str(base), "--scale", "paper")[-1] == \
-        "report [1, 4, 9, 16]"
+        "report [1, 4, 9, 16] paper"
     assert (out / "parts_paper.json").exists() and (out / "parts_small.json").exists()
     assert _run(script, tmp_path, "--out", str(base), "--fresh")[:1] == ["computing part 1"]
