@@ -20,7 +20,7 @@ import common
 import jax
 import numpy as np
 
-from anisosample import diagnostics, integrands, io, plot, spectrum, synthesis
+from anisosample import diagnostics, integrands, plot, spectrum, synthesis
 from anisosample.progress import progress
 
 SCALES = {
@@ -55,25 +55,26 @@ def line_profile(grid, n, dirs, half_width=2.0):
     return edges.tolist(), out
 
 
-def main(argv=None):
-    # fixed keys; the sets are reused when made with the same settings (load_or_synthesize)
-    args = common.parser("w_fig5", __doc__.splitlines()[0], seed=None, fresh=False).parse_args(
-        argv)
-    cfg = SCALES[args.scale]
+def settings_of(cfg, args) -> dict:
+    return {"scale": args.scale, **cfg, "radius": RADIUS,
+            "defaults": synthesis.recipe_defaults("rate")}
+
+
+def compute(settings, args):
+    """The sets (fixed keys; each reused when made with the same settings, load_or_synthesize),
+    their line profiles, the W Eq. 5 diagnostic and both figures."""
     out = args.out
-    ns = [2**k for k in cfg["log2_ns"]]
-    res = {"settings": {"scale": args.scale, **cfg, "radius": RADIUS,
-                        "defaults": synthesis.recipe_defaults("rate")},
-           "provenance": io.provenance(), "sets": {}}
+    ns = [2**k for k in settings["log2_ns"]]
+    res = {"sets": {}}
     import matplotlib
 
     matplotlib.use("Agg")
-    fig, axes = plot.new_figure(len(cfg["direction_sets"]), len(ns))
-    jobs = [(i, dirs, j, n) for i, dirs in enumerate(cfg["direction_sets"])
+    fig, axes = plot.new_figure(len(settings["direction_sets"]), len(ns))
+    jobs = [(i, dirs, j, n) for i, dirs in enumerate(settings["direction_sets"])
             for j, n in enumerate(ns)]
     for i, dirs, j, n in progress(jobs, desc="w_fig5"):
         grids = []
-        for s in range(cfg["seeds"]):
+        for s in range(settings["seeds"]):
             name = "_".join(f"{d:g}" for d in dirs) + f"_n{n}_s{s}.npz"
             pts = synthesis.load_or_synthesize(out / "sets" / name, jax.random.key(500 + s),
                                                n, dirs, show_progress=True).points
@@ -84,12 +85,10 @@ def main(argv=None):
         res["sets"][label] = {"n": n, "directions_deg": dirs, "radius_edges": edges,
                               "mean_nP_by_octave": prof}
         plot.spectrum_panel(axes[i][j], grid, n=n, title=label, directions_deg=())
-        print(label, {k: [None if v is None else round(v, 4) for v in vals[:8]]
-                      for k, vals in prof.items()}, flush=True)
-    paths = plot.save_figure(fig, out / "w_fig5")
+    plot.save_figure(fig, out / "w_fig5")
 
     # W Eq. 5 decomposition: the rate design against the paper's recipe on a 30-degree edge
-    nd = cfg["diagnostic_n"]
+    nd = settings["diagnostic_n"]
     f = integrands.edges([30.0])
     fig2, axes2 = plot.new_figure(1, 2, size=4.0)
     res["diagnostic"] = {"n": nd, "integrand": "edges([30])"}
@@ -101,13 +100,28 @@ def main(argv=None):
         res["diagnostic"][recipe] = diagnostics.summary(d)
         diagnostics.plot_decomposition(ax, d, title=f"{recipe} recipe, n={nd}: "
                                                     f"Var {d['predicted']:.3g}")
+    plot.save_figure(fig2, out / "w_fig5_diagnostic")
+    return res
+
+
+def report(res, args):
+    for label, r in res["sets"].items():
+        print(label, {k: [None if v is None else round(v, 4) for v in vals[:8]]
+                      for k, vals in r["mean_nP_by_octave"].items()}, flush=True)
+    for recipe in ("rate", "paper"):
+        d = res["diagnostic"][recipe]
         print(f"diagnostic {recipe}: predicted variance {d['predicted']:.4g} (tail "
               f"{d['tail']:.2g}); by region " + ", ".join(
                   f"{k} {v['variance']:.3g} (white {v['white']:.3g})"
                   for k, v in d["regions"].items()), flush=True)
-    paths += plot.save_figure(fig2, out / "w_fig5_diagnostic")
-    io.save_json(out / "w_fig5.json", res, overwrite=True)
-    print(f"wrote {', '.join(str(p) for p in paths)} and {out / 'w_fig5.json'}")
+    out = args.out
+    print(f"wrote {out / 'w_fig5.png'}, {out / 'w_fig5_diagnostic.png'} and {out / 'w_fig5.json'}")
+
+
+def main(argv=None):
+    return common.run("w_fig5", __doc__.splitlines()[0], SCALES, compute, seed=None, argv=argv,
+                      settings=settings_of, report=report,
+                      outputs=("w_fig5.png", "w_fig5_diagnostic.png"))
 
 
 if __name__ == "__main__":
