@@ -1124,7 +1124,7 @@ def _block_sampler(args, scene, spp, options):
             print(f"note: no {' or '.join(f'{kd}-direction' for kd in absent)} table for n = "
                   f"{spp} is installed; the sets the blocks need are synthesized into "
                   f"{tables.cache_dir()} before rendering (`anisosample tables build --n {spp} "
-                  f"--directions {absent[0]}` builds a whole table)")
+                  f"--direction-count {absent[0]}` builds a whole table)")
     map_path = None if args.direction_map is None else Path(args.direction_map)
     if map_path is not None:
         if map_path.suffix != ".png":

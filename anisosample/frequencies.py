@@ -300,11 +300,11 @@ def design(
              "offsets_deg": list(ROBUST_OFFSETS_DEG)}
     else:
         p = {"length": 3.0 * math.sqrt(n), "width": 1.0, "angle_deg": 2.0, "disk_radius": 0.0}
-    for name, val in (("length", length), ("width", width), ("angle_deg", angle_deg),
-                      ("disk_radius", disk_radius), ("weight_spread_deg", weight_spread_deg),
-                      ("core_deg", core_deg)):
+    for key, val in (("length", length), ("width", width), ("angle_deg", angle_deg),
+                     ("disk_radius", disk_radius), ("weight_spread_deg", weight_spread_deg),
+                     ("core_deg", core_deg)):
         if val is not None:
-            p[name] = check_positive_float(name, val, allow_zero=name != "length")
+            p[key] = check_positive_float(key, val, allow_zero=key != "length")
     if p.get("core_deg", 0.0) >= 45.0:
         raise ValueError(f"core_deg must lie in [0, 45), got {p['core_deg']}")
     if offsets_deg is not None:

@@ -95,7 +95,7 @@ def test_the_no_build_command_builds_exactly_the_refused_set(cache):
     with pytest.raises(FileNotFoundError) as info:
         selection.aligned_set((40, 110), 16, build_missing=False)
     argv = _command(str(info.value))
-    assert argv[:5] == ["tables", "build", "--n", "16", "--directions"] and "--sets" in argv
+    assert argv[:5] == ["tables", "build", "--n", "16", "--direction-count"] and "--sets" in argv
     assert cli.main([*argv, "--steps", "2", "--no-progress"]) == 0
     pts = selection.aligned_set((40, 110), 16, build_missing=False)
     assert pts.shape == (16, 2)

@@ -342,7 +342,7 @@ def _cli(args, env_extra=None):
 
 def test_build_kill_and_resume_on_two_devices(tmp_path):
     """Kill a 2-device build at a random moment, restart it: same sets as an uninterrupted build."""
-    common = ["--n", "64", "--directions", "3", "--sets", "0,45", "--steps", "10",
+    common = ["--n", "64", "--direction-count", "3", "--sets", "0,45", "--steps", "10",
               "--checkpoint-every", "5", "--seed", "3"]
     sets = [(0,), (45,)]
     ref_dir, run_dir = tmp_path / "ref", tmp_path / "run"
@@ -383,7 +383,7 @@ def test_batched_build_shards_groups_over_two_devices(tmp_path):
     """batch 2 on two (forced CPU) devices: one synthesize_batch loop per group, its sets split
     over the 2 devices (one thread each); the sets equal the one-device batched build bit for
     bit (each set runs the same per-set program wherever it runs)."""
-    common = ["--n", "64", "--directions", "3", "--sets", "10,20,30", "--steps", "8",
+    common = ["--n", "64", "--direction-count", "3", "--sets", "10,20,30", "--steps", "8",
               "--batch", "2", "--seed", "1"]
     run_dir, ref_dir = tmp_path / "two", tmp_path / "one"
     cmd, env = _cli([*common, "--out", str(run_dir)],
@@ -414,7 +414,7 @@ def test_build_over_two_processes_with_jax_distributed(tmp_path, direction_count
     extras = ([(0,), (10,), (20,), (45,)] if direction_count == 3
               else [(0, 0), (10, 20), (20, 50), (30, 45)])
     run_dir, ref_dir = tmp_path / "two_hosts", tmp_path / "one_host"
-    common = ["--n", "32", "--directions", str(direction_count), "--sets", sets, "--steps", "6",
+    common = ["--n", "32", "--direction-count", str(direction_count), "--sets", sets, "--steps", "6",
               "--seed", "2", "--out", str(run_dir)]
     if direction_count == 3:
         common += ["--distributed", "--coordinator", f"127.0.0.1:{free_port()}",
@@ -463,7 +463,7 @@ def test_stopped_build_leaves_no_workers(tmp_path, signal_name):
 
     if asp.synthesis.usable_cores() < 2:
         pytest.skip("--processes 2 needs two usable cores")
-    cmd, env = _cli(["--n", "256", "--directions", "3", "--sets", "10,20,30,40",
+    cmd, env = _cli(["--n", "256", "--direction-count", "3", "--sets", "10,20,30,40",
                      "--steps", "100000", "--out", str(tmp_path / "t"), "--processes", "2"])
     parent = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
