@@ -18,8 +18,6 @@ curves are reused on rerun (``--fresh`` redoes).
 
 from __future__ import annotations
 
-import time
-
 import common
 import jax
 import jax.numpy as jnp
@@ -28,8 +26,10 @@ from _w_variance import (
     BASELINE_SCALES,
     JITTABLE,
     Memo,
+    curves_panel,
     measure,
     our_sets,
+    slopes,
     summarize,
     variance_of_sets,
 )
@@ -54,18 +54,22 @@ def integrand_cases():
     return cases
 
 
-def main(argv=None):
-    args = common.parser(NAME, __doc__.splitlines()[0]).parse_args(argv)
-    started = time.time()
-    cfg = BASELINE_SCALES[args.scale]
-    ns = [2**k for k in cfg["log2_ns"]]
-    out = args.out
-    (out / "curves").mkdir(parents=True, exist_ok=True)
-    key = jax.random.key(args.seed)
+def samplers_table():
     samplers = {name: (name, "fresh+shift") for name in JITTABLE}
     samplers["pmj02bn"] = (Memo(asp.samplers.get("pmj02bn")), "shift")
     samplers[f"sheared pmj02bn {THETA:g}"] = (
         Memo(asp.samplers.get("sheared", base="pmj02bn", direction_deg=THETA)), "shift")
+    return samplers
+
+
+def compute(settings, args):
+    """Every (integrand, sampler) curve, each kept in ``curves/`` (resumable)."""
+    cfg = settings
+    ns = [2**k for k in cfg["log2_ns"]]
+    out = args.out
+    (out / "curves").mkdir(parents=True, exist_ok=True)
+    key = jax.random.key(args.seed)
+    samplers = samplers_table()
     cases = integrand_cases()
     results: dict[str, dict] = {}
     sets = {}
@@ -83,19 +87,25 @@ def main(argv=None):
         f = cases[label]
         slug = f"{label}__{sname}".replace(" ", "_").replace("=", "").replace("/", "-")
         path = out / "curves" / f"{slug}.json"
-        settings = {"scale": args.scale, "seed": args.seed, "ns": ns, **cfg}
+        part = {"scale": args.scale, "seed": args.seed, "ns": ns,
+                **BASELINE_SCALES[args.scale]}
         if sname == OURS:
-            compute = lambda f=f: ours(f)  # noqa: E731
+            measured = lambda f=f: ours(f)  # noqa: E731
         else:
             sampler, mode = samplers[sname]
-            compute = lambda f=f, sampler=sampler, mode=mode: measure(  # noqa: E731
+            measured = lambda f=f, sampler=sampler, mode=mode: measure(  # noqa: E731
                 f, sampler, mode, ns, key, cfg)
-        curve = common.reuse_or_compute(path, settings, args.fresh, compute)
+        curve = common.reuse_or_compute(path, part, args.fresh, measured)
         entry = results.setdefault(label, {
             "integrand": type(f).__name__, "normal_deg": THETA, "integral": f.integral,
             "sigma": getattr(f, "sigma", 0.0), "samplers": {}})
         entry["samplers"][sname] = curve
+    return {"ns": ns, "fit_min_n": cfg["fit_min_n"], "realizations": cfg["realizations"],
+            "sigmas_px": SIGMAS_PX, "grid": GRID, "cases": results}
 
+
+def figure(data, args):
+    ns, results, cases = data["ns"], data["cases"], integrand_cases()
     fig, axes = plot.new_figure(2, len(cases), size=3.6)
     m = 256
     xy = asp.metrics.midpoint_grid(m, xp=jnp)  # values[i, j] = f(x_j, y_i)
@@ -104,21 +114,20 @@ def main(argv=None):
         axes[0, j].set_title(label, fontsize=9)
         axes[0, j].set_xticks([])
         axes[0, j].set_yticks([])
-        for sname, c in results[label]["samplers"].items():
-            fit = c["fit"]
-            plot.convergence_panel(axes[1, j], ns, c["variance"], label=sname,
-                                   slope=fit["slope"], slope_ci=(fit["ci_low"], fit["ci_high"]),
-                                   lower=c["ci_low"], upper=c["ci_high"])
+        curves_panel(axes[1, j], ns, results[label]["samplers"])
         axes[1, j].legend(fontsize=5.5, loc="lower left")
-    pngs = plot.save_figure(fig, out / NAME, formats=("png",))
-    json_path = common.write_record(out, NAME, {
-        "ns": ns, "fit_min_n": cfg["fit_min_n"], "realizations": cfg["realizations"],
-        "sigmas_px": SIGMAS_PX, "grid": GRID, "cases": results,
-    }, vars(args) | {"out": str(args.out)}, started)
-    print(f"figure: {pngs[0]}\nnumbers: {json_path}")
-    for label, entry in results.items():
-        print(f"  {label:22s} " + "  ".join(
-            f"{s}: {c['fit']['slope']:+.2f}" for s, c in entry["samplers"].items()))
+    plot.save_figure(fig, args.out / NAME, formats=("png",))
+
+
+def report(data, args):
+    print(f"figure: {args.out / NAME}.png\nnumbers: {args.out / NAME}.json")
+    for label, entry in data["cases"].items():
+        print(f"  {label:22s} " + slopes(entry["samplers"]))
+
+
+def main(argv=None):
+    return common.run(NAME, __doc__.splitlines()[0], BASELINE_SCALES, compute, figure=figure,
+                      report=report, argv=argv)
 
 
 if __name__ == "__main__":
