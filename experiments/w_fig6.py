@@ -30,6 +30,7 @@ variances on rerun.
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
@@ -38,7 +39,7 @@ import jax
 import numpy as np
 from _w_variance import our_sets, variance_of_sets
 
-from anisosample import integrands, io, synthesis
+from anisosample import integrands, synthesis
 from anisosample import variance as V
 from anisosample.progress import progress
 
@@ -72,9 +73,17 @@ def curve(rows, ns):
     return {"variance": var, "std_error": se, "fit": fit.as_dict()}
 
 
-def main(argv=None):
-    # fixed keys (sets: 1000 + s; variances: 6); --fresh recomputes the variance curves
-    ap = common.parser("w_fig6", __doc__.splitlines()[0], seed=None)
+def baselines_option(text):
+    """``--baselines``: a comma list of :data:`BASELINES`' names, or 'none'."""
+    chosen = [] if text == "none" else text.split(",")
+    for b in chosen:
+        if b not in BASELINES:
+            raise argparse.ArgumentTypeError(
+                f"unknown {b!r}; choose from {list(BASELINES)} or 'none'")
+    return chosen
+
+
+def arguments(ap):
     ap.add_argument("--log2-ns", default=None, help="override, e.g. 8,9,10,11,12,13,14")
     ap.add_argument("--seeds", type=int, default=None, help="override sets per n")
     ap.add_argument("--one-edge", default=None, help="override one-edge angles, e.g. 30,67")
@@ -98,10 +107,14 @@ def main(argv=None):
     ap.add_argument("--compare", action="append", default=None,
                     help="another run's --out whose misalignment curve is overlaid (repeatable)")
     ap.add_argument("--label", default=None, help="legend label of this run's curve")
-    ap.add_argument("--baselines", default=",".join(BASELINES),
+    ap.add_argument("--baselines", type=baselines_option, default=",".join(BASELINES),
                     help="comma list of baselines to compare with, or 'none'")
-    args = ap.parse_args(argv)
-    cfg = dict(SCALES[args.scale])
+
+
+def settings(scale, args):
+    """The scale's settings with the command line's overrides, the sets' recipe and its
+    defaults: what the record, the sets and the variance curves are made with."""
+    cfg = dict(scale)
     fopts = {}
     if args.weight_spread_deg:
         fopts["weight_spread_deg"] = args.weight_spread_deg
@@ -110,13 +123,8 @@ def main(argv=None):
     if args.offsets_deg:  # "none": no offsets (the aligned-only weights)
         fopts["offsets_deg"] = ([] if args.offsets_deg == "none"
                                 else [float(t) for t in args.offsets_deg.split(",")])
-    fopts = fopts or None
-    cfg["frequency_options"] = fopts
-    baselines = [] if args.baselines == "none" else args.baselines.split(",")
-    for b in baselines:
-        if b not in BASELINES:
-            ap.error(f"--baselines: unknown {b!r}; choose from {list(BASELINES)} or 'none'")
-    cfg["baselines"] = baselines
+    cfg["frequency_options"] = fopts or None
+    cfg["baselines"] = args.baselines
     if args.log2_ns:
         cfg["log2_ns"] = [int(t) for t in args.log2_ns.split(",")]
     if args.seeds:
@@ -135,8 +143,16 @@ def main(argv=None):
     if args.only_one_edge:
         cfg["two_edges"], cfg["four_edges"] = [], []
         cfg["misaligned"] = (cfg["one_edge"][0], [])
+    return {"scale": args.scale, **cfg, "ns": [2**k for k in cfg["log2_ns"]],
+            "recipe": "rate", "defaults": synthesis.recipe_defaults("rate")}
+
+
+def compute(cfg, args):
+    """Our sets (``sets/``), every case's variance curves and the misalignment curve (``var/``,
+    one settings-checked file a curve: resumable)."""
     out = args.out
-    ns = [2**k for k in cfg["log2_ns"]]
+    fopts, baselines = cfg["frequency_options"], cfg["baselines"]
+    ns = cfg["ns"]
     seeds, R = cfg["seeds"], cfg["realizations"]
     key = jax.random.key(6)
 
@@ -164,9 +180,7 @@ def main(argv=None):
     sets = {d: our_sets(out, list(d), ns, seeds, bar, fopts) for d in sorted(set_dirs)}
     bar.close()
 
-    results = {"settings": {"scale": args.scale, **cfg, "ns": ns,
-                            "recipe": "rate", "defaults": synthesis.recipe_defaults("rate")},
-               "provenance": io.provenance(), "cases": {}}
+    results = {"cases": {}}
     for label, fdirs, sdirs in progress(cases, desc="w_fig6 variance"):
         f = integrands.edges(fdirs)
         slug = label.replace(" ", "_").replace("/", "-").replace(",", "-") + tag
@@ -184,13 +198,10 @@ def main(argv=None):
                  "patterns": 16 if BASELINES[b] == "shift" else None},
                 lambda b=b, f=f: curve(variance_of_baseline(f, b, ns, R, key), ns))
         results["cases"][label] = entry
-        print(f"{label}: ours {entry['ours']['fit']['slope']:.3f} "
-              f"[{entry['ours']['fit']['ci_low']:.3f}, {entry['ours']['fit']['ci_high']:.3f}]  "
-              + "  ".join(f"{b} {entry[b]['fit']['slope']:.3f}" for b in baselines), flush=True)
 
     # robustness: the set made for t0 on edges at t0 + delta
-    rob = {}
     if t0 is not None:
+        rob = {}
         for dl in progress(deltas, desc="w_fig6 misalignment"):
             f = integrands.edges([t0 + dl])
             rob[f"{dl:+g}"] = cached(out / "var" / f"misaligned_{t0:g}_{dl:+g}{tag}.json",
@@ -202,14 +213,19 @@ def main(argv=None):
         results["misalignment"] = {"set_direction_deg": t0,
                                    "slope_by_delta": {k: v["fit"] for k, v in sorted(
                                        rob.items(), key=lambda kv: float(kv[0]))}}
-        for k, v in sorted(rob.items(), key=lambda kv: float(kv[0])):
-            print(f"misaligned {k} deg: slope {v['fit']['slope']:.3f}")
+    return results
 
+
+def figure(results, args):
+    """One panel per case (ours and the baselines), one for the misalignment slopes (with
+    ``--compare``'s runs overlaid); drawn from the record."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    ns, out = args.settings["ns"], args.out
+    rob = results.get("misalignment")
     k = len(results["cases"]) + (1 if rob else 0)
     fig, axes = plt.subplots(1, k, figsize=(3.4 * k, 3.2), squeeze=False)
     for ax, (label, e) in zip(axes[0], results["cases"].items(), strict=False):
@@ -224,11 +240,12 @@ def main(argv=None):
         ax.legend(fontsize=7)
     axes[0][0].set_ylabel("variance")
     if rob:
+        t0 = rob["set_direction_deg"]
         ax = axes[0][-1]
-        d = sorted(float(x) for x in rob)
-        s = [results["misalignment"]["slope_by_delta"][f"{x:+g}"]["slope"] for x in d]
-        lo = [results["misalignment"]["slope_by_delta"][f"{x:+g}"]["ci_low"] for x in d]
-        hi = [results["misalignment"]["slope_by_delta"][f"{x:+g}"]["ci_high"] for x in d]
+        d = sorted(float(x) for x in rob["slope_by_delta"])
+        s = [rob["slope_by_delta"][f"{x:+g}"]["slope"] for x in d]
+        lo = [rob["slope_by_delta"][f"{x:+g}"]["ci_low"] for x in d]
+        hi = [rob["slope_by_delta"][f"{x:+g}"]["ci_high"] for x in d]
         ax.errorbar(d, s, yerr=[np.subtract(s, lo), np.subtract(hi, s)], fmt="-o", ms=3,
                     label=args.label or "this run")
         for other in args.compare or []:  # overlay another run's curve (e.g. the old design)
@@ -247,8 +264,25 @@ def main(argv=None):
     fig.tight_layout()
     out.mkdir(parents=True, exist_ok=True)
     fig.savefig(out / "w_fig6.png", dpi=130)
-    io.save_json(out / "w_fig6.json", results, overwrite=True)
-    print(f"wrote {out / 'w_fig6.png'} and {out / 'w_fig6.json'}")
+    plt.close(fig)
+
+
+def report(results, args):
+    baselines = args.settings["baselines"]
+    for label, entry in results["cases"].items():
+        fit = entry["ours"]["fit"]
+        print(f"{label}: ours {fit['slope']:.3f} [{fit['ci_low']:.3f}, {fit['ci_high']:.3f}]  "
+              + "  ".join(f"{b} {entry[b]['fit']['slope']:.3f}" for b in baselines))
+    for k, v in results.get("misalignment", {}).get("slope_by_delta", {}).items():
+        print(f"misaligned {k} deg: slope {v['slope']:.3f}")
+    print(f"wrote {args.out / 'w_fig6.png'} and {args.out / 'w_fig6.json'}")
+
+
+def main(argv=None):
+    # fixed keys (sets: 1000 + s; variances: 6); --fresh recomputes the variance curves
+    return common.run("w_fig6", __doc__.splitlines()[0], SCALES, compute, figure=figure,
+                      report=report, arguments=arguments, settings=settings, seed=None,
+                      argv=argv)
 
 
 if __name__ == "__main__":
