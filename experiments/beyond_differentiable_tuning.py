@@ -64,7 +64,7 @@ from _h_shading import (
     patch_three_warp,
     triangle_methods,
 )
-from common import cached_json, parser, reuse_or_compute, write_record
+from common import reuse_or_compute
 
 import anisosample as asp
 import anisosample.warps as W
@@ -438,19 +438,34 @@ def plot(data, settings, out):
     return aplot.save_figure(fig, out / f"{NAME}.png")
 
 
-def main(argv=None):
-    ap = parser(NAME, __doc__.splitlines()[0])
+def arguments(ap):
     ap.add_argument(
         "--part",
         choices=["all", "warps", "synthesis"],
         default="all",
         help="warps (part 1), synthesis (part 2) or both (default)",
     )
-    args = ap.parse_args(argv)
-    started = time.time()
-    settings = dict(SCALES[args.scale], scale=args.scale, seed=args.seed, timing="cpu")
-    syn = dict(SYNTHESIS[args.scale], scale=args.scale)
-    record = cached_json(args.out / f"{NAME}.json", False) or {}
+
+
+def settings(scale, args):
+    """Part 1's settings, part 2's under ``synthesis``: what the record is made with, whichever
+    parts a run computes."""
+    return dict(scale, scale=args.scale, seed=args.seed, timing="cpu",
+                synthesis=dict(SYNTHESIS[args.scale], scale=args.scale))
+
+
+def complete(data, args):
+    """A record holds part 1 always (a run computes it when it is missing); part 2 where it was
+    asked for once."""
+    return args.part == "warps" or "synthesis" in data
+
+
+def compute(chosen, args):
+    """The parts ``--part`` names; the others are kept from a record made with these settings
+    (part 1 is computed when there is none)."""
+    settings = {k: v for k, v in chosen.items() if k != "synthesis"}
+    syn = chosen["synthesis"]
+    record = common.reuse(args.out / f"{NAME}.json", chosen, False) or {}
     if args.part in ("all", "warps") or "summary" not in record:
         data = run(settings, args.out, args.fresh)
     else:
@@ -466,8 +481,14 @@ def main(argv=None):
         )
     elif "synthesis" in record:
         data["synthesis"] = record["synthesis"]
-    write_record(args.out, NAME, data, dict(settings, synthesis=syn), started)
-    plot(data, settings, args.out)
+    return data
+
+
+def figure(data, args):
+    plot(data, args.settings, args.out)
+
+
+def report(data, args):
     for light, part in (("triangle", data), ("patch", data.get("patch"))):
         if part is None:
             continue
@@ -504,12 +525,18 @@ def main(argv=None):
             f"  widest central difference: {r['wide_fd_mean']:.3e} +- {r['wide_fd_std']:.1e}"
             f" (local gradient / it: {r['gradient_over_wide_fd']:.3g})"
         )
-        for d in SYNTHESIS[settings["scale"]]["deltas"]:
+        for d in args.settings["synthesis"]["deltas"]:
             print(
                 f"  central difference +-{d:g}: median rel. error"
                 f" {r[f'median_rel_error_vs_fd_{d}']:.3g},"
                 f" sign agrees {r[f'fraction_sign_agrees_fd_{d}']:.2f}"
             )
+
+
+def main(argv=None):
+    return common.run(NAME, __doc__.splitlines()[0], SCALES, compute, figure=figure,
+                      report=report, arguments=arguments, settings=settings, complete=complete,
+                      argv=argv)
 
 
 if __name__ == "__main__":

@@ -95,7 +95,7 @@ RECORD_KEYS = ("experiment", "settings", "provenance", "seconds", "command")
 
 def run(name: str, doc: str | None, scales: dict, compute, *, figure=None, report=None,
         arguments=None, settings=None, seed: int | None = 0, argv=None, record: str | None = None,
-        outputs=(), adjust=None) -> dict:
+        outputs=(), adjust=None, complete=None) -> dict:
     """One experiment on the shared harness; returns its numbers.
 
     1. Arguments: :func:`parser` (``seed`` as there), plus ``arguments(p)``'s own options;
@@ -129,8 +129,12 @@ def run(name: str, doc: str | None, scales: dict, compute, *, figure=None, repor
     fields = {**vars(args), "name": name}
     path = args.out / (record or "{name}.json").format(**fields)
     found = reuse(path, chosen, args.fresh)
+    data = None
     if found is not None and all((args.out / o.format(**fields)).exists() for o in outputs):
         data = {k: v for k, v in found.items() if k not in RECORD_KEYS}
+        if complete is not None and not complete(data, args):
+            data = None
+    if data is not None:
         print(f"reusing {path}")
     else:
         args.out.mkdir(parents=True, exist_ok=True)

@@ -124,3 +124,45 @@ def test_run_keeps_parts_extra_outputs_and_a_named_record(tmp_path):
         "report [1, 4, 9, 16] paper"
     assert (out / "parts_paper.json").exists() and (out / "parts_small.json").exists()
     assert _run(script, tmp_path, "--out", str(base), "--fresh")[:1] == ["computing part 1"]
+
+
+PARTIAL = '''
+import sys
+sys.path.insert(0, {experiments!r})
+import common
+
+SCALES = {{"small": {{"n": 2}}, "paper": {{"n": 3}}}}
+
+
+def compute(settings, args):
+    kept = common.reuse(args.out / "partial.json", settings, False) or {{}}
+    data = {{k: kept[k] for k in ("a", "b") if k in kept}}
+    for part in ("a", "b") if args.part == "all" else (args.part,):
+        print("computing", part)
+        data[part] = settings["n"]
+    return data
+
+
+if __name__ == "__main__":
+    common.run("partial", None, SCALES, compute,
+               arguments=lambda p: p.add_argument("--part", default="all"),
+               complete=lambda data, args: args.part in data or (
+                   args.part == "all" and {{"a", "b"}} <= set(data)),
+               report=lambda data, args: print("report", sorted(data)))
+'''
+
+
+def test_run_recomputes_a_record_that_lacks_what_is_asked(tmp_path):
+    """``complete``: a record made with these settings but without the part a run asks for is
+    recomputed (the compute may keep the record's other parts)."""
+    script = tmp_path / "partial.py"
+    script.write_text(PARTIAL.format(experiments=str(REPO / "experiments")))
+    out = tmp_path / "out"
+    assert _run(script, tmp_path, "--out", str(out), "--part", "a") == [
+        "computing a", "report ['a']"]
+    assert _run(script, tmp_path, "--out", str(out), "--part", "a") == [
+        f"reusing {out / 'partial.json'}", "report ['a']"]
+    assert _run(script, tmp_path, "--out", str(out), "--part", "b") == [
+        "computing b", "report ['a', 'b']"]
+    assert _run(script, tmp_path, "--out", str(out)) == [
+        f"reusing {out / 'partial.json'}", "report ['a', 'b']"]
