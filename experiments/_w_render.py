@@ -204,9 +204,21 @@ __all__ = [
 def scene_parser(name: str, doc: str):
     """The experiments' parser plus ``--scenes`` (W Figs. 7-9)."""
     p = common.parser(name, doc)
-    p.add_argument("--scenes", default=",".join(SCENES),
-                   help="comma-separated scenes (default: all shipped)")
+    scene_option(p)
     return p
+
+
+def scene_option(p, default=None):
+    """``--scenes`` (W Figs. 7-9): comma-separated scene names, ``default`` (a sequence of
+    names; all shipped when None)."""
+    p.add_argument("--scenes", default=",".join(SCENES if default is None else default),
+                   help="comma-separated scenes (default: all shipped)")
+
+
+def scene_settings(scale: dict, args) -> dict:
+    """The settings of a W Figs. 7-9 record: the scale's, ``scale``, ``seed`` and the scenes
+    asked for (their order sets their keys)."""
+    return {**scale, "scale": args.scale, "seed": args.seed, "scenes": args.scenes.split(",")}
 
 
 def run_scenes(name: str, args, cfg: dict, run_scene):

@@ -115,7 +115,7 @@ def main(argv=None):
     args.out.mkdir(parents=True, exist_ok=True)
     fig9 = common.run_script("w_fig9", args.fig9_out, "--scale", args.scale, "--seed",
                              str(args.seed))
-    cfg9 = {k: v for k, v in fig9["settings"].items() if k not in ("scale", "seed")}
+    cfg9 = {k: v for k, v in fig9["settings"].items() if k not in ("scale", "seed", "scenes")}
     key = jax.random.key(args.seed)
     settings = {**cfg, "scale": args.scale, "seed": args.seed, "fig9": cfg9}
     cached = common.cached_json(args.out / "timings.json", args.fresh)

@@ -48,7 +48,6 @@ direction(s), its block's estimate, and per method its per-pixel variances and s
 
 from __future__ import annotations
 
-import json
 import time
 
 import _w_render as W
@@ -430,19 +429,15 @@ def figure(results, out):
     return plot.save_figure(fig, out / NAME, formats=("png",))
 
 
-def main(argv=None):
-    p = W.scene_parser(NAME, __doc__.splitlines()[0])
-    p.set_defaults(scenes=",".join(SCENES))
-    args = p.parse_args(argv)
-    started = time.time()
-    cfg = SCALES[args.scale]
-    results, missing = W.run_scenes(NAME, args, cfg, run_scene)
-    pngs = figure(results, args.out)
-    data = {"scenes": results, "missing_scenes": missing}
-    json_path = common.write_record(args.out, NAME, data, {**cfg, "scale": args.scale,
-                                    "seed": args.seed}, started)
-    print(f"figure: {pngs[0]}\nnumbers: {json_path}")
-    for s, r in results.items():
+def compute(settings, args):
+    """Every scene's record in ``scenes/`` (resumable: a finished scene is reused)."""
+    results, missing = W.run_scenes(NAME, args, SCALES[args.scale], run_scene)
+    return {"scenes": results, "missing_scenes": missing}
+
+
+def report(data, args):
+    print(f"figure: {args.out / NAME}.png\nnumbers: {args.out / NAME}.json")
+    for s, r in data["scenes"].items():
         for cname, c in r["classes"].items():
             print(f"  {s} {cname}: {len(c['pixels'])} pixels at {r['resolution']}")
             for m, sm in c["summary"].items():
@@ -472,7 +467,13 @@ def main(argv=None):
                 print(f"    {m:22s} slope {sm['slope_median']:+.2f} [{q[0]:+.2f}, {q[1]:+.2f}]"
                       f" (256/1k/4k: {sm.get('slope3_median', float('nan')):+.2f})"
                       f"  Var@{c['ns'][-1]} / pmj02bn {sm['ratio_median']:.2f}")
-    return json.loads(json_path.read_text())
+
+
+def main(argv=None):
+    return common.run(NAME, __doc__.splitlines()[0], SCALES, compute,
+                      figure=lambda data, args: figure(data["scenes"], args.out), report=report,
+                      arguments=lambda p: W.scene_option(p, SCENES), settings=W.scene_settings,
+                      argv=argv)
 
 
 if __name__ == "__main__":
