@@ -46,7 +46,6 @@ four (blinds' shadow pattern classifies as ``other``, so it has no one-edge bloc
 
 from __future__ import annotations
 
-import json
 import time
 
 import _w_render as W
@@ -198,18 +197,19 @@ def figure(results, out, cfg, vmax=15.0):
     return plot.save_figure(fig, out / NAME, formats=("png",))
 
 
-def main(argv=None):
-    p = W.scene_parser(NAME, __doc__.splitlines()[0])
-    p.set_defaults(scenes=",".join(SCENES))
-    args = p.parse_args(argv)
-    started = time.time()
+def compute(settings, args):
+    """Every scene's record in ``scenes/`` (resumable: a finished scene, with its preview
+    render, is reused) and the figure (drawn over the preview renders, which the record does
+    not keep)."""
     cfg = SCALES[args.scale]
     results, missing = W.run_scenes(NAME, args, cfg, run_scene)
-    pngs = figure(results, args.out, cfg)
-    json_path = common.write_record(args.out, NAME, {"scenes": results, "missing_scenes": missing},
-                                    {**cfg, "scale": args.scale, "seed": args.seed}, started)
-    print(f"figure: {pngs[0]}\nnumbers: {json_path}")
-    for s, r in results.items():
+    figure(results, args.out, cfg)
+    return {"scenes": results, "missing_scenes": missing}
+
+
+def report(data, args):
+    print(f"figure: {args.out / NAME}.png\nnumbers: {args.out / NAME}.json")
+    for s, r in data["scenes"].items():
         sm = r["summary"]
         a, o = sm["all"], sm["off_axis"]
 
@@ -223,7 +223,12 @@ def main(argv=None):
               f"estimate); recheck vs w_fig9 {r['max_recheck_deg']:.3f} deg")
         print(f"    blocks {fmt(a['blocks'])}; pixels {fmt(a['pixels'])}")
         print(f"    off-axis blocks {fmt(o['blocks'])}; pixels {fmt(o['pixels'])}")
-    return json.loads(json_path.read_text())
+
+
+def main(argv=None):
+    return common.run(NAME, __doc__.splitlines()[0], SCALES, compute, report=report,
+                      outputs=(f"{NAME}.png",), arguments=lambda p: W.scene_option(p, SCENES),
+                      settings=W.scene_settings, argv=argv)
 
 
 if __name__ == "__main__":
