@@ -26,7 +26,6 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import common
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -199,13 +198,6 @@ __all__ = [
     "block_sets", "pixel_variance", "region_pixels", "pick_block", "block_samples", "pixel_gate",
     "direction_rgb", "asp",
 ]
-
-
-def scene_parser(name: str, doc: str):
-    """The experiments' parser plus ``--scenes`` (W Figs. 7-9)."""
-    p = common.parser(name, doc)
-    scene_option(p)
-    return p
 
 
 def scene_option(p, default=None):

@@ -38,9 +38,6 @@ image; needs a table for N points or builds one).
 
 from __future__ import annotations
 
-import json
-import time
-
 import _w_render as W
 import common
 import jax
@@ -150,30 +147,45 @@ def figure(results, out):
     return plot.save_figure(fig, out / NAME, formats=("png",))
 
 
-def main(argv=None):
-    p = W.scene_parser(NAME, __doc__.splitlines()[0])
+def arguments(p):
+    W.scene_option(p)
     p.add_argument("--spp", type=int, default=None, help="replace the scale's spp")
-    args = p.parse_args(argv)
-    started = time.time()
-    cfg = dict(SCALES[args.scale])
+
+
+def settings(scale, args):
+    """The scale's settings (``--spp`` replacing its spp), the methods and the scenes."""
+    cfg = dict(scale)
     if args.spp is not None:
         cfg["spp"] = args.spp
+    return {**cfg, "scale": args.scale, "seed": args.seed, "methods": list(METHODS),
+            "scenes": args.scenes.split(",")}
+
+
+def compute(settings, args):
+    """Every scene's record in ``scenes/`` (resumable: a finished scene, with its variance
+    images, is reused), the figure (drawn from those images) and the images' numbers."""
+    cfg = {k: settings[k] for k in SCALES[args.scale]}
     results, missing = W.run_scenes(NAME, args, cfg, run_scene)
-    pngs = figure(results, args.out)
+    figure(results, args.out)
     images = {s: {m: np.round(asp.io.read_exr(args.out / f"{s}_{_slug(m)}_variance.exr")
                               .astype(float), 15).tolist() for m in METHODS} for s in results}
-    json_path = common.write_record(args.out, NAME, {"scenes": results, "missing_scenes": missing,
-                                                     "pixel_variance": images},
-                                    {**cfg, "scale": args.scale, "seed": args.seed,
-                                     "methods": list(METHODS)}, started)
-    print(f"figure: {pngs[0]}\nnumbers: {json_path}")
-    for s, r in results.items():
+    return {"scenes": results, "missing_scenes": missing, "pixel_variance": images}
+
+
+def report(data, args):
+    print(f"figure: {args.out / NAME}.png\nnumbers: {args.out / NAME}.json")
+    for s, r in data["scenes"].items():
         print(f"  {s} ({r['blocks_with_direction']} blocks with an extra direction, "
               f"{r['pixels_gated']} of their {r['pixels_in_blocks_with_direction']} pixels "
               f"gated): " + ", ".join(f"{m} {v:.3e} (x{r['ratio_to_pmj02bn'][m]:.3f})"
                                       for m, v in r["image_mean_variance"].items())
               + f"; gated / ungated {r['gated_over_ungated']:.3f}")
-    return json.loads(json_path.read_text())
+
+
+def main(argv=None):
+    return common.run(NAME, __doc__.splitlines()[0], SCALES, compute, report=report,
+                      outputs=(f"{NAME}.png",), arguments=arguments, settings=settings,
+                      argv=argv)
 
 
 if __name__ == "__main__":
