@@ -20,9 +20,9 @@ import numpy as np
 from anisosample import io, render, scenes
 
 try:
-    from common import parser, write_record
+    import common
 except ImportError:  # run as a module
-    from experiments.common import parser, write_record
+    from experiments import common
 
 SCENES = scenes.FOLDER
 SIZES = {"small": (96, 256), "paper": (512, 4096)}
@@ -38,19 +38,28 @@ def reused_exr(path: Path, made: dict, fresh: bool):
     return None
 
 
-def main(argv=None):
-    p = parser("render_scenes", __doc__)
+def arguments(p):
     p.add_argument("--scenes", default=None, help="comma-separated scene names (default: all)")
-    args = p.parse_args(argv)
-    started = time.time()
-    size, spp = SIZES[args.scale]
-    out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
+
+
+def settings(scale, args):
+    """Size, spp, sampler, seed, Mitsuba's variant and the scenes (all shipped ones unless
+    ``--scenes``; their order sets their keys)."""
+    size, spp = scale
     names = sorted(x.stem for x in SCENES.glob("*.xml"))
     if args.scenes:
         names = [n for n in args.scenes.split(",") if n]
+    return {"scale": args.scale, "size": size, "spp": spp, "sampler": "random",
+            "seed": args.seed, "mitsuba_variant": "scalar_rgb", "scenes": names}
+
+
+def compute(cfg, args):
+    """Every scene, ours and Mitsuba's; each image is a resumable part (its EXR says what it was
+    made with)."""
+    size, spp = cfg["size"], cfg["spp"]
+    out: Path = args.out
     rows = {}
-    for i, name in enumerate(names):
+    for i, name in enumerate(cfg["scenes"]):
         path = SCENES / f"{name}.xml"
         ours_path = out / f"{name}.exr"
         params = dict(width=size, height=size)
@@ -91,12 +100,21 @@ def main(argv=None):
             row["mean_ours"] = float(ours.mean())
             row["mean_mitsuba"] = float(ref.mean())
         rows[name] = row
-        print(f"{name}: {row}")
-    settings = {"scale": args.scale, "size": size, "spp": spp, "sampler": "random",
-                "seed": args.seed, "mitsuba_variant": "scalar_rgb"}
-    write_record(out, "render_scenes", {"scenes": rows}, settings, started)
-    return 0
+        print(f"{name}: {row}", flush=True)  # as it goes: the report's lines
+    args.printed_rows = True
+    return {"scenes": rows}
+
+
+def report(data, args):
+    if not getattr(args, "printed_rows", False):
+        for name, row in data["scenes"].items():
+            print(f"{name}: {row}")
+
+
+def main(argv=None):
+    return common.run("render_scenes", __doc__, SIZES, compute, report=report,
+                      arguments=arguments, settings=settings, argv=argv)
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    main()
