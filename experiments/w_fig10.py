@@ -30,7 +30,6 @@ the aligned (block) variance over it. Timings depend on the machine and its load
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -39,7 +38,6 @@ import common
 import jax
 import numpy as np
 
-import anisosample as asp
 from anisosample import plot, render
 
 NAME = "w_fig10"
@@ -105,32 +103,47 @@ def interp_loglog(ns, var, x):
     return float(np.exp(np.interp(np.log(x), np.log(ns), np.log(var))))
 
 
-def main(argv=None):
-    p = common.parser(NAME, __doc__.splitlines()[0])
+def arguments(p):
     p.add_argument("--fig9-out", type=Path, default=common.ROOT / "results" / "w_fig9",
                    help="w_fig9's results folder (reused; computed there if missing)")
-    args = p.parse_args(argv)
-    started = time.time()
+
+
+def settings(scale, args):
+    """The scale's settings, ``scale``, ``seed`` and w_fig9's settings (but its scale, seed and
+    scenes), from w_fig9's record: w_fig9 runs first, in its own process (``args.fig9``)."""
+    args.fig9 = common.run_script("w_fig9", args.fig9_out, "--scale", args.scale, "--seed",
+                                  str(args.seed))
+    cfg9 = {k: v for k, v in args.fig9["settings"].items()
+            if k not in ("scale", "seed", "scenes")}
+    return {**scale, "scale": args.scale, "seed": args.seed, "fig9": cfg9}
+
+
+def fig9_curves(fig9):
+    """``{scene: (ns, {method: median curve}, {method: its ns})}`` of w_fig9's record."""
+    return {s: median_curves(r["classes"][CLASS]) for s, r in fig9["scenes"].items()
+            if r["classes"].get(CLASS, {}).get("pixels")}
+
+
+def complete(data, args):
+    """A record is reused only while w_fig9's curves it drew are w_fig9's curves now."""
+    now = {s: {m: v.tolist() for m, v in c[1].items()} for s, c in fig9_curves(args.fig9).items()}
+    return now == {s: r["curves"] for s, r in data["scenes"].items()}
+
+
+def compute(settings, args):
+    """The timings (``timings.json``, reused under the same settings), the figure (an extra
+    output: the curves at their own ns, from w_fig9's record) and the equal-time numbers."""
+    fig9, cfg9 = args.fig9, settings["fig9"]
     cfg = SCALES[args.scale]
-    args.out.mkdir(parents=True, exist_ok=True)
-    fig9 = common.run_script("w_fig9", args.fig9_out, "--scale", args.scale, "--seed",
-                             str(args.seed))
-    cfg9 = {k: v for k, v in fig9["settings"].items() if k not in ("scale", "seed", "scenes")}
     key = jax.random.key(args.seed)
-    settings = {**cfg, "scale": args.scale, "seed": args.seed, "fig9": cfg9}
-    cached = common.cached_json(args.out / "timings.json", args.fresh)
-    curves9 = {s: median_curves(r["classes"][CLASS]) for s, r in fig9["scenes"].items()
-               if r["classes"].get(CLASS, {}).get("pixels")}
+    curves9 = fig9_curves(fig9)
     ns_of = {s: c[2] for s, c in curves9.items()}
     curves9 = {s: c[:2] for s, c in curves9.items()}
     scenes = list(curves9)
-    if cached is not None and cached.get("settings") == settings:
-        timings = cached["timings"]
-    else:
-        timings = {s: measure(s, cfg9, cfg, jax.random.fold_in(key, i))
-                   for i, s in enumerate(scenes)}
-        asp.io.save_json(args.out / "timings.json",
-                         {"settings": settings, "timings": timings}, overwrite=True)
+    timings = common.reuse_or_compute(
+        args.out / "timings.json", settings, args.fresh,
+        lambda: {s: measure(s, cfg9, cfg, jax.random.fold_in(key, i))
+                 for i, s in enumerate(scenes)}, field="timings")
     fig, axes = plot.new_figure(1, max(1, len(scenes)), size=3.4)
     rows = {}
     for col, s in enumerate(scenes):
@@ -160,10 +173,13 @@ def main(argv=None):
         ax.set_title(f"{s}: {CLASS} pixels, equal time, aligned +{shift:.1f} spp", fontsize=8)
         ax.set_xlabel("N (samples per pixel of equal time)")
         ax.legend(fontsize=6, loc="lower left")
-    pngs = plot.save_figure(fig, args.out / NAME, formats=("png",))
-    json_path = common.write_record(args.out, NAME, {"scenes": rows}, settings, started)
-    print(f"figure: {pngs[0]}\nnumbers: {json_path}")
-    for s, r in rows.items():
+    plot.save_figure(fig, args.out / NAME, formats=("png",))
+    return {"scenes": rows}
+
+
+def report(data, args):
+    print(f"figure: {args.out / NAME}.png\nnumbers: {args.out / NAME}.json")
+    for s, r in data["scenes"].items():
         print(f"  {s}: estimation {1e3 * r['t_est_s']:.1f} ms for the image "
               f"({1e6 * r['t_est_per_pixel_s']:.2f} us/pixel), {1e9 * r['t_per_sample_s']:.1f} "
               f"ns/sample -> shift {r['shift_spp']:.1f} spp")
@@ -172,7 +188,12 @@ def main(argv=None):
                   f"{c['aligned_over_this']:.3f}")
             for a, b in c["by_method"].items():
                 print(f"      {a:18s} +{b['shift_spp']:.1f} spp: {b['aligned_over_this']:.3f}")
-    return json.loads(json_path.read_text())
+
+
+def main(argv=None):
+    return common.run(NAME, __doc__.splitlines()[0], SCALES, compute, report=report,
+                      outputs=(f"{NAME}.png",), arguments=arguments, settings=settings,
+                      complete=complete, argv=argv)
 
 
 if __name__ == "__main__":
