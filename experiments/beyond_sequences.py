@@ -37,20 +37,23 @@ DESIGNS = {"equal": {}, "equal, 600 steps": {"steps": 600},
 # the four comparisons add 4 x 600 optimizer steps per direction to the default's 1500
 SMALL_DESIGNS = ("equal",)
 KEYS = (1, 2, 3)
+# the sequences' length and first prefix, toroidal shifts per variance, extra directions, designs
+SCALES = {
+    "small": dict(length=4096, start=256, realizations=16384, extra_directions=4,
+                  designs=list(SMALL_DESIGNS)),
+    "paper": dict(length=4096, start=256, realizations=65536, extra_directions=6,
+                  designs=list(DESIGNS)),
+}
 
 
-def main(argv=None):
-    args = common.parser(NAME, __doc__).parse_args(argv)
-    started = time.time()
-    out = args.out
-    small = args.scale == "small"
-    length, start = 4096, 256
+def compute(cfg, args):
+    out, length, start = args.out, cfg["length"], cfg["start"]
     ns = synthesis.sequence_levels(length, start)
-    realizations = 16384 if small else 65536
+    realizations = cfg["realizations"]
     rng = np.random.default_rng(args.seed + 1)
-    designs = {k: v for k, v in DESIGNS.items() if not small or k in SMALL_DESIGNS}
+    designs = {k: DESIGNS[k] for k in cfg["designs"]}
     extra = [int(a) for a in rng.choice([a for a in range(5, 176) if abs(a - 90) >= 5], 6,
-                                        replace=False)][:4 if small else 6]
+                                        replace=False)][:cfg["extra_directions"]]
     key = jax.random.key(args.seed)
     vkey = jax.random.fold_in(key, 99)
 
@@ -91,14 +94,9 @@ def main(argv=None):
                 "band_energy_max": bands, "seconds": sec,
                 "standalone_variance": {str(n): standalone[n] for n in ns},
                 "pmj02bn_variance": {str(n): pmj[n] for n in ns}}
-            print(f"extra {a:3d} deg, {label:18s}: ratio to set per prefix "
-                  f"{' '.join(f'{r:.2f}' for r in ratio)}, slope {fit.slope:+.2f} (sets "
-                  f"{set_slope:+.2f}), at {length}: "
-                  f"{var[-1] / pmj[length]:.2f}x pmj02bn, worst band n P_S "
-                  f"{max(bands.values()):.3f} ({sec:.0f} s)", flush=True)
-        spread = [max(v) / min(v) for v in standalone.values()]
-        print(f"extra {a:3d} deg: standalone sets over keys {KEYS}: max/min variance "
-              f"{' '.join(f'{s:.2f}' for s in spread)}", flush=True)
+            print(record_line(records[f"{a}/{label}"], length), flush=True)  # as it goes
+        print(spread_line(a, records[f"{a}/{label}"]), flush=True)
+    args.printed_records = True  # the report's first lines
 
     summary = {}
     for label in designs:
@@ -116,16 +114,29 @@ def main(argv=None):
             "ratio_to_pmj02bn_at_N_worst": float(max(r["ratio_to_pmj02bn"][-1] for r in sel)),
             "band_energy_worst": float(max(max(r["band_energy_max"].values()) for r in sel)),
         }
-        s = summary[label]
-        print(f"{label:18s}: ratio to set, worst per prefix "
-              f"{' '.join(f'{x:.2f}' for x in s['ratio_to_set_worst_per_prefix'])}; worst slope "
-              f"{s['slope_worst']:+.2f} ({s['slope_minus_standalone_worst']:+.2f} from the sets'"
-              f" own); worst at {length} {s['ratio_to_pmj02bn_at_N_worst']:.2f}x"
-              f" pmj02bn; worst band {s['band_energy_worst']:.3f}")
+    return {"ns": ns, "length": length, "realizations": realizations, "extra_deg": extra,
+            "keys": list(KEYS), "records": records, "summary": summary}
 
+
+def record_line(r, length):
+    return (f"extra {r['extra_deg']:3d} deg, {r['design']:18s}: ratio to set per prefix "
+            f"{' '.join(f'{x:.2f}' for x in r['ratio_to_set'])}, slope {r['slope']:+.2f} (sets "
+            f"{r['standalone_slope']:+.2f}), at {length}: "
+            f"{r['ratio_to_pmj02bn'][-1]:.2f}x pmj02bn, worst band n P_S "
+            f"{max(r['band_energy_max'].values()):.3f} ({r['seconds']:.0f} s)")
+
+
+def spread_line(a, r):
+    spread = [max(v) / min(v) for v in r["standalone_variance"].values()]
+    return (f"extra {a:3d} deg: standalone sets over keys {KEYS}: max/min variance "
+            f"{' '.join(f'{s:.2f}' for s in spread)}")
+
+
+def figure(data, args):
+    ns, records = data["ns"], data["records"]
     fig, axes = plot.new_figure(1, 1, size=4.0)
     ax = axes[0, 0]
-    for label in designs:
+    for label in data["summary"]:
         r = np.exp(np.mean([np.log(x["ratio_to_set"]) for x in records.values()
                             if x["design"] == label], axis=0))
         ax.semilogx(ns, r, marker="o", ms=3, label=label)
@@ -133,12 +144,32 @@ def main(argv=None):
     ax.set_xlabel("prefix size n")
     ax.set_ylabel("variance / standalone aligned set (geometric mean)")
     ax.legend(fontsize=7)
-    png = plot.save_figure(fig, out / NAME)[0]
-    js = common.write_record(out, NAME, {"ns": ns, "length": length, "realizations":
-                                         realizations, "extra_deg": extra, "keys": list(KEYS),
-                                         "records": records, "summary": summary},
-                             vars(args) | {"out": str(out)}, started)
-    print(f"\nfigure:  {png}\nnumbers: {js}")
+    plot.save_figure(fig, args.out / NAME)
+
+
+def report(data, args):
+    """What the script prints: each record's and each direction's spread line (a computing run
+    printed them as it went), the summary per design."""
+    length = data["length"]
+    if not getattr(args, "printed_records", False):
+        last = None
+        for r in data["records"].values():
+            if last is not None and r["extra_deg"] != last["extra_deg"]:
+                print(spread_line(last["extra_deg"], last))
+            print(record_line(r, length))
+            last = r
+        print(spread_line(last["extra_deg"], last))
+    for label, s in data["summary"].items():
+        print(f"{label:18s}: ratio to set, worst per prefix "
+              f"{' '.join(f'{x:.2f}' for x in s['ratio_to_set_worst_per_prefix'])}; worst slope "
+              f"{s['slope_worst']:+.2f} ({s['slope_minus_standalone_worst']:+.2f} from the sets'"
+              f" own); worst at {length} {s['ratio_to_pmj02bn_at_N_worst']:.2f}x"
+              f" pmj02bn; worst band {s['band_energy_worst']:.3f}")
+    print(f"\nfigure:  {args.out / NAME}.png\nnumbers: {args.out / NAME}.json")
+
+
+def main(argv=None):
+    return common.run(NAME, __doc__, SCALES, compute, figure=figure, report=report, argv=argv)
 
 
 if __name__ == "__main__":
