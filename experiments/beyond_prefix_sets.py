@@ -22,8 +22,6 @@ at 4096 within 1.2x of the set without a prefix, band energy <= 0.1 of white.
 
 from __future__ import annotations
 
-import time
-
 import common
 import jax
 import numpy as np
@@ -33,6 +31,11 @@ from anisosample import diagnostics, plot, prefix
 
 NAME = "beyond_prefix_sets"
 PREFIXES = ("none", "dihedral-16", "dihedral-32", "dihedral-64", "pmj02bn-32")
+# n per set, toroidal shifts per variance, extra directions drawn
+SCALES = {
+    "small": dict(ns=[256, 512, 1024, 2048, 4096], realizations=16384, n_dirs=3),
+    "paper": dict(ns=[256, 512, 1024, 2048, 4096], realizations=65536, n_dirs=8),
+}
 
 
 def shifted(points):
@@ -42,17 +45,11 @@ def shifted(points):
     return sampler
 
 
-def main(argv=None):
-    args = common.parser(NAME, __doc__).parse_args(argv)
-    started = time.time()
-    out = args.out
-    small = args.scale == "small"
-    ns = [256, 512, 1024, 2048, 4096]
-    realizations = 16384 if small else 65536
-    n_dirs = 3 if small else 8
+def compute(cfg, args):
+    out, ns, realizations = args.out, cfg["ns"], cfg["realizations"]
     rng = np.random.default_rng(args.seed)
-    extra = [int(a) for a in rng.choice([a for a in range(5, 176) if abs(a - 90) >= 5], n_dirs,
-                                        replace=False)]
+    extra = [int(a) for a in rng.choice([a for a in range(5, 176) if abs(a - 90) >= 5],
+                                        cfg["n_dirs"], replace=False)]
     key = jax.random.key(args.seed)
     rows = {}
     for a in extra:
@@ -78,9 +75,7 @@ def main(argv=None):
             rows[label] = {"extra_deg": a, "prefix": spec, "variance": var, "slope": fit.slope,
                            "slope_ci": [fit.ci_low, fit.ci_high],
                            "band_energy_max": {str(n): max(b) for n, b in bands.items()}}
-            print(f"extra {a:3d} deg, prefix {spec:12s}: slope {fit.slope:+.2f}, variance at "
-                  f"{ns[-1]} {var[-1]:.3e}, max band n P_S "
-                  f"{max(max(b) for b in bands.values()):.3f}", flush=True)
+            print(row_line(rows[label], ns), flush=True)  # as it goes: the report's first lines
         more = [asp.synthesis.load_or_synthesize(
             out / "sets" / f"a{a}_none_n{ns[-1]}_k{k}.npz", jax.random.key(k), ns[-1], dirs,
             show_progress=False).points for k in (1, 2)]
@@ -109,8 +104,6 @@ def main(argv=None):
                  for t in angles]
         estimators[f"pmj02bn fresh {m}"] = {"mean_variance": float(np.mean(fresh)),
                                             "variance": fresh}
-    for label, e in estimators.items():
-        print(f"prefix as estimator, {label:18s}: mean edge variance {e['mean_variance']:.3e}")
 
     summary = {}
     for spec in PREFIXES:
@@ -122,11 +115,19 @@ def main(argv=None):
             "ratio_to_none_worst": float(max(r["ratio_to_none"] for r in sel)),
             "band_energy_worst": float(max(max(r["band_energy_max"].values()) for r in sel)),
         }
-        s = summary[spec]
-        print(f"{spec:12s}: slope median {s['slope_median']:+.2f} (worst {s['slope_worst']:+.2f}),"
-              f" variance / none at {ns[-1]} median {s['ratio_to_none_median']:.2f} (worst "
-              f"{s['ratio_to_none_worst']:.2f}), worst band n P_S {s['band_energy_worst']:.3f}")
+    args.printed_rows = True
+    return {"ns": ns, "realizations": realizations, "extra_deg": extra, "rows": rows,
+            "summary": summary, "prefix_estimators": estimators}
 
+
+def row_line(row, ns):
+    return (f"extra {row['extra_deg']:3d} deg, prefix {row['prefix']:12s}: slope "
+            f"{row['slope']:+.2f}, variance at {ns[-1]} {row['variance'][-1]:.3e}, max band n P_S "
+            f"{max(row['band_energy_max'].values()):.3f}")
+
+
+def figure(data, args):
+    ns, rows, summary = data["ns"], data["rows"], data["summary"]
     fig, axes = plot.new_figure(1, 1, size=4.0)
     ax = axes[0, 0]
     for spec in PREFIXES:
@@ -136,12 +137,27 @@ def main(argv=None):
     ax.set_xlabel("n")
     ax.set_ylabel("edge variance (geometric mean over directions)")
     ax.legend(fontsize=7)
-    png = plot.save_figure(fig, out / NAME)[0]
-    js = common.write_record(out, NAME, {"ns": ns, "realizations": realizations,
-                                         "extra_deg": extra, "rows": rows, "summary": summary,
-                                         "prefix_estimators": estimators},
-                             vars(args) | {"out": str(out)}, started)
-    print(f"\nfigure:  {png}\nnumbers: {js}")
+    plot.save_figure(fig, args.out / NAME)
+
+
+def report(data, args):
+    """What the script prints: each row's line (a computing run printed them as it went), the
+    prefixes as estimators, the summary."""
+    ns = data["ns"]
+    if not getattr(args, "printed_rows", False):
+        for row in data["rows"].values():
+            print(row_line(row, ns))
+    for label, e in data["prefix_estimators"].items():
+        print(f"prefix as estimator, {label:18s}: mean edge variance {e['mean_variance']:.3e}")
+    for spec, s in data["summary"].items():
+        print(f"{spec:12s}: slope median {s['slope_median']:+.2f} (worst {s['slope_worst']:+.2f}),"
+              f" variance / none at {ns[-1]} median {s['ratio_to_none_median']:.2f} (worst "
+              f"{s['ratio_to_none_worst']:.2f}), worst band n P_S {s['band_energy_worst']:.3f}")
+    print(f"\nfigure:  {args.out / NAME}.png\nnumbers: {args.out / NAME}.json")
+
+
+def main(argv=None):
+    return common.run(NAME, __doc__, SCALES, compute, figure=figure, report=report, argv=argv)
 
 
 if __name__ == "__main__":
