@@ -414,8 +414,8 @@ def test_build_over_two_processes_with_jax_distributed(tmp_path, direction_count
     extras = ([(0,), (10,), (20,), (45,)] if direction_count == 3
               else [(0, 0), (10, 20), (20, 50), (30, 45)])
     run_dir, ref_dir = tmp_path / "two_hosts", tmp_path / "one_host"
-    common = ["--n", "32", "--direction-count", str(direction_count), "--sets", sets, "--steps", "6",
-              "--seed", "2", "--out", str(run_dir)]
+    common = ["--n", "32", "--direction-count", str(direction_count), "--sets", sets,
+              "--steps", "6", "--seed", "2", "--out", str(run_dir)]
     if direction_count == 3:
         common += ["--distributed", "--coordinator", f"127.0.0.1:{free_port()}",
                    "--num-processes", "2"]
