@@ -67,3 +67,32 @@ def _bounded_compiled_code(request):
 
         jax.clear_caches()
         gc.collect()
+
+
+_SHARED_CACHE = "ANISOSAMPLE_TESTS_COMPILATION_CACHE"
+
+
+def pytest_configure(config):
+    """One persistent compilation cache per test run, shared by the run's pytest-xdist workers:
+    the suite's cost is mostly XLA compilation, and the two workers compile many of the same
+    programs (the same scenes, warps and sets in tests that land on different workers). The
+    controller makes the directory before the workers start (they inherit the environment) and
+    removes it at the end; the cache holds executables only, so results are the same bits.
+    Subprocesses the tests start do not read it (the variable is ours, not JAX's)."""
+    import os
+    import tempfile
+
+    if not hasattr(config, "workerinput") and _SHARED_CACHE not in os.environ:
+        os.environ[_SHARED_CACHE] = tempfile.mkdtemp(prefix="anisosample-jax-cache-")
+        config._anisosample_cache_owner = True
+    jax.config.update("jax_compilation_cache_dir", os.environ[_SHARED_CACHE])
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+
+
+def pytest_unconfigure(config):
+    import os
+    import shutil
+
+    if getattr(config, "_anisosample_cache_owner", False):
+        shutil.rmtree(os.environ.pop(_SHARED_CACHE), ignore_errors=True)
+
