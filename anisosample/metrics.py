@@ -105,9 +105,10 @@ MRSE_EPSILON = 0.01
 """H's MRSE: each pixel's squared error divided by ``ref^2 + MRSE_EPSILON``."""
 
 
-def off_axis_deg(d) -> np.ndarray:
-    """Distance (degrees, float64 NumPy) of each direction ``d`` to the nearer of the two axes
-    (0 and 90 degrees, modulo 90): ``min(d mod 90, 90 - d mod 90)``."""
+def off_axis_deg(d) -> np.ndarray | np.floating:
+    """Distance (degrees, float64 NumPy; a NumPy scalar for a scalar ``d``) of each direction
+    ``d`` to the nearer of the two axes (0 and 90 degrees, modulo 90):
+    ``min(d mod 90, 90 - d mod 90)``."""
     d = np.asarray(d) % 90.0
     return np.minimum(d, 90.0 - d)
 

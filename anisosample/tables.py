@@ -184,7 +184,7 @@ def lookup(directions_deg, n: int, *, direction_count: int | None = None, table=
                                       canon.transform))
 
 
-def _where_and_command(canon, n, table, path, prefix, sequence_from) -> tuple[str, str]:
+def _where_and_command(canon, n, table, path, prefix, sequence_from) -> tuple[str | Path, str]:
     """Where a missing set was looked for, and the command that builds it there."""
     where = table if table is not None else os.pathsep.join(map(str, table_dirs()))
     into = None if table is None else (
@@ -296,7 +296,7 @@ def installed_sizes(direction_count: int) -> list[int]:
 
 @functools.lru_cache(maxsize=64)
 def _load_verified(path: str, n: int, direction_count: int, extra, mtime_ns: int, size: int,
-                   index_mtime_ns: int) -> np.ndarray:
+                   index_mtime_ns: int) -> tuple[np.ndarray, tuple[str, int]]:
     """Verified canonical set and its table's prefix, cached per file version (a renderer looks
     sets up per pixel)."""
     tab = open_table(path, n=n, direction_count=direction_count)

@@ -64,11 +64,11 @@ class PrimaryHit(eqx.Module):
     light was hit (the rest hold whatever :func:`~anisosample.render.geometry.intersect`
     returns for a miss or an emitter)."""
 
-    p: Float[Array, "m 3"]
-    n: Float[Array, "m 3"]
-    wi: Float[Array, "m 3"]
-    material: Int[Array, " m"]
-    valid: Bool[Array, " m"]
+    p: Float[Array, "*m 3"]  # made per pixel (vmap), returned for all m pixels
+    n: Float[Array, "*m 3"]
+    wi: Float[Array, "*m 3"]
+    material: Int[Array, " *m"]
+    valid: Bool[Array, " *m"]
 
 
 def primary_hits(scene: Scene) -> PrimaryHit:

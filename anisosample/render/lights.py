@@ -36,6 +36,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 from jaxtyping import Array, Bool, Float, Int
 
 from ..warps import Compose
@@ -59,7 +60,7 @@ class LightSample(eqx.Module):
     radiance: Float[Array, "3"]  # emitted radiance towards the front (intensity for points)
     pdf: Float[Array, ""]  # per unit area (with selection), or selection prob for points
     delta: Bool[Array, ""]
-    prim: Int[Array, ""]
+    prim: Int[ArrayLike, ""]  # a static 0 where the scene has one emitting primitive
 
 
 def texture_lookup(textures: Textures, tex, uv) -> Float[Array, "3"]:

@@ -57,12 +57,13 @@ class IntegratorOptions:
     :meth:`replace` (a new, validated record).
     """
 
-    dimension: str = "auto"
+    # What the constructor takes; __post_init__ stores a str dimension (None: "auto") and bools.
+    dimension: str | None = "auto"
     technique: str = "area"
     light_warp: object = "none"
-    mis: bool = False
-    pixel_center: bool = False
-    square_aperture: bool = False
+    mis: bool | np.bool_ = False
+    pixel_center: bool | np.bool_ = False
+    square_aperture: bool | np.bool_ = False
 
     def __post_init__(self):
         dim = "auto" if self.dimension is None else self.dimension

@@ -25,7 +25,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._types import Array, Float
+from .._types import Array, ArrayLike, Float
 from .._validate import check_points
 
 
@@ -146,7 +146,7 @@ def compose(*warps: AbstractWarp) -> Compose:
     return Compose(*warps)
 
 
-def sample_batch(warp: AbstractWarp, u: Float[Array, "n 2"]) -> tuple[Array, Array]:
+def sample_batch(warp: AbstractWarp, u: Float[ArrayLike, "n 2"]) -> tuple[Array, Array]:
     """``(x, pdf)`` for a batch ``u`` of shape ``(n, 2)`` (``vmap`` of ``sample_and_pdf``).
 
     ``u`` must lie in ``[0, 1]^2`` and be finite: a ``ValueError`` otherwise (checked once here,
