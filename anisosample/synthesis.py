@@ -764,7 +764,8 @@ def synthesize(key, n: int, directions_deg, *, recipe: str | Recipe = "rate",
 
 def synthesize_sequence(key, n: int = 4096, directions_deg=(0.0, 90.0, 45.0), *,
                         prefix=None, sequence_from: int = 256,
-                        sequence_weights: str | tuple | None = None, steps: int | None = None,
+                        sequence_weights: str | tuple | list | np.ndarray | None = None,
+                        steps: int | None = None,
                         learning_rate: float | None = None, **options) -> SynthesisResult:
     """A progressive aligned sequence (W Sec. 7: "generate points in a sampling sequence to
     allow for progressive rendering"): ``result.points`` is one ``(n, 2)`` sequence whose every

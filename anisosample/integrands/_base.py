@@ -56,11 +56,12 @@ class Integrand(eqx.Module):
         """Spectral directions of the discontinuities, apart from the axes' 0 and 90 degrees."""
         return ()
 
-    def fourier_coefficients(self, v) -> np.ndarray:
-        """``F_f(v)`` for integer ``v`` of shape ``(..., 2)``, complex128 (W Eq. 3)."""
+    def fourier_coefficients(self, v) -> np.ndarray | np.complexfloating:
+        """``F_f(v)`` for integer ``v`` of shape ``(..., 2)``, complex128 (W Eq. 3; a NumPy
+        scalar for one ``v`` of shape ``(2,)``)."""
         raise NotImplementedError(f"{type(self).__name__} has no closed-form Fourier coefficients")
 
-    def power_spectrum(self, v) -> np.ndarray:
+    def power_spectrum(self, v) -> np.ndarray | np.floating:
         """``P_f(v) = |F_f(v)|^2`` (W Eq. 4), float64."""
         return np.abs(self.fourier_coefficients(v)) ** 2
 

@@ -42,7 +42,7 @@ class _PolygonalIndicator(Integrand):
     def second_moment(self) -> float:
         return self.value * self.integral
 
-    def fourier_coefficients(self, v) -> np.ndarray:
+    def fourier_coefficients(self, v) -> np.ndarray | np.complexfloating:
         v = check_frequencies_any(v)
         return self.value * polygon_fourier(self.clipped_vertices, v)
 

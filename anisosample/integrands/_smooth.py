@@ -51,7 +51,7 @@ class Disk(Integrand):
     def second_moment(self) -> float:
         return self.value * self.integral
 
-    def fourier_coefficients(self, v) -> np.ndarray:
+    def fourier_coefficients(self, v) -> np.ndarray | np.complexfloating:
         v = check_frequencies_any(v)
         rho = np.hypot(v[..., 0], v[..., 1])
         safe = np.where(rho == 0, 1.0, rho)
@@ -185,7 +185,7 @@ class GaussianBump(Integrand):
         # f^2 is a bump with sigma / sqrt(2)
         return self.amplitude**2 * self._mass(self.sigma / math.sqrt(2.0))
 
-    def fourier_coefficients(self, v) -> np.ndarray:
+    def fourier_coefficients(self, v) -> np.ndarray | np.complexfloating:
         """Closed form, separable: per axis, with ``t = (x - c) / (sigma sqrt 2)`` and
         ``beta = pi k sigma sqrt 2``,
         ``int_0^1 exp(-(x-c)^2/(2 sigma^2) - 2 pi i k x) dx = sigma sqrt(pi/2) e^{-2 pi i k c}
@@ -263,7 +263,7 @@ class Texture(Integrand):
             terms.append(((-kx, -ky), 0.5 * a * complex(math.cos(p), -math.sin(p))))
         return terms
 
-    def fourier_coefficients(self, v) -> np.ndarray:
+    def fourier_coefficients(self, v) -> np.ndarray | np.complexfloating:
         v = check_frequencies_any(v)
         out = np.zeros(v.shape[:-1], dtype=np.complex128)
         for (kx, ky), c in self._terms():
@@ -316,7 +316,7 @@ class Textured(Integrand):
     def directions_deg(self) -> tuple[float, ...]:
         return self.shape.directions_deg
 
-    def fourier_coefficients(self, v) -> np.ndarray:
+    def fourier_coefficients(self, v) -> np.ndarray | np.complexfloating:
         v = check_frequencies_any(v)
         out = np.zeros(v.shape[:-1], dtype=np.complex128)
         for k, c in self.texture._terms():
