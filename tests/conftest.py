@@ -18,6 +18,23 @@ def getkey():
     return _next
 
 
+@pytest.fixture(autouse=True)
+def _library_errors_only(request):
+    """Tests marked ``library_errors`` check the library's own errors (the ``ValueError`` or
+    ``TypeError`` that names what was expected and what came): what a user sees, who runs
+    without jaxtyping's import hook. The suite runs with the hook on (pyproject's
+    ``--jaxtyping-packages``), whose check of an annotation would fire first; it is off during
+    such a test (``jaxtyping_disable`` is read at each call; ``helpers.library_errors()`` turns
+    them off for one call)."""
+    if request.node.get_closest_marker("library_errors") is None:
+        yield
+        return
+    from helpers import library_errors
+
+    with library_errors():
+        yield
+
+
 @pytest.fixture(autouse=True, scope="session")
 def _private_user_cache(tmp_path_factory):
     """Tables built on demand during the tests go to this session's own cache, never the

@@ -1,5 +1,8 @@
 """Shared test utilities: independent checks that do not use the library's own code paths."""
 
+import contextlib
+
+import jaxtyping
 import numpy as np
 
 
@@ -34,3 +37,15 @@ def free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         return sock.getsockname()[1]
+
+
+@contextlib.contextmanager
+def library_errors():
+    """jaxtyping's run-time checks off inside (the ``library_errors`` marker of conftest, for
+    one call): the library's own error is what a user without the import hook sees."""
+    before = jaxtyping.config.jaxtyping_disable
+    jaxtyping.config.update("jaxtyping_disable", True)
+    try:
+        yield
+    finally:
+        jaxtyping.config.update("jaxtyping_disable", before)

@@ -35,6 +35,10 @@ ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "anisosample" / "scenes"
 TABLE_256 = ROOT / "anisosample" / "data" / "tables" / "d3_n256"
 
+# The catalogue is what a user sees: the library's own errors, without jaxtyping's run-time
+# checks (on for the rest of the suite), which would refuse a wrongly typed argument first.
+pytestmark = pytest.mark.library_errors
+
 
 @dataclasses.dataclass(frozen=True)
 class Case:

@@ -177,6 +177,7 @@ def test_blocks_array_and_callable_agree_with_per_block_estimates():
     )
 
 
+@pytest.mark.library_errors
 def test_bad_input_raises_value_errors():
     ok = grid(step(30.0), 32)
     with pytest.raises(ValueError, match="k must be >= 0"):

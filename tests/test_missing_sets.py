@@ -16,6 +16,7 @@ from pathlib import Path
 import jax
 import numpy as np
 import pytest
+from helpers import library_errors
 
 from anisosample import _table_build, cli, render, samplers, scenes, selection, tables
 
@@ -119,7 +120,8 @@ def test_api_default_builds_any_n_with_progress_and_refuses_on_request(cache, ca
     quiet = samplers.get("aligned", directions_deg=[45], steps=2, show_progress=False)
     assert quiet(jax.random.key(1), 100).shape == (100, 2)
     assert capfd.readouterr().err == ""
-    with pytest.raises(TypeError, match="build_missing must be None, True or False"):
+    with pytest.raises(TypeError, match="build_missing must be None, True or False"), \
+            library_errors():
         samplers.get("aligned", directions_deg=[35], build_missing="no")
 
 

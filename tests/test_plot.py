@@ -126,6 +126,7 @@ def test_log_scale_and_clip_as_documented():
     np.testing.assert_allclose(im.get_array(), 64 * g)  # nothing clipped
 
 
+@pytest.mark.library_errors
 @pytest.mark.parametrize("kw, error, match", [
     ({"scale": "cubic"}, ValueError, r"scale must be one of \['linear', 'log'\]"),
     ({"clip": -1.0}, ValueError, r"clip must be None \(no clipping\) or a finite multiple"),

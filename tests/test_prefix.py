@@ -262,6 +262,7 @@ def test_explicit_sequence_weights_weigh_each_nested_prefix():
     np.testing.assert_allclose(total, want, rtol=1e-9)
 
 
+@pytest.mark.library_errors
 @pytest.mark.parametrize(("weights", "error", "match"), [
     ((1.0, 1.0), ValueError, r"one weight per nested prefix \[16, 32, 64\].*got 2"),
     ((1.0, 0.0, 1.0), ValueError, "positive, finite weight per nested prefix"),

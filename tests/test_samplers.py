@@ -191,6 +191,7 @@ def test_sheared_sampler_from_registry():
 # --- bad input ------------------------------------------------------------------------------------
 
 
+@pytest.mark.library_errors
 @pytest.mark.parametrize(
     "n,exc",
     [
@@ -212,6 +213,7 @@ def test_unknown_sampler_names_the_known_ones():
         samplers.get("halton")
 
 
+@pytest.mark.library_errors
 def test_bad_key():
     with pytest.raises(TypeError, match="key must"):
         samplers.get("random")(0, 8)

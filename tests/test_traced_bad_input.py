@@ -24,6 +24,10 @@ import pytest
 from anisosample import directions, samplers, spectrum, vmf
 from anisosample import warps as W
 
+# The library's own errors under tracing, without jaxtyping's run-time checks (on for the rest
+# of the suite), which would refuse a traced ``n: int`` or a wrongly typed argument first.
+pytestmark = pytest.mark.library_errors
+
 NAN = float("nan")
 KEY = jax.random.key(0)
 ERRORS = (ValueError, TypeError, RuntimeError)  # JaxRuntimeError and EquinoxRuntimeError too

@@ -15,6 +15,7 @@ from anisosample.render.options import IntegratorOptions
 from .helpers import SCENES, plane_under_light
 
 
+@pytest.mark.library_errors
 @pytest.mark.parametrize("field, value, error, match", [
     ("dimension", "aperture", ValueError, r"dimension must be one of \['auto', 'lens', 'light'\]"),
     ("dimension", 3, TypeError, "dimension must be one of"),
@@ -46,6 +47,7 @@ def test_immutable_hashable_and_normalised():
                                 light_warp="none", mis=True, square_aperture=False)
 
 
+@pytest.mark.library_errors
 def test_for_scene_resolves_and_checks_the_scene():
     plane = plane_under_light()
     dof = R.load_xml(SCENES / "dof.xml", width=8, height=8)
@@ -59,6 +61,7 @@ def test_for_scene_resolves_and_checks_the_scene():
         IntegratorOptions().for_scene("cornell.xml")
 
 
+@pytest.mark.library_errors
 def test_record_or_keywords_not_both():
     plane = plane_under_light()
     o = IntegratorOptions(technique="solid_angle")
