@@ -299,6 +299,7 @@ def test_bad_block_options(scene, kwargs, match):
         aligned.estimate_blocks(scene, **kwargs)
 
 
+@pytest.mark.library_errors
 def test_bad_choices(scene, est):
     with pytest.raises(ValueError, match="point_set must be one of"):
         aligned.block_sampler(scene, "aligned3", estimate=est)
