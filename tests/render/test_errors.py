@@ -3,6 +3,7 @@
 import jax
 import numpy as np
 import pytest
+from helpers import library_errors
 
 import anisosample.render as R
 from anisosample import cli
@@ -179,5 +180,5 @@ def test_render_settings_are_the_files_not_the_scenes(tmp_path):
     assert R.load_xml_with_settings(path, spp=3)[1].spp == 3
     res = R.render(R.load_xml(path), jax.random.key(0), pixel_center=True, progress=False)
     assert res.spp == 64 and res.settings["mis"] is False  # render's defaults, not the file's
-    with pytest.raises(TypeError, match="mis must be True or False"):
+    with pytest.raises(TypeError, match="mis must be True or False"), library_errors():
         R.render(scene, jax.random.key(0), spp=1, mis=None, progress=False)
