@@ -27,12 +27,14 @@ def newton_bisection(
     hi: jax.Array,
     t0: jax.Array,
     *,
-    iterations: int,
+    iterations: int | jax.Array,
 ) -> jax.Array:
     """Root of the non-decreasing ``g(t) - target`` on ``[lo, hi]`` (``g(lo) <= target <= g(hi)``).
 
     ``g`` may close over differentiable parameters; derivatives w.r.t. them and ``target`` flow
-    through the final implicit step only. ``iterations`` is fixed (static).
+    through the final implicit step only. ``iterations`` is fixed (static), or a traced int
+    where a caller traces the warp holding it (``Biquadratic.iterations`` is a pytree leaf:
+    ``tuning.fit_min_variance`` traces it).
     """
     sg = jax.lax.stop_gradient
     tgt = sg(target)

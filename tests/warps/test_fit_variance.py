@@ -174,6 +174,7 @@ def test_zero_integrand_gives_uniform():
     assert float(tuning.chain_variance(fit, zero, [_triangle()], grid=4)) == 0.0
 
 
+@pytest.mark.library_errors
 @pytest.mark.parametrize(
     "kwargs,exc,match",
     [
