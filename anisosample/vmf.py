@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import NamedTuple
 
 import equinox as eqx
 import jax
@@ -33,6 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 from jax.scipy.special import i0e, i1e
+from jaxtyping import Bool
 
 from ._types import Array, Float
 from ._validate import check_int, check_positive_float, refuse_traced
@@ -358,11 +358,11 @@ def _reverse_kl_all_mu(hist, kappa, floor, nodes, mask=None):
 # --- fits ----------------------------------------------------------------------------------------
 
 
-class MLEFit(NamedTuple):
+class MLEFit(eqx.Module):
     """A single-vMF maximum-likelihood fit: ``mu`` in ``[0, 2 pi)``, ``kappa``, ``rbar``.
 
     ``defined`` is False where the mean resultant length is 0 (uniform data: ``mu`` undefined,
-    returned as 0).
+    returned as 0). Closed form plus a fixed number of Newton steps: no solver, no status.
     """
 
     mu: Float[Array, "..."]
@@ -398,13 +398,23 @@ def _fit_mle(hist):
     return MLEFit(mu, kappa_from_resultant(rbar), rbar, defined)
 
 
-class ReverseKLFit(NamedTuple):
-    """Result of :func:`fit_reverse_kl`: ``mu`` in ``[0, 2 pi)``, ``kappa``, objective value."""
+class ReverseKLFit(eqx.Module):
+    """Result of :func:`fit_reverse_kl`: ``mu`` in ``[0, 2 pi)``, ``kappa``, objective value.
+
+    ``result``: optimistix's ``RESULTS`` of the BFGS solve (``optimistix.RESULTS.successful``,
+    ``max_steps_reached``, ...; the fit runs with ``throw=False`` so that it ``vmap``s, and
+    keeps it here); ``converged`` is ``result == optimistix.RESULTS.successful``.
+    """
 
     mu: Float[Array, "..."]
     kappa: Float[Array, "..."]
     value: Float[Array, "..."]
-    converged: Array
+    result: optx.RESULTS
+
+    @property
+    def converged(self) -> Bool[Array, "..."]:
+        """``result == optimistix.RESULTS.successful``."""
+        return self.result == optx.RESULTS.successful
 
 
 def fit_reverse_kl(
@@ -479,6 +489,5 @@ def _fit_reverse_kl(
     mu = _wrap_2pi(sol.value[0])
     kappa = jnp.exp(jnp.clip(sol.value[1], lo, hi))
     value = objective(sol.value, None)
-    converged = sol.result == optx.RESULTS.successful
     value = eqx.error_if(value, ~jnp.isfinite(value), "reverse KL fit produced a non-finite value")
-    return ReverseKLFit(mu, kappa, value, converged)
+    return ReverseKLFit(mu, kappa, value, sol.result)

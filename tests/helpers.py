@@ -49,3 +49,33 @@ def library_errors():
         yield
     finally:
         jaxtyping.config.update("jaxtyping_disable", before)
+
+
+def assert_pytree_round_trips(result):
+    """A result (an ``equinox.Module``) is a pytree: ``tree_flatten``/``tree_unflatten`` give it
+    back equal, and it passes through ``jax.jit`` and ``jax.vmap`` (over a stack of two copies)
+    with the same structure and the same leaves (as the traced dtype: NumPy float64 arrives as
+    float32 without x64). Static fields (names, counts, settings) ride in the structure."""
+    import equinox as eqx
+    import jax
+    import jax.numpy as jnp
+
+    assert isinstance(result, eqx.Module), type(result)
+    leaves, treedef = jax.tree_util.tree_flatten(result)
+    again = jax.tree_util.tree_unflatten(treedef, leaves)
+    assert type(again) is type(result)
+    assert jax.tree_util.tree_structure(again) == treedef
+    for a, b in zip(jax.tree_util.tree_leaves(again), leaves, strict=True):
+        assert a is b
+
+    def same(out):
+        assert type(out) is type(result)
+        assert jax.tree_util.tree_structure(out) == treedef
+        for a, b in zip(jax.tree_util.tree_leaves(out), leaves, strict=True):
+            a = np.asarray(a)
+            np.testing.assert_array_equal(a, np.asarray(b).astype(a.dtype))
+
+    same(jax.jit(lambda r: r)(result))
+    stacked = jax.tree_util.tree_map(lambda x: jnp.stack([x, x]), result)
+    batched = jax.vmap(lambda r: r)(stacked)
+    same(jax.tree_util.tree_map(lambda x: x[1], batched))

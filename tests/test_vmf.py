@@ -6,10 +6,12 @@ import math
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optimistix as optx
 import pytest
 import scipy.integrate
 import scipy.special
 import scipy.stats
+from helpers import assert_pytree_round_trips
 
 from anisosample import vmf
 
@@ -285,6 +287,30 @@ def test_fit_reverse_kl_is_jittable():
     hist = _fig4_hist()
     f = jax.jit(lambda h, m: vmf.fit_reverse_kl(h, m, 20.0).mu)
     assert abs(math.degrees(float(f(hist, jnp.float32(math.radians(95.0))))) - 90) < 2
+
+
+def test_reverse_kl_fit_keeps_the_solver_status():
+    """The fit keeps optimistix's RESULTS (throw=False), vmapped or not: converged from a start
+    near the mode; max_steps=2 stops BFGS before it converges (nonlinear_max_steps_reached),
+    and says so instead of raising."""
+    hist = _fig4_hist()
+    fit = vmf.fit_reverse_kl(hist, math.radians(95.0), 20.0)
+    assert isinstance(fit.result, optx.RESULTS)
+    assert fit.result == optx.RESULTS.successful and bool(fit.converged)
+    short = vmf.fit_reverse_kl(hist, math.radians(95.0), 20.0, max_steps=2)
+    assert short.result == optx.RESULTS.nonlinear_max_steps_reached
+    assert not bool(short.converged)
+    starts = jnp.radians(jnp.asarray([90.0, 180.0]))
+    both = jax.vmap(lambda m: vmf.fit_reverse_kl(hist, m, 20.0, max_steps=2))(starts)
+    assert both.converged.shape == (2,) and not bool(jnp.any(both.converged))
+
+
+def test_fits_are_pytrees():
+    hist = _fig4_hist()
+    assert_pytree_round_trips(vmf.fit_mle(hist))
+    assert_pytree_round_trips(vmf.fit_reverse_kl(hist, math.radians(95.0), 20.0))
+    fit = jax.jit(lambda h: vmf.fit_reverse_kl(h, 1.6, 20.0))(hist)  # built under jit
+    assert bool(fit.converged)
 
 
 def test_bad_input_raises():
