@@ -59,8 +59,8 @@ import dataclasses
 import functools
 import math
 from collections.abc import Callable
-from typing import NamedTuple
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -166,7 +166,7 @@ def _params(**kw) -> _Params:
     return params
 
 
-class Estimate(NamedTuple):
+class Estimate(eqx.Module):
     """Per-histogram result with ``k`` slots (leading batch axes for blocks).
 
     ``directions_deg`` in ``[0, 180)``; a slot with ``valid == False`` holds ``-1.0`` (never NaN).

@@ -90,7 +90,7 @@ def search_options(**options) -> SearchOptions:
     return SearchOptions(**vals, **floats)
 
 
-class EdgeSearch(NamedTuple):
+class EdgeSearch(eqx.Module):
     """One integrand's edges (:func:`edge_search`; leading axes when vmapped).
 
     ``directions_deg``: ``(2,)`` spectral directions in ``[0, 180)``, strongest first, NaN where

@@ -27,8 +27,8 @@
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -123,7 +123,7 @@ def grid_values(f, n: int) -> np.ndarray:
     return np.asarray(eqx.filter_jit(lambda g, x: g(x))(f, jnp.asarray(xy)))
 
 
-class ImageError(NamedTuple):
+class ImageError(eqx.Module):
     """The error of ``R`` realizations of an image of ``P`` pixels (:func:`image_error`).
 
     ``image``: ``(P,)`` per-pixel mean squared error over the realizations; ``per_realization``:

@@ -5,6 +5,7 @@ import math
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import assert_pytree_round_trips
 
 from anisosample import directions, integrands
 from anisosample.metrics import axial_distance_deg
@@ -126,10 +127,19 @@ def test_gradient_estimator_agrees_with_fixed_kappa_search():
 def test_details_never_contain_nan():
     for f in [step(33.0), integrands.Disk(), lambda x: jnp.zeros(x.shape[:-1])]:
         est = directions.estimate(grid(f, 64), k=3, details=True)
-        for a in est:
+        for a in (est.directions_deg, est.valid, est.confidence, est.kappa):
             assert bool(jnp.all(jnp.isfinite(a)))
         d = est.directions_deg
         assert bool(jnp.all(jnp.where(est.valid, d >= 0, d == -1)))
+
+
+def test_estimate_is_a_pytree():
+    """Per grid and per block (leading axes), fixed and gradient: jit/vmap/flatten round trips."""
+    assert_pytree_round_trips(directions.estimate(grid(step(33.0), 48), k=2, details=True))
+    assert_pytree_round_trips(directions.estimate(grid(step(33.0), 48), k=2, details=True,
+                                                  estimator="gradient"))
+    assert_pytree_round_trips(directions.estimate_blocks(grid(step(70.0), 96), k=1,
+                                                         samples_per_block=48))
 
 
 def test_estimate_from_histogram_uses_same_path():

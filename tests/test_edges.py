@@ -6,6 +6,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import assert_pytree_round_trips
 
 from anisosample import edges, prefix, samplers
 from anisosample.metrics import axial_distance_deg
@@ -100,6 +101,8 @@ def test_vmapped_search_equals_one_by_one():
         np.testing.assert_array_equal(np.asarray(one.directions_deg),
                                       np.asarray(many.directions_deg[k]))
         assert int(one.samples) == int(many.samples[k])
+    assert isinstance(many, edges.EdgeSearch) and many.count.shape == (4,)
+    assert_pytree_round_trips(one)
 
 
 def test_neighbour_pairs_match_brute_force():

@@ -7,7 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import brute_force_spectrum
+from helpers import assert_pytree_round_trips, brute_force_spectrum
 
 from anisosample import directions, metrics, samplers, spectrum
 
@@ -138,6 +138,7 @@ def test_image_error_closed_forms():
     assert r.mse == pytest.approx(np.mean([0.25, 0.5, 1.0] / denom))
     assert set(e.as_dict()) == {"mse", "mse_stderr", "mse_from_variance", "mean_error",
                                 "mean_error_stderr"}
+    assert_pytree_round_trips(e)
 
 
 def test_image_error_standard_errors_match_the_spread_over_experiments():
