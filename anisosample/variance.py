@@ -307,8 +307,7 @@ def realization_estimates(
 # --- variance and its interval ------------------------------------------------------------------
 
 
-@dataclasses.dataclass(frozen=True)
-class VarianceEstimate:
+class VarianceEstimate(eqx.Module):
     """A variance with its standard error and confidence interval.
 
     ``variance``: unbiased sample variance of the estimates (``exact=None``) or their mean
@@ -321,10 +320,10 @@ class VarianceEstimate:
     ci_low: float
     ci_high: float
     mean: float
-    n: int
-    realizations: int
-    randomization: str
-    confidence: float
+    n: int = eqx.field(static=True)
+    realizations: int = eqx.field(static=True)
+    randomization: str = eqx.field(static=True)
+    confidence: float = eqx.field(static=True)
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -451,8 +450,7 @@ def estimator_variance(
 # --- convergence sweeps and slope fits ------------------------------------------------------------
 
 
-@dataclasses.dataclass(frozen=True)
-class SlopeFit:
+class SlopeFit(eqx.Module):
     """``log Var = intercept + slope log n`` by weighted least squares.
 
     Weights are ``1 / se(log Var)^2`` from each variance's standard error. The slope's standard
@@ -466,7 +464,7 @@ class SlopeFit:
     std_error: float
     ci_low: float
     ci_high: float
-    confidence: float
+    confidence: float = eqx.field(static=True)
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -520,11 +518,10 @@ def fit_slope(ns, variances, std_errors=None, *, confidence: float = 0.95) -> Sl
     )
 
 
-@dataclasses.dataclass(frozen=True)
-class ConvergenceResult:
+class ConvergenceResult(eqx.Module):
     """Per sampler: the variance estimates over ``ns`` and the fitted slope."""
 
-    ns: tuple[int, ...]
+    ns: tuple[int, ...] = eqx.field(static=True)
     estimates: dict[str, tuple[VarianceEstimate, ...]]
     fits: dict[str, SlopeFit]
 

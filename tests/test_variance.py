@@ -8,6 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import assert_pytree_round_trips
 
 from anisosample import integrands as I
 from anisosample import metrics, samplers, spectrum
@@ -276,6 +277,11 @@ def test_convergence_takes_a_fixed_set_per_size(getkey):
         np.testing.assert_allclose(res.variances(label), [1 / (12 * n) for n in ns], rtol=0.06)
         assert res.estimates[label][0].randomization == "shift"
         assert res.fits[label].ci_low < -1 < res.fits[label].ci_high
+    # a pytree of pytrees (the sizes, counts, randomization and confidence static): the
+    # variance estimates and the slope fits alone and together
+    assert_pytree_round_trips(res)
+    assert_pytree_round_trips(res.estimates["mine"][0])
+    assert_pytree_round_trips(res.fits["mine"])
     with pytest.raises(ValueError, match=r"'mine' has fixed sets of n = \[16, 64\], none of "
                                          r"n = \[256\]"):
         V.convergence(f, {"mine": sets[1:]}, ns, key, 8)
