@@ -30,8 +30,8 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
-from typing import NamedTuple
 
 import equinox as eqx
 import jax
@@ -60,7 +60,7 @@ JUMP_FRACTION = 0.25
 edges)."""
 
 
-class BlockEstimate(NamedTuple):
+class BlockEstimate(eqx.Module):
     """Per-block principal directions of an image (W Sec. 5.3); leading axes ``(rows, cols)``.
 
     ``strength`` (or None when not asked for): each block's orientation-histogram mass outside
@@ -73,14 +73,14 @@ class BlockEstimate(NamedTuple):
 
     estimate: object  # anisosample.directions.Estimate, leading axes (rows, cols)
     strength: np.ndarray | None
-    block_px: int
-    samples: int
-    width: int
-    height: int
+    block_px: int = eqx.field(static=True)
+    samples: int = eqx.field(static=True)
+    width: int = eqx.field(static=True)
+    height: int = eqx.field(static=True)
     seconds: float
-    integrand_samples: int
+    integrand_samples: int = eqx.field(static=True)
     discontinuous: np.ndarray | None = None
-    probe: int = 0
+    probe: int = eqx.field(static=True, default=0)
     probe_seconds: float = 0.0
 
     @property
@@ -418,8 +418,8 @@ def gate_estimate(
         disc[rows, cols] = probe_discontinuous(pixel_probes(
             scene, probe, pixels=np.stack([cols, rows], -1), integrand=integrand,
             options=options, progress=progress))
-    return estimate._replace(discontinuous=disc, probe=probe,
-                             probe_seconds=time.perf_counter() - t0)
+    return dataclasses.replace(estimate, discontinuous=disc, probe=probe,
+                               probe_seconds=time.perf_counter() - t0)
 
 
 def strongest_directions(estimate) -> tuple[np.ndarray, np.ndarray]:

@@ -14,6 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -24,12 +25,15 @@ from .options import IntegratorOptions
 from .scene import Scene
 
 
-class RenderResult(NamedTuple):
+class RenderResult(eqx.Module):
+    """What :func:`render` returns: the images as arrays (pytree leaves), the counts and the
+    settings record (what :func:`save_result` writes as metadata) as static fields."""
+
     mean: np.ndarray  # (h, w, 3) float32, row 0 at the top
     variance: np.ndarray | None  # (h, w, 3) sample variance over realizations (None if R = 1)
-    spp: int
-    realizations: int
-    settings: dict
+    spp: int = eqx.field(static=True)
+    realizations: int = eqx.field(static=True)
+    settings: dict = eqx.field(static=True)
     # per-block and per-pixel samplers: each pixel's decision (render.aligned.PIXEL_CODES)
     pixel_sampler: np.ndarray | None = None
     # per-pixel aligned sampler (first realization): (h, w, 2) float32 spectral directions in

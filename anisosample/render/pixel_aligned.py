@@ -42,8 +42,8 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from typing import NamedTuple
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -122,7 +122,7 @@ def prefix_sets(requests, spp: int, *, table=None, build_missing: bool | None = 
                                   desc=f"pixel sets n={spp}", **(build_options or {}))
 
 
-class PixelEstimates(NamedTuple):
+class PixelEstimates(eqx.Module):
     """:func:`integrand_estimates`: per realization the estimate, the directions found
     ``(R, 2)`` (NaN: none), the search's samples and the choice (:data:`PIXEL_CODES` 3-5)."""
 

@@ -29,8 +29,8 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import NamedTuple
 
+import equinox as eqx
 import numpy as np
 
 from .._validate import check_int, check_positive_float
@@ -55,7 +55,7 @@ _COLOURS = np.array([
 ], np.float32)
 
 
-class GridClass(NamedTuple):
+class GridClass(eqx.Module):
     """The class of one sampled integrand (:func:`classify_grid`).
 
     ``directions_deg``: the spectral directions in ``[0, 180)`` (one for ``"one-edge"``, two for
@@ -64,9 +64,9 @@ class GridClass(NamedTuple):
     (0 when no line was fitted).
     """
 
-    name: str
-    directions_deg: tuple[float, ...]
-    jump_cells: int
+    name: str = eqx.field(static=True)
+    directions_deg: tuple[float, ...] = eqx.field(static=True)
+    jump_cells: int = eqx.field(static=True)
     residual_cells: float
 
 
@@ -201,7 +201,7 @@ def classify_grid(
     return GridClass("other", (), m, 0.0)
 
 
-class PixelClasses(NamedTuple):
+class PixelClasses(eqx.Module):
     """Per-pixel classes of an image (row 0 at the top, like the render).
 
     ``classes``: ``(h, w)`` int8 indices into :data:`CLASSES`; ``directions_deg``: ``(h, w, 2)``
@@ -215,9 +215,9 @@ class PixelClasses(NamedTuple):
     directions_deg: np.ndarray
     num_directions: np.ndarray
     evaluated: np.ndarray
-    grid: int
-    dimension: str
-    technique: str
+    grid: int = eqx.field(static=True)
+    dimension: str = eqx.field(static=True)
+    technique: str = eqx.field(static=True)
 
     def mask(self, name: str) -> np.ndarray:
         """``(h, w)`` bool: the evaluated pixels of class ``name``."""

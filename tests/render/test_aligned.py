@@ -411,7 +411,8 @@ def test_a_block_marked_without_direction_gets_no_set(scene, est):
     d[0, 0], v[0, 0] = (-1.0, 40.0), (False, True)  # the case of the issue
     d[0, 1], v[0, 1] = (-1.0, -1.0), (False, False)  # none
     d[0, 2], v[0, 2] = (0.3, -1.0), (True, False)  # valid, but rounds onto an axis: no set
-    fake = est._replace(estimate=e._replace(directions_deg=jnp.asarray(d), valid=jnp.asarray(v)))
+    fake = dataclasses.replace(est, estimate=dataclasses.replace(
+        e, directions_deg=jnp.asarray(d), valid=jnp.asarray(v)))
     for point_set in aligned.BLOCK_SAMPLERS:
         s = aligned.block_sampler(scene, point_set, estimate=fake, gate=False, build_missing=False)
         assert s.valid[0, 0] and s.directions_deg[0, 0] == 40.0

@@ -5,6 +5,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import assert_pytree_round_trips
 
 import anisosample.render as R
 from anisosample import samplers
@@ -41,6 +42,7 @@ def test_reuse_is_unbiased_on_a_rounding_boundary(normal_deg):
     pmj = V.realization_estimates(h, samplers.get("pmj02bn")(jax.random.key(1), 64), 64,
                                   jax.random.key(2), 2000, randomization="shift")
     assert np.var(e, ddof=1) < 0.6 * np.var(pmj, ddof=1)
+    assert_pytree_round_trips(r)  # PixelEstimates
 
 
 def test_smooth_fallback_is_unbiased_and_keeps_pmj02bn():
@@ -82,6 +84,10 @@ def test_record(cornell):
     assert b["reused_samples_per_pixel"] == 16
     assert b["pixels_with_3_direction_set"] == int((code == 3).sum())
     assert b["estimation_samples_per_pixel"] == pytest.approx(float(extra.mean()), abs=1e-3)
+    # RenderResult: the images are leaves, spp, realizations and the settings record static
+    assert_pytree_round_trips(res)
+    assert [leaf.shape for leaf in jax.tree.leaves(res)] == [(24, 24, 3), (24, 24), (24, 24, 2),
+                                                             (24, 24)]
 
 
 def test_directions_match_the_dense_grid_classes(cornell):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import assert_pytree_round_trips
 
 from anisosample.metrics import axial_distance_deg
 from anisosample.render import SceneBuilder
@@ -26,6 +27,8 @@ def test_one_edge_direction_is_the_edge_normal(normal_deg):
     assert r.name == "one-edge"
     assert axial_distance_deg(r.directions_deg[0], normal_deg, xp=np) < 1.0
     assert r.residual_cells <= 1.0
+    # a pytree: the name, the directions and the count are static, the residual a leaf
+    assert_pytree_round_trips(r)
 
 
 def test_random_edges_and_corners():
@@ -145,6 +148,7 @@ def test_subset_of_pixels_matches_the_full_image():
         assert part.classes[row, col] == full.classes[row, col]
         np.testing.assert_array_equal(part.directions_deg[row, col], full.directions_deg[row, col])
     assert sum(full.counts().values()) == 256
+    assert_pytree_round_trips(part)  # the grid side and the integrand's names are static
     with pytest.raises(ValueError, match="pixels must lie"):
         pc.pixel_classes(scene, np.array([[16, 0]]))
     with pytest.raises(TypeError, match="integers"):
