@@ -67,7 +67,7 @@ import numpy as np
 from jaxtyping import Bool
 
 from . import metrics, vmf
-from ._types import Array, Float
+from ._types import Array, ArrayLike, Float
 from ._validate import check_choice, check_int, check_positive_float, refuse_traced
 from .metrics import axial_distance_deg as axial_distance_deg  # moved to metrics; kept here
 
@@ -167,17 +167,17 @@ def _params(**kw) -> _Params:
 
 
 class Estimate(eqx.Module):
-    """Per-histogram result with ``k`` slots (leading batch axes for blocks).
+    """Per-histogram result with ``k`` slots (leading batch axes for blocks); JAX or NumPy arrays.
 
     ``directions_deg`` in ``[0, 180)``; a slot with ``valid == False`` holds ``-1.0`` (never NaN).
     ``confidence`` is the normalised histogram mass within +-2 deg of the direction; ``kappa``
     is the fitted concentration (the fixed ``kappa`` for ``estimator="fixed"``).
     """
 
-    directions_deg: Float[Array, "... k"]
-    valid: Bool[Array, "... k"]
-    confidence: Float[Array, "... k"]
-    kappa: Float[Array, "... k"]
+    directions_deg: Float[ArrayLike, "... k"]
+    valid: Bool[ArrayLike, "... k"]
+    confidence: Float[ArrayLike, "... k"]
+    kappa: Float[ArrayLike, "... k"]
 
 
 # --- histogram (W Sec. 5.1) -----------------------------------------------------------------------

@@ -1025,7 +1025,8 @@ api("plot-spectrum-directions-200", lambda d: A().plot.save_spectrum_figure(d / 
     np.ones((5, 5)), n=4, directions_deg=[200.0]), ValueError,
     r"directions_deg must lie in \[0, 180\)", owner="plot")
 api("plot-direction-map-k-zero", lambda d: A().plot.save_direction_map(d / "o_dm.png",
-    A().directions.Estimate(*(np.zeros((2, 2, 0)),) * 4), block=4, shape=(8, 8)), ValueError,
+    A().directions.Estimate(np.zeros((2, 2, 0)), np.zeros((2, 2, 0), bool), np.zeros((2, 2, 0)),
+                            np.zeros((2, 2, 0))), block=4, shape=(8, 8)), ValueError,
     r"no direction slots \(k = 0\)", owner="plot")
 api("plot-direction-map-shape", lambda d: A().plot.direction_map_rgb(np.zeros((2, 2)),
     np.ones((2, 2), bool), block=4, shape=(8, 20)), ValueError,

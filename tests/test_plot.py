@@ -228,7 +228,8 @@ def test_save_direction_map_from_estimate_blocks(tmp_path):
         plot.save_direction_map(path, est, block=4, shape=(8, 11))
     with pytest.raises(ValueError, match="needs block= .* and shape="):
         plot.save_direction_map(tmp_path / "n.png", est)
-    empty = directions.Estimate(*(np.zeros((2, 3, 0)),) * 4)
+    z = np.zeros((2, 3, 0))
+    empty = directions.Estimate(z, z.astype(bool), z, z)
     with pytest.raises(ValueError, match=r"no direction slots \(k = 0\)"):
         plot.save_direction_map(tmp_path / "n.png", empty, block=4, shape=(8, 11))
     with pytest.raises(TypeError, match="estimate must be a render BlockEstimate"):
