@@ -103,6 +103,8 @@ def pytest_configure(config):
         os.environ[_SHARED_CACHE] = tempfile.mkdtemp(prefix="anisosample-jax-cache-")
         config._anisosample_cache_owner = True
     jax.config.update("jax_compilation_cache_dir", os.environ[_SHARED_CACHE])
+    # Measured on four render/warp test files (-n 2, quiet machine): user CPU 439 s without the
+    # cache, 371 s keeping programs that compile in >= 0.5 s, 410 s at 0.1 s, 411 s at 1.0 s.
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
 
 
