@@ -18,6 +18,13 @@ BASELINE_SCALES = {
 JITTABLE = ["random", "jittered", "cmj", "sobol-owen"]
 
 
+def curves_setup(settings, args):
+    """What a curve-recording W script starts from: the sizes ``ns = 2^log2_ns`` and the run's
+    key, with ``<out>/curves/`` (its resumable parts) made."""
+    (args.out / "curves").mkdir(parents=True, exist_ok=True)
+    return [2**k for k in settings["log2_ns"]], jax.random.key(args.seed)
+
+
 def our_sets(out: Path, dirs, ns, seeds, bar, frequency_options=None):
     sets = {}
     for n in ns:

@@ -34,9 +34,8 @@ sets are reused on rerun (``--fresh`` redoes the curves).
 from __future__ import annotations
 
 import common
-import jax
 import numpy as np
-from _w_variance import curves_panel
+from _w_variance import curves_panel, curves_setup
 
 import anisosample as asp
 from anisosample import integrands, plot, tables
@@ -87,10 +86,8 @@ def settings_of(cfg, args) -> dict:
 def compute(settings, args):
     """The integrand, its aligned sampler (sets built on demand into ``tables/``) and every
     sampler's curve (each kept in ``curves/``, resumable)."""
-    cfg = settings
-    ns = [2**k for k in cfg["log2_ns"]]
-    out = args.out
-    (out / "curves").mkdir(parents=True, exist_ok=True)
+    cfg, out = settings, args.out
+    ns, key = curves_setup(settings, args)
     rng = np.random.default_rng(args.seed)
     n_edges, k = CASES[args.case]
     if args.case == "one-edge":
@@ -103,7 +100,6 @@ def compute(settings, args):
         edge_angles = _random_edges(rng, n_edges)
         angle = edge_angles[0]
         f = integrands.edges(edge_angles)
-    key = jax.random.key(args.seed)
 
     aligned = asp.samplers.get("aligned", integrand=f, k=k, table=out / "tables",
                                build_missing=True)

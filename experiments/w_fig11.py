@@ -27,6 +27,7 @@ from _w_variance import (
     JITTABLE,
     Memo,
     curves_panel,
+    curves_setup,
     measure,
     our_sets,
     slopes,
@@ -64,11 +65,8 @@ def samplers_table():
 
 def compute(settings, args):
     """Every (integrand, sampler) curve, each kept in ``curves/`` (resumable)."""
-    cfg = settings
-    ns = [2**k for k in cfg["log2_ns"]]
-    out = args.out
-    (out / "curves").mkdir(parents=True, exist_ok=True)
-    key = jax.random.key(args.seed)
+    cfg, out = settings, args.out
+    ns, key = curves_setup(settings, args)
     samplers = samplers_table()
     cases = integrand_cases()
     results: dict[str, dict] = {}

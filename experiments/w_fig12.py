@@ -36,7 +36,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _w_variance import curves_panel
+from _w_variance import curves_panel, curves_setup
 
 from anisosample import directions, metrics, plot, warps
 from anisosample import variance as V
@@ -120,15 +120,12 @@ def curves_of(f, d0, ns, cfg, exact, k, mname):
 def compute(settings, args):
     """Per map: the grid's edge spread, the estimated directions, the curves (each map's kept in
     ``curves/<map>.json``), and the figure (drawn from the grids, ``<map>_grid.npy``)."""
-    cfg = settings
-    out = args.out
-    (out / "curves").mkdir(parents=True, exist_ok=True)
+    cfg, out = settings, args.out
+    ns, key = curves_setup(settings, args)
     a, b = math.radians(args.alpha), math.radians(args.beta)
     normal = jnp.asarray([math.cos(a) * math.sin(b), math.sin(a) * math.sin(b), math.cos(b)],
                          jnp.float32)
     exact = 2.0 * (math.pi - b)
-    ns = [2**k for k in cfg["log2_ns"]]
-    key = jax.random.key(args.seed)
     results = {}
     for mi, (mname, cls) in enumerate(progress(list(MAPS.items()), desc=NAME)):
         f = HemisphereEdge(cls(), normal, exact)

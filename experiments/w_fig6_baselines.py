@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import _w_variance as WV
 import common
-import jax
 import numpy as np
 from _w_variance import Memo, measure
 
@@ -78,11 +77,8 @@ def integrand_figure(cases, out, radius=48, m=256):
 
 def compute(settings, args):
     """Every (integrand, sampler) curve, each kept in ``curves/`` (resumable)."""
-    cfg = settings
-    ns = [2**k for k in cfg["log2_ns"]]
-    out = args.out
-    (out / "curves").mkdir(parents=True, exist_ok=True)
-    key = jax.random.key(args.seed)
+    cfg, out = settings, args.out
+    ns, key = WV.curves_setup(settings, args)
     memo_pmj = Memo(asp.samplers.get("pmj02bn"))
     memo_sheared: dict[float, Memo] = {}
     cases = integrand_cases()

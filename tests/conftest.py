@@ -114,4 +114,3 @@ def pytest_unconfigure(config):
 
     if getattr(config, "_anisosample_cache_owner", False):
         shutil.rmtree(os.environ.pop(_SHARED_CACHE), ignore_errors=True)
-
