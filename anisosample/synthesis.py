@@ -62,6 +62,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optimistix as optx
 
 from . import frequencies as _freq
 from . import io as _io
@@ -83,7 +84,8 @@ from .optimizer import adam_update as adam_update  # kept here for old callers
 from .progress import progress as _progress
 
 __all__ = ["RECIPES", "BOUNDARIES", "Recipe", "make_recipe", "recipe_defaults",
-           "SynthesisResult", "synthesize", "synthesize_batch", "synthesize_sequence",
+           "SynthesisResult", "loop_status", "synthesize", "synthesize_batch",
+           "synthesize_sequence",
            "sequence_levels", "loss_value", "SEQUENCE_WEIGHTS", "SEQUENCE_STEPS",
            "SEQUENCE_LEARNING_RATE", "SEQUENCE_DEFAULTS", "adam_update", "save_result",
            "load_result", "load_or_synthesize", "max_directions", "usable_cpus", "usable_cores"]
@@ -293,15 +295,19 @@ def max_directions(n: int) -> int:
     return max(4, int(math.isqrt(check_int("n", n, minimum=2)) // 2))
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
-class SynthesisResult:
-    """What :func:`synthesize` (one set) and :func:`synthesize_batch` (``B`` sets) return.
+class SynthesisResult(eqx.Module):
+    """What :func:`synthesize` (one set) and :func:`synthesize_batch` (``B`` sets) return: an
+    ``equinox.Module`` (a pytree: the arrays and the status are leaves, the rest static).
 
     Attributes:
         points: float32 ``(n, 2)`` (batch: ``(B, n, 2)``) in ``[0, 1)^2``; ``np.asarray(result)``
             is the same array.
         history: the loss before each step and after the last, ``(steps + 1,)`` (``(B, ...)``).
         final_loss: the loss of the returned points (batch: ``(B,)``).
+        result: the loop's status, optimistix's ``RESULTS`` (batch: one per set):
+            ``successful`` when every loss in ``history`` is finite, else
+            ``nonlinear_divergence``. Adam runs its fixed ``recipe.steps``, so there is no
+            "max steps reached": the step count is the recipe's, not a failure.
         recipe: the :class:`Recipe` that made them.
         n, directions_deg: the problem (batch: a list of direction tuples).
         key: the key's data as a list of ints (batch: the key the sets' keys were split from).
@@ -310,17 +316,23 @@ class SynthesisResult:
     """
 
     points: jax.Array
-    history: np.ndarray
-    final_loss: float | np.ndarray
-    recipe: Recipe
-    n: int
-    directions_deg: tuple | list
-    key: list
-    frequency_design: dict | list
-    frequency_count: int | list
+    history: np.ndarray | jax.Array
+    final_loss: float | np.ndarray | jax.Array
+    result: optx.RESULTS
+    recipe: Recipe = eqx.field(static=True)
+    n: int = eqx.field(static=True)
+    directions_deg: tuple | list = eqx.field(static=True)
+    key: list = eqx.field(static=True)
+    frequency_design: dict | list = eqx.field(static=True)
+    frequency_count: int | list = eqx.field(static=True)
 
     def __array__(self, dtype=None, copy=None):
         return np.asarray(self.points, dtype=dtype)
+
+    @property
+    def successful(self):
+        """``result == optimistix.RESULTS.successful`` (batch: one bool per set)."""
+        return self.result == optx.RESULTS.successful
 
     @property
     def info(self) -> dict:
@@ -336,6 +348,17 @@ class SynthesisResult:
             "history": np.asarray(self.history).tolist(),
             "final_loss": np.asarray(self.final_loss).tolist(),
         }
+
+
+def loop_status(history) -> optx.RESULTS:
+    """The status of a synthesis loop from its loss ``history`` (``(steps + 1,)``, or
+    ``(B, steps + 1)`` for one status per set): ``RESULTS.successful`` when every loss is
+    finite, else ``RESULTS.nonlinear_divergence`` (the points left the region where the loss
+    is defined, e.g. overflowed)."""
+    finite = jnp.all(jnp.isfinite(jnp.asarray(history)), axis=-1)
+    pick = lambda ok: optx.RESULTS.where(ok, optx.RESULTS.successful,  # noqa: E731
+                                         optx.RESULTS.nonlinear_divergence)
+    return jax.vmap(pick)(finite) if finite.ndim else pick(finite)
 
 
 class _Objective(eqx.Module):
@@ -757,8 +780,11 @@ def synthesize(key, n: int, directions_deg, *, recipe: str | Recipe = "rate",
                               checkpoint=checkpoint, checkpoint_every=checkpoint_every,
                               callback=callback, bar_desc=f"synthesize n={n}",
                               show_progress=show_progress)
-    result = SynthesisResult(jnp.asarray(_to_float32_unit(x[0])), hist[0], float(final[0]),
-                             rec, n, tuple(directions_deg), meta["key"], fset.params, len(fset))
+    result = SynthesisResult(
+        points=jnp.asarray(_to_float32_unit(x[0])), history=hist[0],
+        final_loss=float(final[0]), result=loop_status(hist[0]), recipe=rec, n=n,
+        directions_deg=tuple(directions_deg), key=meta["key"], frequency_design=fset.params,
+        frequency_count=len(fset))
     return (result.points, result.info) if return_info else result
 
 
@@ -883,9 +909,11 @@ def synthesize_batch(key, n: int, direction_sets, *, recipe: str | Recipe = "rat
     x = np.concatenate([out[i][0] for i, _, _ in work])
     hist = np.concatenate([out[i][1] for i, _, _ in work])
     final = np.concatenate([out[i][2] for i, _, _ in work])
-    result = SynthesisResult(jnp.asarray(_to_float32_unit(x)), hist, final, rec, n,
-                             [tuple(d) for d in sets], _key_record(key),
-                             [fs.params for fs in fsets], [len(fs) for fs in fsets])
+    result = SynthesisResult(
+        points=jnp.asarray(_to_float32_unit(x)), history=hist, final_loss=final,
+        result=loop_status(hist), recipe=rec, n=n, directions_deg=[tuple(d) for d in sets],
+        key=_key_record(key), frequency_design=[fs.params for fs in fsets],
+        frequency_count=[len(fs) for fs in fsets])
     return (result.points, result.info) if return_info else result
 
 
@@ -942,9 +970,12 @@ def load_or_synthesize(path, key, n: int, directions_deg, **options) -> Synthesi
                 and meta.get("key") == _key_record(key) and meta.get("options") == rec.record()
                 and meta.get("frequency_design") == _io.to_jsonable(fset.params)):
             hist = np.asarray(meta.get("history"), np.float64)
-            return SynthesisResult(pts, hist, float(meta.get("final_loss", hist[-1])), rec, n,
-                                   tuple(directions_deg), meta["key"], meta["frequency_design"],
-                                   int(meta.get("frequency_count", len(fset))))
+            return SynthesisResult(
+                points=pts, history=hist, final_loss=float(meta.get("final_loss", hist[-1])),
+                result=loop_status(hist), recipe=rec, n=n,
+                directions_deg=tuple(directions_deg), key=meta["key"],
+                frequency_design=meta["frequency_design"],
+                frequency_count=int(meta.get("frequency_count", len(fset))))
     ckpt = path.with_name(path.stem + ".ckpt.npz")
     result = synthesize(key, n, directions_deg, recipe=rec, checkpoint=ckpt, **run)
     save_result(path, result, overwrite=True)

@@ -27,11 +27,11 @@ Example::
 
 from __future__ import annotations
 
-import dataclasses
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -43,18 +43,21 @@ from .metrics import midpoint_grid
 Chart = tuple[Callable, Callable]
 
 
-@dataclasses.dataclass(frozen=True)
-class Chi2Result:
+class Chi2Result(eqx.Module):
+    """The verdict of :func:`chi2_test`, an ``equinox.Module`` like the library's other results
+    (the measured values are leaves; ``dof``, ``significance`` and ``figure`` are static).
+    No solver stands behind it, so it has no optimistix status: ``passed`` is the verdict."""
+
     passed: bool
     p_value: float
     statistic: float
-    dof: int
-    significance: float
+    dof: int = eqx.field(static=True)
+    significance: float = eqx.field(static=True)
     pdf_integral: float
     """Integral of the pdf over the domain (should be ~1; a check of the pdf's normalisation)."""
     outside: int = 0
     """Samples in cells where the pdf's quadrature found no support (fails beyond a handful)."""
-    figure: str | None = None
+    figure: str | None = eqx.field(default=None, static=True)
 
     def __str__(self):
         verdict = "passed" if self.passed else "FAILED"
@@ -204,7 +207,9 @@ def chi2_test(
     figure = None
     if not passed:
         figure = str(_plot(observed, expected, figure_path, warp))
-    return Chi2Result(passed, p, stat, dof, significance, pdf_integral, outside, figure)
+    return Chi2Result(passed=passed, p_value=p, statistic=stat, dof=dof,
+                      significance=significance, pdf_integral=pdf_integral,
+                      outside=outside, figure=figure)
 
 
 def _plot(observed, expected, figure_path, warp) -> Path:

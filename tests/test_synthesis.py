@@ -4,7 +4,9 @@ checkpoint/resume giving the same result, bad input, the .npz record."""
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optimistix as optx
 import pytest
+from helpers import assert_pytree_round_trips
 
 import anisosample as asp
 from anisosample import frequencies as fr
@@ -163,6 +165,32 @@ def test_batch_matches_single_runs(getkey, method):
         np.testing.assert_array_equal(batch.history[b], single.history)
     with pytest.raises(ValueError, match="same number"):
         synthesis.synthesize_batch(key, 64, [[0.0, 90.0], [0.0, 90.0, 30.0]], **opts)
+
+
+
+def test_result_is_a_pytree_with_the_loop_status(getkey):
+    """SynthesisResult is an equinox.Module (issue 26): flatten/unflatten, jit and vmap give it
+    back; a finished run's status is RESULTS.successful (one per set for a batch)."""
+    key = getkey()
+    opts = dict(steps=4, method="direct", show_progress=False)
+    result = asp.synthesize(key, 32, [0.0, 90.0, 30.0], **opts)
+    assert_pytree_round_trips(result)
+    assert result.result == optx.RESULTS.successful and bool(result.successful)
+    batch = synthesis.synthesize_batch(key, 32, [[0.0, 90.0, 30.0], [0.0, 90.0, 50.0]], **opts)
+    assert_pytree_round_trips(batch)
+    np.testing.assert_array_equal(np.asarray(batch.successful), [True, True])
+
+
+def test_loop_status_flags_a_non_finite_history():
+    """The status reads the whole history: any non-finite loss is a divergence, per set."""
+    ok = np.array([0.5, 0.4, 0.3])
+    bad = np.array([0.5, np.nan, 0.3])
+    assert synthesis.loop_status(ok) == optx.RESULTS.successful
+    assert synthesis.loop_status(bad) == optx.RESULTS.nonlinear_divergence
+    assert synthesis.loop_status(np.array([0.5, 0.4, np.inf])) == \
+        optx.RESULTS.nonlinear_divergence
+    both = synthesis.loop_status(np.stack([ok, bad]))
+    np.testing.assert_array_equal(np.asarray(both == optx.RESULTS.successful), [True, False])
 
 
 _SAME_BITS_SCRIPT = """

@@ -7,6 +7,7 @@ is 1% corrected (Sidak) for the number of tests in the file.
 import jax
 import jax.numpy as jnp
 import pytest
+from helpers import assert_pytree_round_trips
 
 import anisosample.warps as W
 from anisosample.testing import chi2_test
@@ -68,6 +69,14 @@ def test_chi2_detects_a_wrong_pdf(tmp_path):
     result = chi2_test(warp, jax.random.key(0), figure_path=tmp_path / "fail.png")
     assert not result.passed
     assert (tmp_path / "fail.png").exists() and result.figure == str(tmp_path / "fail.png")
+
+
+def test_chi2_result_is_a_pytree():
+    """Chi2Result is an equinox.Module like the other results (issue 26); the verdict survives
+    jit and vmap, its static settings ride in the structure."""
+    result = chi2_test(W.Bilinear([[1.0, 2.0], [3.0, 4.0]]), jax.random.key(3), n=20_000, res=11)
+    assert result.passed and result.dof > 0
+    assert_pytree_round_trips(result)
 
 
 def test_chi2_arguments():
