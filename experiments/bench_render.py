@@ -1,20 +1,32 @@
-"""Benchmark: the Cornell scene at 128x128, 64 spp, light sampling (``direct`` with one
-emitter sample, no BSDF sample), rendered by this package and by Mitsuba 3 from the same XML
-in the same run. Prints samples per second for both and their ratio (issue 7 target: >= 1.0).
+"""Benchmark: the ray caster against Mitsuba 3 on the same XML files (issue 25), then the
+primitive-count table and an OBJ load.
 
-Then the primitive-count table (issue 25): ns per sample of a light-sampling render
-(``--prims-size`` squared pixels, ``--prims-spp``) of a tessellated sphere
-(:func:`render.builder.sphere_mesh`) on a floor under a square area light, at each of
-``--prims`` triangle counts, through the BVH and by testing every primitive (up to
-``--brute-max`` triangles: beyond, brute force takes minutes); and the seconds to read a
-``--obj-triangles`` OBJ file (written to a temporary folder first) and build its scene with a
-BVH. The crossover of the two columns is ``render.bvh.THRESHOLD``.
+Per scene (``--scenes``: shipped scene names, and ``meshNk``: a tessellated sphere of about N
+thousand triangles on a floor under a square light, written as OBJ + XML to a temporary folder
+so that both renderers load the same file), at ``--size`` squared pixels and ``--spp``, light
+sampling as the scene files say (``direct``, one emitter sample, no BSDF sample): our M samples
+per second, Mitsuba's, and the ratio ours / Mitsuba. Mitsuba runs ``llvm_ad_rgb`` (the
+reference of issue 25; it uses every core) when Dr.Jit finds an LLVM -- ``DRJIT_LIBLLVM_PATH``,
+or Debian's libllvm19 (``apt-get install libllvm19``; found automatically) -- and ``scalar_rgb``
+with ``--scalar`` (or when no LLVM is found). Scenes with our own XML extension (bilinear
+patches) go to Mitsuba through :func:`anisosample.render.mitsuba_compat.mitsuba_compatible_copy`.
 
-Our time excludes compilation (reported separately); Mitsuba's excludes scene loading. Both
-report the best of ``--repeats`` runs, the two renderers alternating run by run. Mitsuba
-runs ``scalar_rgb`` (its multi-threaded CPU variant that needs nothing but the wheel), and
-also ``llvm_ad_rgb`` when ``DRJIT_LIBLLVM_PATH`` points at a usable LLVM, or when Debian's
-libllvm19 is installed (``apt-get install libllvm19``; found automatically).
+``--cpu-devices N`` (default: every core) starts JAX's CPU backend with N devices
+(``jax_num_cpu_devices``) and renders over all of them (``render(..., devices=jax.devices())``,
+the same bits as one device): one XLA:CPU device runs a render on one core, as the
+``cores`` column shows (process CPU time / wall time), while Mitsuba's llvm variant uses them
+all. ``--cpu-devices 1``: one device. ``--costs``: also the per-block aligned sampler and the
+light warps on the first scene, against its plain pmj02bn render.
+
+Then the primitive-count table (ns per sample of a light-sampling render, ``--prims-size``
+squared pixels, ``--prims-spp``, of a tessellated sphere (:func:`render.builder.sphere_mesh`)
+on a floor under a square area light, at each of ``--prims`` triangle counts, through the BVH
+and by testing every primitive (up to ``--brute-max`` triangles)); and the seconds to read a
+``--obj-triangles`` OBJ file and build its scene with a BVH. The crossover of the two columns
+is ``render.bvh.THRESHOLD``.
+
+Our time excludes compilation (reported separately); Mitsuba's excludes scene loading and its
+JIT (a warm-up render first). Both report the best of ``--repeats`` runs.
 """
 
 from __future__ import annotations
@@ -28,10 +40,10 @@ import common
 import jax
 import numpy as np
 
-from anisosample import render, scenes
+from anisosample import render
 
-SCENE = scenes.path("cornell")
 DEBIAN_LLVM19 = "/usr/lib/x86_64-linux-gnu/libLLVM-19.so"  # apt-get install libllvm19
+DEFAULT_SCENES = "cornell,blinds,attic,dof,mesh100k"
 
 
 def main(argv=None):
@@ -42,6 +54,13 @@ def main(argv=None):
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--scale", default="small", choices=["small", "paper"],
                    help="accepted for uniformity; the benchmark size is fixed by --size/--spp")
+    p.add_argument("--scenes", default=DEFAULT_SCENES,
+                   help="comma-separated shipped scene names and meshNk ('' skips)")
+    p.add_argument("--cpu-devices", type=int, default=os.cpu_count() or 1,
+                   help="JAX CPU devices to render over (default: one per core)")
+    p.add_argument("--scalar", action="store_true", help="also time Mitsuba's scalar_rgb")
+    p.add_argument("--costs", action="store_true",
+                   help="also the aligned sampler's and the light warps' cost on the first scene")
     p.add_argument("--prims", default="10,100,1000,10000,100000",
                    help="triangle counts of the primitive-count table (comma-separated; '' skips)")
     p.add_argument("--prims-size", type=int, default=64, help="table: image width and height")
@@ -50,10 +69,15 @@ def main(argv=None):
                    help="table: brute force (every primitive tested) up to this many triangles")
     p.add_argument("--obj-triangles", type=int, default=1_000_000,
                    help="triangles of the OBJ file read and built (0 skips)")
-    p.add_argument("--no-mitsuba", action="store_true", help="skip the Cornell comparison")
+    p.add_argument("--no-mitsuba", action="store_true", help="skip the Mitsuba comparison")
     args = p.parse_args(argv)
-    if not args.no_mitsuba:
-        cornell(args)
+    if args.cpu_devices < 1:
+        p.error(f"--cpu-devices must be at least 1, got {args.cpu_devices}")
+    if args.cpu_devices > 1:  # before anything starts the backend
+        jax.config.update("jax_num_cpu_devices", args.cpu_devices)
+    names = [s.strip() for s in args.scenes.split(",") if s.strip()]
+    if names:
+        scene_table(names, args)
     counts = [int(c) for c in args.prims.split(",") if c.strip()]
     if counts:
         prims_table(counts, args.prims_size, args.prims_spp, args.brute_max, args.repeats)
@@ -62,64 +86,151 @@ def main(argv=None):
     return 0
 
 
-def cornell(args):
-    size = dict(width=args.size, height=args.size)
-    n = args.size * args.size * args.spp
-    print(f"scene {SCENE.name}, {args.size}x{args.size}, {args.spp} spp = {n} samples; "
-          f"{os.cpu_count()} CPUs, jax {jax.__version__} on {jax.default_backend()}")
-
-    scene = render.load_xml(SCENE, **size)
-    key = jax.random.key(0)
-    t0 = time.perf_counter()
-    render.render(scene, key, spp=args.spp, progress=False)
-    first = time.perf_counter() - t0
-    ours_fn = lambda: render.render(scene, key, spp=args.spp, progress=False)  # noqa: E731
-
+def mitsuba_variants(args):
+    """``(mitsuba module or None, variants to time)``."""
+    if args.no_mitsuba:
+        return None, []
     try:
         import mitsuba as mi
     except ImportError:
-        mi = None
-    variants = []
-    if mi is not None:
-        variants = ["scalar_rgb"]
-        llvm = os.environ.get("DRJIT_LIBLLVM_PATH")
-        if not llvm and Path(DEBIAN_LLVM19).exists():
-            llvm = os.environ["DRJIT_LIBLLVM_PATH"] = DEBIAN_LLVM19
-        if llvm and Path(llvm).exists():
-            variants.append("llvm_ad_rgb")
-        else:
-            print("llvm_ad_rgb skipped (set DRJIT_LIBLLVM_PATH to Debian's libLLVM-19.so)")
-    else:
         print("mitsuba not installed: no comparison")
-    # Alternate ours and scalar_rgb run by run so that both see the same machine load (the
-    # reference machine is shared); llvm_ad_rgb runs afterwards on its own (its thread pool,
-    # once started, slows other processes down). Report the best time of each.
-    ours_times, theirs = [], {v: [] for v in variants}
-    scenes = {}
+        return None, []
+    llvm = os.environ.get("DRJIT_LIBLLVM_PATH")
+    if not llvm and Path(DEBIAN_LLVM19).exists():
+        llvm = os.environ["DRJIT_LIBLLVM_PATH"] = DEBIAN_LLVM19
+    variants = ["llvm_ad_rgb"] if llvm and Path(llvm).exists() else []
+    if not variants:
+        print("llvm_ad_rgb skipped (set DRJIT_LIBLLVM_PATH to Debian's libLLVM-19.so)")
+    if args.scalar or not variants:
+        variants.append("scalar_rgb")
+    return mi, variants
 
-    def mitsuba_run(v):
-        mi.set_variant(v)
-        if v not in scenes:
-            scenes[v] = mi.load_file(str(SCENE), **size)
-            mi.render(scenes[v], spp=args.spp)  # warm-up (JIT for llvm)
-        theirs[v].append(common.best_time(lambda: np.asarray(mi.render(scenes[v], spp=args.spp)),
-                                          repeats=1, warmup=False))
 
-    for _ in range(args.repeats):
-        ours_times.append(common.best_time(ours_fn, repeats=1, warmup=False))
-        if "scalar_rgb" in variants:
-            mitsuba_run("scalar_rgb")
+def scene_file(name: str, folder: Path) -> Path:
+    """The XML file of a shipped scene, or of ``meshNk`` written into ``folder``."""
+    from anisosample import scenes
+
+    if name.startswith("mesh") and name.endswith("k") and name[4:-1].isdigit():
+        return write_mesh_scene(int(name[4:-1]) * 1000, folder / name)
+    return scenes.path(name)
+
+
+def write_mesh_scene(triangles: int, folder: Path) -> Path:
+    """A ``sphere_mesh`` OBJ of about ``triangles`` faces on a floor under a square light,
+    as a Mitsuba 3 XML file both renderers load (the same geometry as :func:`mesh_scene`)."""
+    from anisosample.render.builder import sphere_mesh
+
+    folder.mkdir(parents=True, exist_ok=True)
+    v, f = sphere_mesh((0, 0, 0.6), 0.5, triangles)
+    with open(folder / "sphere.obj", "w") as fh:
+        np.savetxt(fh, v, fmt="v %.7f %.7f %.7f")
+        np.savetxt(fh, f + 1, fmt="f %d %d %d")
+    (folder / "scene.xml").write_text("""<scene version="3.0.0">
+    <default name="spp" value="64"/>
+    <default name="width" value="128"/>
+    <default name="height" value="128"/>
+    <integrator type="direct">
+        <integer name="emitter_samples" value="1"/>
+        <integer name="bsdf_samples" value="0"/>
+    </integrator>
+    <sensor type="perspective">
+        <float name="fov" value="40"/>
+        <transform name="to_world">
+            <lookat origin="2, -2.5, 1.8" target="0, 0, 0.4" up="0, 0, 1"/>
+        </transform>
+        <sampler type="independent"><integer name="sample_count" value="$spp"/></sampler>
+        <film type="hdrfilm">
+            <integer name="width" value="$width"/>
+            <integer name="height" value="$height"/>
+            <rfilter type="box"/>
+        </film>
+    </sensor>
+    <shape type="rectangle">
+        <transform name="to_world"><scale x="3" y="3"/></transform>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.6"/></bsdf>
+    </shape>
+    <shape type="obj">
+        <string name="filename" value="sphere.obj"/>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf>
+    </shape>
+    <shape type="rectangle">
+        <transform name="to_world">
+            <scale x="0.4" y="0.4" z="-1"/><translate x="0.5" y="0.4" z="2.2"/>
+        </transform>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
+        <emitter type="area"><rgb name="radiance" value="15"/></emitter>
+    </shape>
+</scene>
+""")
+    return folder / "scene.xml"
+
+
+def timed(fn, repeats: int):
+    """Best wall time of ``repeats`` calls after a first (compiling) one, with the cores the
+    best call kept busy (process CPU time / wall time) and the first call's seconds."""
+    t0 = time.perf_counter()
+    fn()
+    first = time.perf_counter() - t0
+    best = (np.inf, 0.0)
+    for _ in range(repeats):
+        c0, t0 = time.process_time(), time.perf_counter()
+        fn()
+        wall = time.perf_counter() - t0
+        best = min(best, (wall, (time.process_time() - c0) / wall))
+    return best[0], best[1], first
+
+
+def scene_table(names, args):
+    mi, variants = mitsuba_variants(args)
+    devices = jax.devices() if len(jax.devices()) > 1 else None
+    n = args.size * args.size * args.spp
+    print(f"{args.size}x{args.size}, {args.spp} spp = {n} samples per image; "
+          f"{os.cpu_count()} CPUs, load {os.getloadavg()[0]:.2f}; jax {jax.__version__} on "
+          f"{jax.default_backend()}, {len(jax.devices())} device(s)"
+          + (f"; mitsuba {mi.__version__}" if mi else ""))
+    head = f"{'scene':>10} {'prims':>7} {'ours M/s':>9} {'cores':>6} {'compile s':>9}"
     for v in variants:
-        if v != "scalar_rgb":
-            for _ in range(args.repeats):
-                mitsuba_run(v)
-    ours = min(ours_times)
-    print(f"anisosample: first call {first:.2f} s (with compilation), best {ours:.3f} s "
-          f"-> {n / ours / 1e6:.3f} M samples/s")
-    for v in variants:
-        t = min(theirs[v])
-        print(f"mitsuba {mi.__version__} {v}: best {t:.3f} s -> {n / t / 1e6:.3f} M "
-              f"samples/s; ratio anisosample/mitsuba = {t / ours:.3f}")
+        head += f" {v + ' M/s':>16} {'ratio':>6}"
+    print(head)
+    key = jax.random.key(0)
+    size = dict(width=args.size, height=args.size)
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in names:
+            path = scene_file(name, Path(tmp))
+            scene = render.load_xml(path, **size)
+            fn = lambda s=scene: render.render(  # noqa: E731
+                s, key, spp=args.spp, sampler="pmj02bn", progress=False, devices=devices)
+            ours, cores, first = timed(fn, args.repeats)
+            prims = int(scene.tri_ids.shape[0])
+            row = (f"{name:>10} {prims:>7} {n / ours / 1e6:9.2f} {cores:6.2f} "
+                   f"{first - ours:9.1f}")
+            for v in variants:
+                mi.set_variant(v)
+                mpath = render.mitsuba_compat.mitsuba_compatible_copy(
+                    path, Path(tmp) / f"mitsuba_{name}", **size)
+                ms = mi.load_file(str(mpath), **size)
+                theirs, _, _ = timed(lambda ms=ms: np.asarray(mi.render(ms, spp=args.spp)),
+                                     args.repeats)
+                row += f" {n / theirs / 1e6:16.2f} {theirs / ours:6.3f}"
+            print(row, flush=True)
+            if args.costs and name == names[0]:
+                costs(scene, key, args, devices, ours)
+
+
+def costs(scene, key, args, devices, plain):
+    """The per-block aligned sampler and two light warps on ``scene``, in seconds per image
+    relative to its plain pmj02bn render (``plain`` seconds)."""
+    n = args.size * args.size * args.spp
+    cases = {"aligned (per block)": dict(sampler="aligned"),
+             "cosine-bilinear warp": dict(sampler="pmj02bn", light_warp="cosine-bilinear"),
+             "product-bilinear warp": dict(sampler="pmj02bn", light_warp="product-bilinear",
+                                           technique="solid_angle")}
+    for label, kw in cases.items():
+        fn = lambda kw=kw: render.render(scene, key, spp=args.spp, progress=False,  # noqa: E731
+                                         devices=devices, **kw)
+        t, cores, _ = timed(fn, args.repeats)
+        print(f"{'':>10}   {label}: {n / t / 1e6:.2f} M samples/s, {t / plain:.2f}x the plain "
+              f"render's time ({cores:.2f} cores)", flush=True)
 
 
 def mesh_scene(triangles: int):
