@@ -43,7 +43,7 @@ as ``[column, row]`` as ``render.pixel_integrand`` takes it, row 0 at the top, i
 direction(s), its block's estimate, and per method its per-pixel variances and slopes) and
 ``w_fig9.png``. Finished scenes are reused on rerun (``--fresh`` recomputes).
 
-    python experiments/w_fig9.py --scale small|paper [--scenes cornell,dof]
+    python experiments/w_fig9.py --scale small|paper [--scenes cornell,dof,pillars]
 """
 
 from __future__ import annotations
@@ -73,7 +73,7 @@ SCALES = {
 CLASS_NAMES = ("one-edge", "corner", "lit", "lit-aligned-block")
 # "lit-aligned-block": lit pixels whose block's estimate has a usable direction, i.e. the lit
 # pixels W's sampler hands an aligned set (where the per-pixel gate matters).
-SCENES = ("cornell", "dof")
+SCENES = ("cornell", "dof", "pillars")  # pillars: penumbra directions turn within a block
 
 
 def pick_pixels(name, cfg, rng):
