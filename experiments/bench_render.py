@@ -11,12 +11,14 @@ or Debian's libllvm19 (``apt-get install libllvm19``; found automatically) -- an
 with ``--scalar`` (or when no LLVM is found). Scenes with our own XML extension (bilinear
 patches) go to Mitsuba through :func:`anisosample.render.mitsuba_compat.mitsuba_compatible_copy`.
 
-``--cpu-devices N`` (default: every core) starts JAX's CPU backend with N devices
+``--cpu-devices N`` (default: one per core) starts JAX's CPU backend with N devices
 (``jax_num_cpu_devices``) and renders over all of them (``render(..., devices=jax.devices())``,
-the same bits as one device): one XLA:CPU device runs a render on one core, as the
-``cores`` column shows (process CPU time / wall time), while Mitsuba's llvm variant uses them
-all. ``--cpu-devices 1``: one device. ``--costs``: also the per-block aligned sampler and the
-light warps on the first scene, against its plain pmj02bn render.
+the same bits as one device); ``--cpu-devices 1``: one device. The ``cores`` column is the
+process's CPU time over wall time. On the 2-core reference machine (2026-12-06, load 0.6) one
+device already kept 1.6-1.7 cores busy on cornell (XLA:CPU splits large loops over its
+threads), and two devices gave 7.3-9.3 M samples/s against one device's 7.3-7.5: the devices
+are not where the gap to Mitsuba's llvm variant lies. ``--costs``: also the per-block aligned
+sampler and the light warps on the first scene, against its plain pmj02bn render.
 
 Then the primitive-count table (ns per sample of a light-sampling render, ``--prims-size``
 squared pixels, ``--prims-spp``, of a tessellated sphere (:func:`render.builder.sphere_mesh`)
