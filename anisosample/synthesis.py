@@ -355,7 +355,10 @@ def loop_status(history) -> optx.RESULTS:
     ``(B, steps + 1)`` for one status per set): ``RESULTS.successful`` when every loss is
     finite, else ``RESULTS.nonlinear_divergence`` (the points left the region where the loss
     is defined, e.g. overflowed)."""
-    finite = jnp.all(jnp.isfinite(jnp.asarray(history)), axis=-1)
+    if isinstance(history, jax.core.Tracer):
+        finite = jnp.all(jnp.isfinite(history), axis=-1)
+    else:  # in float64: a large finite loss must not overflow to inf in float32
+        finite = jnp.asarray(np.all(np.isfinite(np.asarray(history, np.float64)), axis=-1))
     pick = lambda ok: optx.RESULTS.where(ok, optx.RESULTS.successful,  # noqa: E731
                                          optx.RESULTS.nonlinear_divergence)
     return jax.vmap(pick)(finite) if finite.ndim else pick(finite)

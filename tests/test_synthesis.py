@@ -189,6 +189,9 @@ def test_loop_status_flags_a_non_finite_history():
     assert synthesis.loop_status(bad) == optx.RESULTS.nonlinear_divergence
     assert synthesis.loop_status(np.array([0.5, 0.4, np.inf])) == \
         optx.RESULTS.nonlinear_divergence
+    # a finite float64 loss beyond float32's range is still finite
+    assert synthesis.loop_status(np.array([1e300, 0.5])) == optx.RESULTS.successful
+    assert jax.jit(synthesis.loop_status)(jnp.asarray(ok)) == optx.RESULTS.successful
     both = synthesis.loop_status(np.stack([ok, bad]))
     np.testing.assert_array_equal(np.asarray(both == optx.RESULTS.successful), [True, False])
 
