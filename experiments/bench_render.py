@@ -168,18 +168,12 @@ def write_mesh_scene(triangles: int, folder: Path) -> Path:
 
 
 def timed(fn, repeats: int):
-    """Best wall time of ``repeats`` calls after a first (compiling) one, with the cores the
-    best call kept busy (process CPU time / wall time) and the first call's seconds."""
+    """``(best seconds, cores, first call's seconds)``: :func:`common.best_time` of ``repeats``
+    calls after a first (compiling) one, which is timed too."""
     t0 = time.perf_counter()
     fn()
     first = time.perf_counter() - t0
-    best = (np.inf, 0.0)
-    for _ in range(repeats):
-        c0, t0 = time.process_time(), time.perf_counter()
-        fn()
-        wall = time.perf_counter() - t0
-        best = min(best, (wall, (time.process_time() - c0) / wall))
-    return best[0], best[1], first
+    return (*common.best_time(fn, repeats=repeats, warmup=False, cores=True), first)
 
 
 def scene_table(names, args):

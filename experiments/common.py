@@ -160,24 +160,32 @@ def run_script(name: str, out: Path, *args: str) -> dict:
 
 
 def best_time(fn, *args, repeats: int, calls: int = 1, warmup: bool = True,
-              clock=time.perf_counter, with_output: bool = False):
+              clock=time.perf_counter, with_output: bool = False, cores: bool = False):
     """Seconds per call of ``fn(*args)``: the best of ``repeats`` timings of ``calls``
     back-to-back calls, each batch waited for (``jax.block_until_ready``), after one untimed
     call when ``warmup`` (compilation, caches). The minimum is the timing least disturbed by the
     other processes on a shared machine; ``clock=time.process_time`` measures this process's CPU
-    time instead of wall time. ``with_output``: ``(seconds, the last call's result)``."""
+    time instead of wall time. ``with_output``: ``(seconds, the last call's result)``.
+    ``cores``: ``(seconds, cores)``, the cores the best batch kept busy (this process's CPU time
+    over ``clock``'s time)."""
     import jax
 
     if repeats < 1 or calls < 1:
         raise ValueError(f"repeats and calls must be >= 1, got {repeats} and {calls}")
+    if cores and with_output:
+        raise ValueError("cores and with_output do not go together")
     out = jax.block_until_ready(fn(*args)) if warmup else None
-    best = float("inf")
+    best, busy = float("inf"), 0.0
     for _ in range(repeats):
-        t = clock()
+        c, t = time.process_time(), clock()
         for _ in range(calls):
             out = fn(*args)
         jax.block_until_ready(out)
-        best = min(best, (clock() - t) / calls)
+        seconds = clock() - t
+        if seconds / calls < best:
+            best, busy = seconds / calls, (time.process_time() - c) / max(seconds, 1e-12)
+    if cores:
+        return best, busy
     return (best, out) if with_output else best
 
 

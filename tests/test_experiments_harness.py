@@ -166,3 +166,37 @@ def test_run_recomputes_a_record_that_lacks_what_is_asked(tmp_path):
         "computing b", "report ['a', 'b']"]
     assert _run(script, tmp_path, "--out", str(out)) == [
         f"reusing {out / 'partial.json'}", "report ['a', 'b']"]
+
+
+BEST_TIME = '''
+import sys, time
+sys.path.insert(0, {experiments!r})
+import common
+
+
+def busy():
+    end = time.perf_counter() + 0.05
+    while time.perf_counter() < end:
+        pass
+
+
+s_busy, c_busy = common.best_time(busy, repeats=3, warmup=False, cores=True)
+s_idle, c_idle = common.best_time(lambda: time.sleep(0.05), repeats=3, warmup=False, cores=True)
+print(s_busy, c_busy, s_idle, c_idle)
+try:
+    common.best_time(busy, repeats=1, cores=True, with_output=True)
+except ValueError:
+    print("refused")
+'''
+
+
+def test_best_time_reports_the_cores_its_best_batch_kept_busy(tmp_path):
+    """cores=True: this process's CPU time over the best batch's wall time -- a busy loop keeps
+    a core, a sleep none (bounds far from both, for a loaded machine)."""
+    script = tmp_path / "bt.py"
+    script.write_text(BEST_TIME.format(experiments=str(REPO / "experiments")))
+    first, last = _run(script, tmp_path)
+    s_busy, c_busy, s_idle, c_idle = map(float, first.split())
+    assert s_busy >= 0.05 and s_idle >= 0.05
+    assert c_busy > 0.3 and c_idle < 0.1
+    assert last == "refused"
