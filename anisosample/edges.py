@@ -46,8 +46,8 @@ from jaxtyping import Array, Float, Int
 
 from ._validate import check_int, check_points, check_positive_float
 
-__all__ = ["EdgeSearch", "SearchOptions", "search_options", "search", "edge_search",
-           "neighbour_pairs", "WIDTH"]
+__all__ = ["EdgeSearch", "SearchOptions", "candidate", "search_options", "search",
+           "edge_search", "neighbour_pairs", "CANDIDATE_MARGIN", "WIDTH"]
 
 WIDTH = 0.03
 """Half-width of a walk's segment across a tentative line, in units of the square: the line's
@@ -112,7 +112,10 @@ def neighbour_pairs(points, neighbours: int = 4) -> tuple[Array, Array, Array]:
     directed pairs, ``keep`` false on the second copy of a pair both ends list."""
     p = jnp.asarray(points, jnp.float32)
     m = p.shape[0]
-    d2 = jnp.sum((p[:, None, :] - p[None, :, :]) ** 2, axis=-1)
+    x, y = p[:, 0], p[:, 1]
+    # the two squares added by hand: XLA:CPU vectorises this about 3x better than a sum over a
+    # trailing axis of 2 (same bits)
+    d2 = (x[:, None] - x[None, :]) ** 2 + (y[:, None] - y[None, :]) ** 2
     d2 = d2 + jnp.where(jnp.eye(m, dtype=bool), jnp.inf, 0.0)
     _, knn = jax.lax.top_k(-d2, neighbours)
     i = jnp.repeat(jnp.arange(m), neighbours)
@@ -183,6 +186,43 @@ def _axial_deg(normal):
     return jnp.mod(jnp.degrees(jnp.arctan2(normal[1], normal[0])), 180.0)
 
 
+def _cubic_basis(p):
+    x, y = p[:, 0] - 0.5, p[:, 1] - 0.5
+    return jnp.stack([x**a * y**b for a in range(4) for b in range(4 - a)], axis=1)
+
+
+def _rough(p, v, o: SearchOptions):
+    """Step 1: the values' range and whether a cubic in ``(x, y)`` leaves them unexplained."""
+    span = jnp.max(v) - jnp.min(v)
+    basis = _cubic_basis(p)
+    coef, *_ = jnp.linalg.lstsq(basis, v)
+    return span, (span > 0) & (jnp.max(jnp.abs(v - basis @ coef)) > o.smooth_residual * span)
+
+
+CANDIDATE_MARGIN = 0.8
+""":func:`candidate` flags residuals above this fraction of :func:`search`'s threshold."""
+
+
+def candidate(points, values, o: SearchOptions):
+    """Whether :func:`search` may look for an edge: the cubic's residual (step 1, fitted by
+    QR instead of the search's SVD least squares, about 3x cheaper under ``vmap`` on XLA:CPU)
+    exceeds :data:`CANDIDATE_MARGIN` of the search's threshold. Where this is false,
+    :func:`search` returns no direction, ``count`` 0 and ``samples`` 0 without sampling ``f``,
+    so a renderer runs it only where it is true. The margin is 0.02 of the values' range at
+    the default ``smooth_residual``; the two fits' residuals differed by at most 0.0015 of it
+    on the 49,152 pixels of cornell, dof and pillars at 128^2 (QR and SVD are both backward
+    stable, and the cubic basis on the shifted 64-point prefix has condition number <= 77).
+    A bool; vmaps like :func:`search`."""
+    p = jnp.asarray(points, jnp.float32)
+    v = jnp.asarray(values, jnp.float32)
+    span = jnp.max(v) - jnp.min(v)
+    basis = _cubic_basis(p)
+    q, r = jnp.linalg.qr(basis)
+    coef = jax.scipy.linalg.solve_triangular(r, q.T @ v, lower=False)
+    residual = jnp.max(jnp.abs(v - basis @ coef))
+    return (span > 0) & (residual > CANDIDATE_MARGIN * o.smooth_residual * span)
+
+
 @eqx.filter_jit
 def search(f, points, values, o: SearchOptions) -> EdgeSearch:
     """The search's core (module docstring), unvalidated: ``points`` ``(m, 2)`` float32,
@@ -190,12 +230,8 @@ def search(f, points, values, o: SearchOptions) -> EdgeSearch:
     integrands (an ``eqx.Module`` batch) or call it inside a renderer's kernel."""
     p = jnp.asarray(points, jnp.float32)
     v = jnp.asarray(values, jnp.float32)
-    span = jnp.max(v) - jnp.min(v)
     # 1. A cubic in (x, y) explains a smooth integrand.
-    x, y = p[:, 0] - 0.5, p[:, 1] - 0.5
-    basis = jnp.stack([x**a * y**b for a in range(4) for b in range(4 - a)], axis=1)
-    coef, *_ = jnp.linalg.lstsq(basis, v)
-    rough = (span > 0) & (jnp.max(jnp.abs(v - basis @ coef)) > o.smooth_residual * span)
+    span, rough = _rough(p, v, o)
     # 2. The pairs with the largest jumps, bisected.
     i, j, keep = neighbour_pairs(p, o.neighbours)
     diff = jnp.where(keep, jnp.abs(v[i] - v[j]), -1.0)

@@ -294,7 +294,7 @@ def installed_sizes(direction_count: int) -> list[int]:
     return sorted(out)
 
 
-@functools.lru_cache(maxsize=64)
+@functools.lru_cache(maxsize=512)  # a per-pixel render reads a few hundred sets per call
 def _load_verified(path: str, n: int, direction_count: int, extra, mtime_ns: int, size: int,
                    index_mtime_ns: int) -> tuple[np.ndarray, tuple[str, int]]:
     """Verified canonical set and its table's prefix, cached per file version (a renderer looks

@@ -105,6 +105,33 @@ def test_vmapped_search_equals_one_by_one():
     assert_pytree_round_trips(one)
 
 
+def test_no_candidate_means_nothing_found_and_nothing_sampled():
+    """Where :func:`edges.candidate` is false, the full search finds no edge and takes no
+    sample (what lets a renderer run it only on candidates); every edge integrand is one."""
+    rng = np.random.default_rng(8)
+    smooth = [lambda x: 0.3 + 0.2 * jnp.sin(3 * x[..., 0]) + x[..., 1] ** 2,
+              lambda x: jnp.exp(-4 * jnp.sum((x - 0.4) ** 2, axis=-1)),
+              lambda x: jnp.zeros(x.shape[:-1], jnp.float32),
+              lambda x: jnp.full(x.shape[:-1], 2.0, jnp.float32)]
+    # edges that leave the square (or barely enter it) give integrands on either side
+    cuts = [_cut(rng.uniform(-0.2, 1.2, 2), list(rng.uniform(0, 360, rng.integers(1, 3))))
+            for _ in range(30)]
+    o = edges.search_options()
+    seen = set()
+    for t, f in enumerate(smooth + cuts):
+        x = _shifted(200 + t)
+        v = f(x)
+        r = edges.search(f, x, v, o)
+        has = bool(edges.candidate(x, v, o))
+        seen.add(has)
+        if not has:
+            assert int(r.count) == 0 and int(r.samples) == 0
+            assert np.all(np.isnan(np.asarray(r.directions_deg)))
+    assert seen == {False, True}
+    assert all(bool(edges.candidate(_shifted(t), c(_shifted(t)), o))
+               for t, c in enumerate(cuts[:5]) if 0 < float(jnp.mean(c(_shifted(t)) > 0)) < 1)
+
+
 def test_neighbour_pairs_match_brute_force():
     p = np.asarray(_shifted(3))
     i, j, keep = (np.asarray(a) for a in edges.neighbour_pairs(p, 4))

@@ -161,7 +161,7 @@ def render(
     total2 = np.zeros((npix, 3), np.float64)
     opts = dict(options=options)
     with bar(
-        total=realizations * (n_chunks + 2 if per_pixel is not None else n_chunks),
+        total=realizations * (n_chunks + 3 if per_pixel is not None else n_chunks),
         desc="render",
         disable=None if progress and jax.process_index() == 0 else True,
         unit="chunk",
@@ -329,17 +329,33 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
     from .pixel_aligned import (
         FALLBACK,
         choose_sets,
+        exact_values,
         fallback_chunk,
         pixel_prefix,
         prefix_chunk,
         prefix_weight,
         rest_chunk,
+        search_chunk,
     )
 
     prefix = jnp.asarray(prefix_points(pixel_prefix(spp)), jnp.float32)
     m = prefix.shape[0]
-    head, dirs, count, extra = over_pixels(prefix_chunk, (scene, prefix, key),
-                                           dict(opts, spp=spp, search=sampler.search))
+    head, values, rough = over_pixels(prefix_chunk, (scene, prefix, key),
+                                      dict(opts, spp=spp, search=sampler.search))
+    # The search only where it has a candidate (elsewhere it finds nothing and samples nothing):
+    # 8 % (cornell) to 32 % (pillars) of the pixels at 128^2; run on every pixel, the search
+    # was most of the render's time (cornell 128^2 x 256 spp: 2.5 s before, 1.2 s after).
+    dirs = np.full((values.shape[0], 2), np.nan, np.float32)
+    count = np.zeros(values.shape[0], np.int32)
+    extra = np.zeros(values.shape[0], np.int32)
+    rough = np.flatnonzero(rough)
+    if rough.size:
+        dirs, count, extra = over_pixels(
+            search_chunk, (scene, prefix, jnp.asarray(values), key),
+            dict(options=opts["options"], search=sampler.search), rough)
+        dirs[~np.isin(np.arange(dirs.shape[0]), rough)] = np.nan
+    if not exact_values(scene, opts["options"]):
+        extra = extra + m  # the prefix's values re-evaluated for the search
     requests, index, code = choose_sets(dirs, count, sampler.k)
     edge = np.flatnonzero(index >= 0)
     smooth = np.flatnonzero(index < 0)

@@ -57,7 +57,7 @@ from .scene import LUMINANCE, THINLENS, Scene
 __all__ = ["FALLBACK", "PIXEL_SAMPLERS", "PixelEstimates", "PixelSampler", "choose_sets",
            "exact_values", "fallback_chunk", "fallback_shift_key", "integrand_estimates",
            "pixel_prefix", "pixel_sampler", "prefix_chunk", "prefix_sets", "prefix_weight",
-           "rest_chunk", "toroidal_shift_key"]
+           "rest_chunk", "search_chunk", "toroidal_shift_key"]
 
 PIXEL_SAMPLERS = ("aligned-pixel",)
 """Sampler names :func:`anisosample.render.render` resolves with a :class:`PixelSampler`."""
@@ -202,40 +202,64 @@ def exact_values(scene: Scene, options: IntegratorOptions) -> bool:
 _STATIC = ("spp", "options", "search")
 
 
+def _pixel_integrand(scene: Scene, options: IntegratorOptions, q):
+    """Pixel ``q``'s 2D integrand ``f_q`` (W Eq. 8) as the search samples it: the pixel's
+    centre, the lens centre, luminance, no MIS."""
+    g0 = sample_function(scene, options.replace(mis=False))
+    lum = jnp.asarray(LUMINANCE, jnp.float32)
+    w, h = scene.width, scene.height
+    centre = jnp.stack([(q % w).astype(jnp.float32) + 0.5,
+                        (q // w).astype(jnp.float32) + 0.5]) / jnp.asarray([w, h], jnp.float32)
+
+    def f(y):
+        flat = y.reshape(-1, 2)
+        half = jnp.full_like(flat, 0.5)
+        film = jnp.broadcast_to(centre, flat.shape)
+        return (jax.vmap(g0)(flat, film, half, half) @ lum).reshape(y.shape[:-1])
+
+    return f
+
+
+def _over(one, pixels):
+    if pixels.ndim == 1:
+        return jax.vmap(one)(pixels)
+    return jax.lax.map(jax.vmap(one), pixels)
+
+
 @functools.partial(jax.jit, static_argnames=_STATIC)
 def prefix_chunk(scene: Scene, prefix, key, pixels, *, spp, options: IntegratorOptions,
                  search: edges.SearchOptions):
     """Pass 1 for ``pixels`` (``options``: the render's, resolved): the sum of each pixel's
-    first ``m`` samples ``(..., 3)``, its directions ``(..., 2)`` (NaN: none), its edge count
-    and the search's extra samples."""
+    first ``m`` samples ``(..., 3)``, the values of its integrand at the prefix ``(..., m)``
+    (read from the samples where :func:`exact_values`) and whether the edge search has a
+    candidate there (:func:`anisosample.edges.candidate`; where not, the search would find
+    nothing and take no sample, so :func:`search_chunk` runs only where it has)."""
     g = sample_function(scene, options)
-    g0 = sample_function(scene, options.replace(mis=False))
     exact = exact_values(scene, options)
     lum = jnp.asarray(LUMINANCE, jnp.float32)
-    w, h = scene.width, scene.height
-    m = prefix.shape[0]
 
     def one(q):
         x = toroidal_shift_key(key, q, prefix)
         rgb = pixel_samples(scene, g, x, key, q, spp, 0, options)
-        centre = jnp.stack([(q % w).astype(jnp.float32) + 0.5,
-                            (q // w).astype(jnp.float32) + 0.5]) / jnp.asarray([w, h],
-                                                                                jnp.float32)
+        values = rgb @ lum if exact else _pixel_integrand(scene, options, q)(x)
+        return jnp.sum(rgb, axis=0), values, edges.candidate(x, values, search)
 
-        def f(y):  # the pixel's 2D integrand f_q (W Eq. 8): centre, lens centre, luminance
-            flat = y.reshape(-1, 2)
-            half = jnp.full_like(flat, 0.5)
-            film = jnp.broadcast_to(centre, flat.shape)
-            return (jax.vmap(g0)(flat, film, half, half) @ lum).reshape(y.shape[:-1])
+    return _over(one, pixels)
 
-        values = rgb @ lum if exact else f(x)
-        r = edges.search(f, x, values, search)
-        extra = r.samples + (0 if exact else m)
-        return jnp.sum(rgb, axis=0), r.directions_deg, r.count, extra
 
-    if pixels.ndim == 1:
-        return jax.vmap(one)(pixels)
-    return jax.lax.map(jax.vmap(one), pixels)
+@functools.partial(jax.jit, static_argnames=_STATIC[1:])
+def search_chunk(scene: Scene, prefix, values, key, pixels, *, options: IntegratorOptions,
+                 search: edges.SearchOptions):
+    """The edge search of pixels with a candidate (:func:`prefix_chunk`), pixel ``q`` from its
+    prefix values ``values[q]``: its directions ``(..., 2)`` (NaN: none), its edge count and
+    the search's samples."""
+
+    def one(q):
+        x = toroidal_shift_key(key, q, prefix)
+        r = edges.search(_pixel_integrand(scene, options, q), x, values[q], search)
+        return r.directions_deg, r.count, r.samples
+
+    return _over(one, pixels)
 
 
 def toroidal_shift_key(key, q, points):
@@ -258,9 +282,7 @@ def rest_chunk(scene: Scene, rests, pixel_set, key, pixels, *, spp,
         rgb = pixel_samples(scene, g, x, key, q, spp, m, options)
         return jnp.sum(rgb, axis=0)
 
-    if pixels.ndim == 1:
-        return jax.vmap(one)(pixels)
-    return jax.lax.map(jax.vmap(one), pixels)
+    return _over(one, pixels)
 
 
 def fallback_shift_key(key, q):
@@ -282,9 +304,7 @@ def fallback_chunk(scene: Scene, base, key, pixels, *, spp, m, options: Integrat
         rgb = pixel_samples(scene, g, x, key, q, spp + m, m, options)
         return jnp.mean(rgb, axis=0)
 
-    if pixels.ndim == 1:
-        return jax.vmap(one)(pixels)
-    return jax.lax.map(jax.vmap(one), pixels)
+    return _over(one, pixels)
 
 
 def choose_sets(directions_deg, count, k: int) -> tuple[list, np.ndarray, np.ndarray]:
