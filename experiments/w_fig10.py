@@ -16,14 +16,18 @@ the per-pixel gate's probe (beyond W, an upper bound: every pixel probed) in the
 Beyond W, ``aligned (pixel)`` (the renderer's ``sampler="aligned-pixel"``) is shifted by its own
 measured cost: ``(t_pixel - t_pmj) / t_spp`` per pixel, the two renders' times at
 ``pixel_spp`` on the same image (the search's samples and compute, the lit pixels' prefix beside
-pmj02bn, the set lookups); ``aligned (window)`` by the block shift (the same estimation samples;
+pmj02bn, the set lookups), and, as ``aligned (pixel) at equal samples``, by the integrand
+samples its estimation takes beyond ``spp`` per pixel (``pixel_sample_shift_spp``: the render
+record's ``estimation_samples_per_pixel``; the equal-time shift on a renderer whose samples
+cost far more than the search's compute); ``aligned (window)`` by the block shift (the same estimation samples;
 its per-pixel vMF fits are not timed, so its shift is a lower bound).
 The curves are W Fig. 9's on its one-edge penumbra pixels (``w_fig9``, run first at the same
 scale in its own process, which reuses its finished scenes): the median over those pixels of
 each method's per-pixel variance; the aligned curves are drawn at ``N + shift``, the unaligned
 ones at ``N``. The JSON also
 gives, at the smallest N, each unaligned variance interpolated (log-log) at ``N + shift`` and
-the aligned (block) variance over it. Timings depend on the machine and its load.
+the aligned (block) variance over it, and at each N of the per-pixel curve the equal-cost
+ratios to pmj02bn (``equal_cost_by_n``: :func:`equal_cost_by_n`). Timings depend on the machine and its load.
 
     python experiments/w_fig10.py --scale small|paper [--out DIR] [--fig9-out DIR]
 """
@@ -45,6 +49,7 @@ SCALES = {"small": dict(repeats=3, spp=64, timing_size=128, pixel_spp=256),
           "paper": dict(repeats=5, spp=256, timing_size=256, pixel_spp=256)}
 CLASS = "one-edge"  # W Fig. 9's penumbra pixels: where the claim lives
 ALIGNED = "aligned (block)"  # what the renderer's aligned sampler uses (W Sec. 5.4)
+PIXEL = "aligned (pixel)"  # beyond W: the renderer's sampler="aligned-pixel"
 
 
 def measure(name, cfg9, cfg, key):
@@ -78,14 +83,15 @@ def measure(name, cfg9, cfg, key):
             # table lacks for them would be synthesized inside the timed call (a one-time table
             # cost, not the render's: measured 52.5 s against 2.2 s on cornell, 2026-12-06).
             t0 = time.perf_counter()
-            render.render(scene, key, **o)
+            res = render.render(scene, key, **o)
             ts.append(time.perf_counter() - t0)
         t_pair[sampler] = min(ts)
+    samples = res.settings["blocks"]["estimation_samples_per_pixel"]
     t_spp_p = t_pair["pmj02bn"] / (px * cfg["pixel_spp"])
     pixel_shift = (t_pair["aligned-pixel"] - t_pair["pmj02bn"]) / px / t_spp_p
     return {"t_est_s": t_est, "t_est_per_pixel_s": t_est / px, "t_render_s": min(times),
             "t_pixel_render_s": t_pair["aligned-pixel"], "t_pmj_render_s": t_pair["pmj02bn"],
-            "pixel_shift_spp": pixel_shift,
+            "pixel_shift_spp": pixel_shift, "pixel_sample_shift_spp": samples,
             "t_per_sample_s": t_spp, "shift_spp": t_est / px / t_spp,
             "t_gate_s": t_gate, "gate_shift_spp": t_gate / px / t_spp,
             "integrand_samples_per_pixel_for_estimation": 96**2 / bp**2}
@@ -104,6 +110,29 @@ def median_curves(c) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, np.nd
 
 def interp_loglog(ns, var, x):
     return float(np.exp(np.interp(np.log(x), np.log(ns), np.log(var))))
+
+
+def equal_cost_by_n(ns, curves, own_ns, t) -> dict:
+    """At each N of the per-pixel curve: the aligned curve at N over pmj02bn's interpolated
+    at N + shift, for ``aligned (block)`` (its estimation's shift), ``aligned (pixel)`` (its
+    render's time shift, measured at ``pixel_spp`` and taken as constant in N: the search, the
+    prefix beside pmj02bn on smooth pixels and the set lookups do not grow with spp) and
+    ``aligned (pixel) at equal samples``; NaN where N + shift lies past pmj02bn's largest N
+    (no extrapolation)."""
+    if PIXEL not in curves:
+        return {}
+    pmj = curves["pmj02bn"]
+
+    def over(m, n, shift):
+        x = n + shift
+        if x > ns[-1]:
+            return float("nan")
+        return float(curves[m][list(own_ns[m]).index(n)] / interp_loglog(ns, pmj, x))
+
+    return {str(int(n)): {ALIGNED: over(ALIGNED, n, t["shift_spp"]),
+                          PIXEL: over(PIXEL, n, t["pixel_shift_spp"]),
+                          PIXEL + " at equal samples": over(PIXEL, n, t["pixel_sample_shift_spp"])}
+            for n in own_ns[PIXEL] if n in list(own_ns[ALIGNED])}
 
 
 def arguments(p):
@@ -155,7 +184,7 @@ def compute(settings, args):
         shift = t["shift_spp"]
         ax = axes[0, col]
         cmp = {}
-        shifts = {m: (t["pixel_shift_spp"] if m == "aligned (pixel)" else shift)
+        shifts = {m: (t["pixel_shift_spp"] if m == PIXEL else shift)
                   for m in curves if m.startswith("aligned")}
         for m, v in curves.items():
             x = ns_of[s][m] + shifts.get(m, 0.0)
@@ -169,7 +198,13 @@ def compute(settings, args):
                     a: {"shift_spp": sh, "aligned_over_this":
                         curves[a][0] / interp_loglog(ns, v, ns_of[s][a][0] + sh)}
                     for a, sh in shifts.items()}
-        rows[s] = {"ns": ns.tolist(), "pixels": len(fig9["scenes"][s]["classes"][CLASS]["pixels"]),
+                if PIXEL in curves:  # the per-pixel sampler's cost counted in samples alone
+                    sh = t["pixel_sample_shift_spp"]
+                    cmp[m]["by_method"][PIXEL + " at equal samples"] = {
+                        "shift_spp": sh, "aligned_over_this":
+                        curves[PIXEL][0] / interp_loglog(ns, v, ns_of[s][PIXEL][0] + sh)}
+        rows[s] = {"equal_cost_by_n": equal_cost_by_n(ns, curves, ns_of[s], t),
+                   "ns": ns.tolist(), "pixels": len(fig9["scenes"][s]["classes"][CLASS]["pixels"]),
                    "shift_spp": shift, "aligned_ns_shifted": (ns + shift).tolist(),
                    "curves": {m: v.tolist() for m, v in curves.items()},
                    "at_smallest_n": cmp, **t}
@@ -186,6 +221,9 @@ def report(data, args):
         print(f"  {s}: estimation {1e3 * r['t_est_s']:.1f} ms for the image "
               f"({1e6 * r['t_est_per_pixel_s']:.2f} us/pixel), {1e9 * r['t_per_sample_s']:.1f} "
               f"ns/sample -> shift {r['shift_spp']:.1f} spp")
+        for n, row in r.get("equal_cost_by_n", {}).items():
+            print(f"    N = {n}: " + ", ".join(f"{m} {v:.3f}" for m, v in row.items())
+                  + " of pmj02bn's at N + shift")
         for m, c in r["at_smallest_n"].items():
             print(f"    aligned@{r['ns'][0]} / {m}@{r['ns'][0]}+shift = "
                   f"{c['aligned_over_this']:.3f}")

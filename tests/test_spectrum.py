@@ -268,18 +268,31 @@ def test_rotated_path_float64_deep(getkey):
         assert np.max(np.abs(a - b)) < 1e-7 / 256  # 1e-7 of white noise
 
 
-@pytest.mark.parametrize("theta", [30.0, 67.0, 145.0])
-def test_lattice_grids_float64_deep(getkey, theta):
-    """The type-1 path in a unimodular basis along a non-axis direction: the plan leaves the
-    identity, its grids stay near the wedge's size, and values and gradients agree with the
-    direct sum far below white noise (eps 1e-9, upsampling 1.25)."""
-    n = 512
+def _lattice_plan_checked(n, theta):
     fset = frequencies.design(n, [0.0, 90.0, theta], "rate")
     (_, fg, _), = [g for g in fset.groups() if g[0] == theta]
     order, segs = spectrum.nufft1_plan(fg, theta, n, lattice=True)
     assert any(box.m != (1, 0, 0, 1) for _, _, box in segs)
     assert spectrum.box_area(segs) <= 4 * len(fg)
     assert sorted(order.tolist()) == list(range(len(fg)))
+    return fset
+
+
+@pytest.mark.parametrize("theta", [30.0, 67.0, 145.0])
+def test_lattice_plan_leaves_the_identity(theta):
+    """The plan alone at every angle (cheap; the float64 values below: 30 degrees by default,
+    the others in ``make test-all``)."""
+    _lattice_plan_checked(512, theta)
+
+
+@pytest.mark.parametrize("theta", [30.0, pytest.param(67.0, marks=pytest.mark.slow),
+                                   pytest.param(145.0, marks=pytest.mark.slow)])
+def test_lattice_grids_float64_deep(getkey, theta):
+    """The type-1 path in a unimodular basis along a non-axis direction: the plan leaves the
+    identity, its grids stay near the wedge's size, and values and gradients agree with the
+    direct sum far below white noise (eps 1e-9, upsampling 1.25)."""
+    n = 512
+    fset = _lattice_plan_checked(n, theta)
     with jax.enable_x64(True):
         x = jax.random.uniform(getkey(), (n, 2), jnp.float64)
         a = np.asarray(spectrum.grouped_power_spectrum(x, fset, method="nufft1", eps=1e-9))
