@@ -119,7 +119,7 @@ def scene_file(name: str, folder: Path) -> Path:
 
 def write_mesh_scene(triangles: int, folder: Path) -> Path:
     """A ``sphere_mesh`` OBJ of about ``triangles`` faces on a floor under a square light,
-    as a Mitsuba 3 XML file both renderers load (the same geometry as :func:`mesh_scene`)."""
+    as a Mitsuba 3 XML file both renderers load (the primitive-count table's scenes too)."""
     from anisosample.render.builder import sphere_mesh
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -229,23 +229,6 @@ def costs(scene, key, args, devices, plain):
               f"render's time ({cores:.2f} cores)", flush=True)
 
 
-def mesh_scene(triangles: int):
-    """A ``sphere_mesh`` of about ``triangles`` faces (diffuse) on a floor under a square light,
-    seen from above at an angle: ``(builder, camera to_world, mesh triangles)``."""
-    from anisosample.render.builder import sphere_mesh
-    from anisosample.render.xml import look_at
-
-    b = render.SceneBuilder()
-    b.rectangle(np.diag([3.0, 3.0, 1.0, 1.0]), b.diffuse(0.6))
-    v, f = sphere_mesh((0, 0, 0.6), 0.5, triangles)
-    b.triangles(v, f, b.diffuse(0.5))
-    t = np.diag([0.4, 0.4, -1.0, 1.0])
-    t[:3, 3] = (0.5, 0.4, 2.2)
-    b.rectangle(t, b.diffuse(0.0), radiance=15.0)
-    cam = look_at(np.array([2.0, -2.5, 1.8]), np.array([0, 0, 0.4]), np.array([0, 0, 1.0]))
-    return b, cam, len(f)
-
-
 def prims_table(counts, size, spp, brute_max, repeats):
     """Print ns per sample, BVH and brute force, at each triangle count (best of ``repeats``
     after a compiling call)."""
@@ -253,15 +236,17 @@ def prims_table(counts, size, spp, brute_max, repeats):
     print(f"\nprimitive count: sphere mesh on a floor, light sampling, {size}x{size} x {spp} spp "
           f"= {n} samples; ns per sample (best of {repeats}, after compilation)")
     print(f"{'triangles':>10} {'BVH':>10} {'brute force':>12} {'brute/BVH':>10}")
+    from anisosample.render.obj import read_obj
+
     key = jax.random.key(0)
     for c in counts:
-        b, cam, tris = mesh_scene(c)
-        b.camera(cam, width=size, height=size, fov=40)
+        with tempfile.TemporaryDirectory() as tmp:
+            path = write_mesh_scene(c, Path(tmp))
+            tris = len(read_obj(path.parent / "sphere.obj")[2])
+            scenes = {bvh: render.load_xml(path, width=size, height=size, bvh=bvh)
+                      for bvh in (True, False) if bvh or tris <= brute_max}
         row = {}
-        for bvh in (True, False):
-            if not bvh and tris > brute_max:
-                continue
-            scene = b.build(bvh=bvh)
+        for bvh, scene in scenes.items():
             fn = lambda s=scene: render.render(s, key, spp=spp, progress=False)  # noqa: E731
             fn()
             row[bvh] = common.best_time(fn, repeats=repeats, warmup=False) / n * 1e9

@@ -646,24 +646,30 @@ def _rfilter(ctx: _Ctx, node: _Node) -> tuple[str, float]:
     raise ctx.err(node, f"unsupported reconstruction filter (supported: {', '.join(RFILTERS)})")
 
 
-def load_xml(path, **params) -> Scene:
+def load_xml(path, *, bvh: bool | None = None, **params) -> Scene:
     """Load a Mitsuba 3 XML scene (see the module docstring for the supported subset).
 
     Returns the scene alone; :func:`load_xml_with_settings` also returns the file's sample
     count and MIS setting (:class:`RenderSettings`). Keyword arguments override ``<default>``
     parameters (``load_xml(p, spp=16)``); a name the file neither defaults nor references
-    (``$name``) is a ``ValueError`` listing the known ones.
+    (``$name``) is a ``ValueError`` listing the known ones. ``bvh``: as
+    :meth:`SceneBuilder.build` (``None``: a BVH from
+    :data:`~anisosample.render.bvh.THRESHOLD` planar primitives; ``False``: test every
+    primitive, e.g. to time the BVH against brute force).
     Raises :class:`SceneFormatError` (a ``ValueError``) naming the file, line and tag, or
     ``FileNotFoundError``.
     """
-    return load_xml_with_settings(path, **params)[0]
+    return load_xml_with_settings(path, bvh=bvh, **params)[0]
 
 
-def load_xml_with_settings(path, **params) -> tuple[Scene, RenderSettings]:
+def load_xml_with_settings(path, *, bvh: bool | None = None,
+                           **params) -> tuple[Scene, RenderSettings]:
     """:func:`load_xml`, and the file's :class:`RenderSettings` (sample count, MIS):
     ``scene, settings = load_xml_with_settings(p); render(scene, key, **settings._asdict())``
     renders as the file says (Mitsuba's ``mi.render(mi.load_file(p))``)."""
     path = Path(path)
+    if bvh is not None and not isinstance(bvh, (bool, np.bool_)):
+        raise TypeError(f"bvh must be True, False or None, got {bvh!r}")
     if not path.exists():
         raise FileNotFoundError(f"no such scene file: {path}")
     root = _parse(path)
@@ -765,6 +771,6 @@ def load_xml_with_settings(path, **params) -> tuple[Scene, RenderSettings]:
     if "spp" in ctx.size:
         ctx.settings = ctx.settings._replace(spp=ctx.size["spp"])
     try:
-        return b.build(), ctx.settings
+        return b.build(bvh=bvh), ctx.settings
     except ValueError as exc:
         raise SceneFormatError(f"{path}: {exc}") from None

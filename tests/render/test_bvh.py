@@ -203,6 +203,30 @@ def test_bad_bvh_option():
         b.build(bvh="yes")
 
 
+def test_load_xml_takes_the_bvh_option():
+    """``load_xml(..., bvh=...)`` reaches ``build``: blinds (below the threshold) gets a BVH
+    only when asked, and the image is the brute-force one to float32 rounding."""
+    from .helpers import SCENES
+
+    path = SCENES / "blinds.xml"
+    plain = R.load_xml(path, width=8, height=8)
+    tree = R.load_xml(path, width=8, height=8, bvh=True)
+    assert plain.bvh is None and tree.bvh is not None
+    assert R.load_xml(path, width=8, height=8, bvh=False).bvh is None
+    key = jax.random.key(1)
+    np.testing.assert_allclose(R.render(tree, key, spp=4, progress=False).mean,
+                               R.render(plain, key, spp=4, progress=False).mean,
+                               rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.library_errors
+def test_load_xml_refuses_a_bad_bvh_option():
+    from .helpers import SCENES
+
+    with pytest.raises(TypeError, match="bvh must be True, False or None"):
+        R.load_xml(SCENES / "blinds.xml", bvh="yes")
+
+
 def test_default_follows_the_threshold():
     """``build()`` gives a BVH from :data:`bvh.THRESHOLD` planar primitives on, not below."""
     for n, want in ((B.THRESHOLD - 1, False), (B.THRESHOLD, True)):
