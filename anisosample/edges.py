@@ -191,12 +191,17 @@ def _cubic_basis(p):
     return jnp.stack([x**a * y**b for a in range(4) for b in range(4 - a)], axis=1)
 
 
-def _rough(p, v, o: SearchOptions):
-    """Step 1: the values' range and whether a cubic in ``(x, y)`` leaves them unexplained."""
+def _rough(p, v, threshold, *, qr: bool = False):
+    """Step 1: the values' range, and whether the largest residual of a least-squares cubic in
+    ``(x, y)`` exceeds ``threshold`` times it (fitted by SVD, or by QR where ``qr``)."""
     span = jnp.max(v) - jnp.min(v)
     basis = _cubic_basis(p)
-    coef, *_ = jnp.linalg.lstsq(basis, v)
-    return span, (span > 0) & (jnp.max(jnp.abs(v - basis @ coef)) > o.smooth_residual * span)
+    if qr:
+        q, r = jnp.linalg.qr(basis)
+        coef = jax.scipy.linalg.solve_triangular(r, q.T @ v, lower=False)
+    else:
+        coef, *_ = jnp.linalg.lstsq(basis, v)
+    return span, (span > 0) & (jnp.max(jnp.abs(v - basis @ coef)) > threshold * span)
 
 
 CANDIDATE_MARGIN = 0.8
@@ -213,14 +218,8 @@ def candidate(points, values, o: SearchOptions):
     on the 49,152 pixels of cornell, dof and pillars at 128^2 (QR and SVD are both backward
     stable, and the cubic basis on the shifted 64-point prefix has condition number <= 77).
     A bool; vmaps like :func:`search`."""
-    p = jnp.asarray(points, jnp.float32)
-    v = jnp.asarray(values, jnp.float32)
-    span = jnp.max(v) - jnp.min(v)
-    basis = _cubic_basis(p)
-    q, r = jnp.linalg.qr(basis)
-    coef = jax.scipy.linalg.solve_triangular(r, q.T @ v, lower=False)
-    residual = jnp.max(jnp.abs(v - basis @ coef))
-    return (span > 0) & (residual > CANDIDATE_MARGIN * o.smooth_residual * span)
+    return _rough(jnp.asarray(points, jnp.float32), jnp.asarray(values, jnp.float32),
+                  CANDIDATE_MARGIN * o.smooth_residual, qr=True)[1]
 
 
 @eqx.filter_jit
@@ -231,7 +230,7 @@ def search(f, points, values, o: SearchOptions) -> EdgeSearch:
     p = jnp.asarray(points, jnp.float32)
     v = jnp.asarray(values, jnp.float32)
     # 1. A cubic in (x, y) explains a smooth integrand.
-    span, rough = _rough(p, v, o)
+    span, rough = _rough(p, v, o.smooth_residual)
     # 2. The pairs with the largest jumps, bisected.
     i, j, keep = neighbour_pairs(p, o.neighbours)
     diff = jnp.where(keep, jnp.abs(v[i] - v[j]), -1.0)

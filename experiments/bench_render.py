@@ -113,13 +113,14 @@ def scene_file(name: str, folder: Path) -> Path:
     from anisosample import scenes
 
     if name.startswith("mesh") and name.endswith("k") and name[4:-1].isdigit():
-        return write_mesh_scene(int(name[4:-1]) * 1000, folder / name)
+        return write_mesh_scene(int(name[4:-1]) * 1000, folder / name)[0]
     return scenes.path(name)
 
 
-def write_mesh_scene(triangles: int, folder: Path) -> Path:
+def write_mesh_scene(triangles: int, folder: Path) -> tuple[Path, int]:
     """A ``sphere_mesh`` OBJ of about ``triangles`` faces on a floor under a square light,
-    as a Mitsuba 3 XML file both renderers load (the primitive-count table's scenes too)."""
+    as a Mitsuba 3 XML file both renderers load (the primitive-count table's scenes too):
+    ``(the XML file, the mesh's triangle count)``."""
     from anisosample.render.builder import sphere_mesh
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -164,7 +165,7 @@ def write_mesh_scene(triangles: int, folder: Path) -> Path:
     </shape>
 </scene>
 """)
-    return folder / "scene.xml"
+    return folder / "scene.xml", len(f)
 
 
 def timed(fn, repeats: int):
@@ -236,13 +237,10 @@ def prims_table(counts, size, spp, brute_max, repeats):
     print(f"\nprimitive count: sphere mesh on a floor, light sampling, {size}x{size} x {spp} spp "
           f"= {n} samples; ns per sample (best of {repeats}, after compilation)")
     print(f"{'triangles':>10} {'BVH':>10} {'brute force':>12} {'brute/BVH':>10}")
-    from anisosample.render.obj import read_obj
-
     key = jax.random.key(0)
     for c in counts:
         with tempfile.TemporaryDirectory() as tmp:
-            path = write_mesh_scene(c, Path(tmp))
-            tris = len(read_obj(path.parent / "sphere.obj")[2])
+            path, tris = write_mesh_scene(c, Path(tmp))
             scenes = {bvh: render.load_xml(path, width=size, height=size, bvh=bvh)
                       for bvh in (True, False) if bvh or tris <= brute_max}
         row = {}

@@ -668,8 +668,6 @@ def load_xml_with_settings(path, *, bvh: bool | None = None,
     ``scene, settings = load_xml_with_settings(p); render(scene, key, **settings._asdict())``
     renders as the file says (Mitsuba's ``mi.render(mi.load_file(p))``)."""
     path = Path(path)
-    if bvh is not None and not isinstance(bvh, (bool, np.bool_)):
-        raise TypeError(f"bvh must be True, False or None, got {bvh!r}")
     if not path.exists():
         raise FileNotFoundError(f"no such scene file: {path}")
     root = _parse(path)
