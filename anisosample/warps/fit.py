@@ -168,7 +168,6 @@ def fit_least_squares(
     target = jnp.where(jnp.isfinite(target), jnp.abs(target), 0.0).astype(jnp.float32)
     scale = jnp.maximum(jnp.sqrt(jnp.mean(target**2)), 1e-30)
     target = target / scale  # residuals of order 1
-    k = target.shape[0]
     n_side = 2 if family is Bilinear else 3
     theta0 = (
         jnp.zeros((n_side, n_side), jnp.float32)
@@ -176,26 +175,37 @@ def fit_least_squares(
         else jnp.log(jnp.maximum(init.values / jnp.max(init.values), 1e-6))
     )
 
+    theta, result, steps, kept = _least_squares_solve(family, target, y, theta0, int(max_steps),
+                                                      float(rtol), float(atol))
+    warp = family(jnp.exp(jnp.clip(theta - jnp.max(theta), -14.0, 0.0)))
+    if details:
+        return WarpFit(warp, result, steps, kept)
+    return warp
+
+
+def _pdf_residuals(family, target, y):
+    """The residuals of the module docstring for control values ``exp(theta)``."""
+    k = target.shape[0]
+
     def residuals(theta, _):
         warp = family(jnp.exp(jnp.clip(theta, -14.0, 14.0)))
         j = jax.vmap(warp.pdf)(y)
         return target / jnp.sqrt(k * jnp.maximum(j, 1e-12))
 
-    sol = optx.least_squares(
-        residuals,
-        optx.LevenbergMarquardt(rtol=rtol, atol=atol),
-        theta0,
-        max_steps=max_steps,
-        throw=False,
-    )
-    theta = sol.value
+    return residuals
+
+
+@eqx.filter_jit
+def _least_squares_solve(family, target, y, theta0, max_steps, rtol, atol):
+    """:func:`fit_least_squares`' Levenberg-Marquardt solve, compiled once per family, probe
+    count and solver settings (the residuals are built from the arguments, so a second fit of
+    the same shapes reuses the program): ``(theta, result, steps, kept_start)``."""
+    residuals = _pdf_residuals(family, target, y)
+    sol = optx.least_squares(residuals, optx.LevenbergMarquardt(rtol=rtol, atol=atol), theta0,
+                             max_steps=max_steps, throw=False)
     # Keep the start if the solver did not improve the probe objective (e.g. hit max_steps early).
-    better = jnp.sum(residuals(theta, None) ** 2) <= jnp.sum(residuals(theta0, None) ** 2)
-    theta = jnp.where(better, theta, theta0)
-    warp = family(jnp.exp(jnp.clip(theta - jnp.max(theta), -14.0, 0.0)))
-    if details:
-        return WarpFit(warp, sol.result, sol.stats["num_steps"], ~better)
-    return warp
+    better = jnp.sum(residuals(sol.value, None) ** 2) <= jnp.sum(residuals(theta0, None) ** 2)
+    return jnp.where(better, sol.value, theta0), sol.result, sol.stats["num_steps"], ~better
 
 
 def fit_tabulated(f: Callable, later: Sequence[AbstractWarp] | AbstractWarp, *, res: int = 32):

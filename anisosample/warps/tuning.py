@@ -33,6 +33,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -188,31 +189,37 @@ def fit_min_variance(
     g = jnp.where(ok, g / jnp.where(ok, scale, 1.0), 0.0)
     integral = jnp.sum(w * g)
 
-    def warp_of(theta):
-        return family(jnp.exp(jnp.clip(theta - jnp.max(theta), -2 * _LOG_CLIP, 0.0)))
+    theta, result, steps, kept = _min_variance_solve(family, solver, y, w, g, integral, ok,
+                                                     theta0, max_steps, rtol, atol)
+    if details:
+        return WarpFit(_warp_of(family, theta), result, steps, kept)
+    return _warp_of(family, theta)
+
+
+def _warp_of(family, theta):
+    return family(jnp.exp(jnp.clip(theta - jnp.max(theta), -2 * _LOG_CLIP, 0.0)))
+
+
+@eqx.filter_jit
+def _min_variance_solve(family, solver, y, w, g, integral, ok, theta0, max_steps, rtol, atol):
+    """:func:`fit_min_variance`'s solve, compiled once per family, solver, node count and
+    settings (its objective is built from the arguments, so a second fit of the same shapes
+    reuses the program): ``(theta, result, steps, kept_start)``."""
 
     def residuals(theta, _):
-        j = jnp.maximum(jax.vmap(warp_of(theta).pdf)(y), 1e-30)
+        j = jnp.maximum(jax.vmap(_warp_of(family, theta).pdf)(y), 1e-30)
         return jnp.sqrt(w * j) * (g / j - integral)
 
     def objective(theta, _):
-        return _variance(jax.vmap(warp_of(theta).pdf)(y), g, w)
+        return _variance(jax.vmap(_warp_of(family, theta).pdf)(y), g, w)
 
     if solver == "lm":
-        sol = optx.least_squares(
-            residuals,
-            optx.LevenbergMarquardt(rtol=rtol, atol=atol),
-            theta0,
-            max_steps=max_steps,
-            throw=False,
-        )
+        sol = optx.least_squares(residuals, optx.LevenbergMarquardt(rtol=rtol, atol=atol),
+                                 theta0, max_steps=max_steps, throw=False)
     else:
-        sol = optx.minimise(
-            objective, optx.BFGS(rtol=rtol, atol=atol), theta0, max_steps=max_steps, throw=False
-        )
+        sol = optx.minimise(objective, optx.BFGS(rtol=rtol, atol=atol), theta0,
+                            max_steps=max_steps, throw=False)
     theta = jnp.where(jnp.isfinite(sol.value), sol.value, theta0)
     better = objective(theta, None) <= objective(theta0, None)
     theta = jnp.where(better & ok, theta, jnp.where(ok, theta0, 0.0))
-    if details:
-        return WarpFit(warp_of(theta), sol.result, sol.stats["num_steps"], ~(better & ok))
-    return warp_of(theta)
+    return theta, sol.result, sol.stats["num_steps"], ~(better & ok)
