@@ -16,7 +16,8 @@ JOBS   ?= 2
         w-fig7 w-fig8 w-fig9 w-fig10 w-fig12 \
         h-shading-points \
         h-fig2 h-table4 h-table5 beyond-warped-aligned \
-        beyond-differentiable-tuning beyond-prefix-sets beyond-sequences
+        beyond-differentiable-tuning beyond-prefix-sets beyond-sequences \
+        beyond-pixel-prefix
 
 help:
 	@echo "make demo      set up .venv and run the headline experiment at small scale"
@@ -72,7 +73,8 @@ figures: demo-record w-directions-accuracy w-fig5-baselines \
          w-fig7 w-fig8 w-fig9 w-fig10 w-fig12 \
          h-shading-points \
          h-fig2 h-table4 h-table5 beyond-warped-aligned \
-         beyond-differentiable-tuning beyond-prefix-sets beyond-sequences
+         beyond-differentiable-tuning beyond-prefix-sets beyond-sequences \
+         beyond-pixel-prefix
 	$(PY) docs/fill_numbers.py --write
 	@echo "figures done; docs/reproduction.md now quotes these results (make docs also refreshes docs/api.md)"
 
@@ -156,6 +158,10 @@ w-fig9: $(VENV)/.installed
 
 w-fig10: $(VENV)/.installed
 	$(PY) experiments/w_fig10.py --scale $(SCALE)
+
+# The per-pixel sampler's prefix size at 256-512 spp, on w-fig9's one-edge pixels.
+beyond-pixel-prefix: $(VENV)/.installed
+	$(PY) experiments/beyond_pixel_prefix.py --scale $(SCALE)
 
 w-fig12: $(VENV)/.installed
 	$(PY) experiments/w_fig12.py --scale $(SCALE)

@@ -19,15 +19,16 @@ measured cost: ``(t_pixel - t_pmj) / t_spp`` per pixel, the two renders' times a
 pmj02bn, the set lookups), and, as ``aligned (pixel) at equal samples``, by the integrand
 samples its estimation takes beyond ``spp`` per pixel (``pixel_sample_shift_spp``: the render
 record's ``estimation_samples_per_pixel``; the equal-time shift on a renderer whose samples
-cost far more than the search's compute); ``aligned (window)`` by the block shift (the same estimation samples;
-its per-pixel vMF fits are not timed, so its shift is a lower bound).
+cost far more than the search's compute); ``aligned (window)`` by the block shift (the same
+estimation samples; its per-pixel vMF fits are not timed, so its shift is a lower bound).
 The curves are W Fig. 9's on its one-edge penumbra pixels (``w_fig9``, run first at the same
 scale in its own process, which reuses its finished scenes): the median over those pixels of
 each method's per-pixel variance; the aligned curves are drawn at ``N + shift``, the unaligned
 ones at ``N``. The JSON also
 gives, at the smallest N, each unaligned variance interpolated (log-log) at ``N + shift`` and
 the aligned (block) variance over it, and at each N of the per-pixel curve the equal-cost
-ratios to pmj02bn (``equal_cost_by_n``: :func:`equal_cost_by_n`). Timings depend on the machine and its load.
+ratios to pmj02bn (``equal_cost_by_n``: :func:`equal_cost_by_n`). Timings depend on the
+machine and its load.
 
     python experiments/w_fig10.py --scale small|paper [--out DIR] [--fig9-out DIR]
 """

@@ -54,7 +54,8 @@ from .integrator import pixel_samples, pixel_shift_key, sample_function
 from .options import IntegratorOptions
 from .scene import LUMINANCE, THINLENS, Scene
 
-__all__ = ["FALLBACK", "PIXEL_SAMPLERS", "PixelEstimates", "PixelSampler", "choose_sets",
+__all__ = ["FALLBACK", "PIXEL_SAMPLERS", "PixelEstimates", "PixelSampler", "check_pixel_prefix",
+           "choose_sets",
            "exact_values", "fallback_chunk", "fallback_shift_key", "integrand_estimates",
            "pixel_prefix", "pixel_sampler", "prefix_chunk", "prefix_sets", "prefix_weight",
            "rest_chunk", "search_chunk", "toroidal_shift_key"]
@@ -81,6 +82,21 @@ def pixel_prefix(spp: int) -> str:
     what the edge search needs). ``spp >= 64``."""
     spp = check_int("spp", spp, minimum=64)
     return f"dihedral-{min(64, 8 * (spp // 32))}"
+
+
+def check_pixel_prefix(prefix, spp: int) -> str:
+    """``prefix`` for a ``spp``-point pixel set: ``None`` gives :func:`pixel_prefix`; else a
+    ``"dihedral-<m>"`` name (:mod:`anisosample.prefix`; the table transforms map it onto
+    itself) with ``16 <= m <= spp / 4`` (the edge search's least, the prefix sets' most)."""
+    if prefix is None:
+        return pixel_prefix(spp)
+    from ..prefix import check_prefix, prefix_size
+
+    prefix = check_prefix("prefix", prefix)
+    if not prefix.startswith("dihedral-") or not 16 <= prefix_size(prefix) <= spp // 4:
+        raise ValueError(f"prefix must be None or 'dihedral-<m>' with m a multiple of 8 from 16 "
+                         f"to spp / 4 = {spp // 4}; got {prefix!r}")
+    return prefix
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -111,14 +127,16 @@ class PixelSampler:
 
 
 def prefix_sets(requests, spp: int, *, table=None, build_missing: bool | None = None,
-                build_options: dict | None = None, progress: bool = True) -> jax.Array:
-    """The sets with the prefix :func:`pixel_prefix` for ``requests`` (tuples of integer extra
-    directions), stacked ``(len(requests), spp, 2)``, each starting with the prefix bit for
-    bit: :func:`anisosample.selection.aligned_sets` with the prefix (missing sets built
-    first, :func:`anisosample.tables.ensure`, with a progress bar over the sets; then the pure
+                build_options: dict | None = None, progress: bool = True,
+                prefix: str | None = None) -> jax.Array:
+    """The sets with the prefix ``prefix`` (:func:`check_pixel_prefix`; default
+    :func:`pixel_prefix`) for ``requests`` (tuples of integer extra directions), stacked
+    ``(len(requests), spp, 2)``, each starting with the prefix bit for bit:
+    :func:`anisosample.selection.aligned_sets` with the prefix (missing sets built first,
+    :func:`anisosample.tables.ensure`, with a progress bar over the sets; then the pure
     lookup)."""
     return selection.aligned_sets(requests, spp, table=table, build_missing=build_missing,
-                                  prefix=pixel_prefix(spp), progress=progress,
+                                  prefix=check_pixel_prefix(prefix, spp), progress=progress,
                                   desc=f"pixel sets n={spp}", **(build_options or {}))
 
 
@@ -134,12 +152,13 @@ class PixelEstimates(eqx.Module):
 
 def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=None,
                         build_missing: bool | None = None, build_options: dict | None = None,
-                        **search) -> PixelEstimates:
+                        prefix: str | None = None, **search) -> PixelEstimates:
     """The per-pixel aligned estimator of one 2D integrand ``f`` (the renderer's two passes at
     the level of :func:`anisosample.variance.realization_estimates`): per realization one
     toroidal shift from ``key``, the prefix's values, :func:`anisosample.edges.search`, the set
     (:func:`choose_sets`, :func:`prefix_sets`) and the mean of ``f`` over all ``n`` points,
-    the prefix's included."""
+    the prefix's included. ``prefix``: :func:`check_pixel_prefix` (the renderer's
+    :func:`pixel_prefix` by default; another size is for studying the choice)."""
     from ..prefix import prefix_points
     from ..samplers import toroidal_shift
 
@@ -147,7 +166,8 @@ def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=
     realizations = check_int("realizations", realizations, minimum=1)
     k = check_int("k", k, minimum=1, maximum=2)
     o = edges.search_options(**search)
-    prefix = jnp.asarray(prefix_points(pixel_prefix(n)), jnp.float32)
+    name = check_pixel_prefix(prefix, n)
+    prefix = jnp.asarray(prefix_points(name), jnp.float32)
     m = prefix.shape[0]
     keys = jax.random.split(key, realizations)
     x = jax.vmap(toroidal_shift, in_axes=(0, None))(keys, prefix)
@@ -159,7 +179,7 @@ def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=
     edge = index >= 0
     if edge.any():
         sets = prefix_sets(requests, n, table=table, build_missing=build_missing,
-                           build_options=build_options, progress=False)
+                           build_options=build_options, progress=False, prefix=name)
         rest = jax.vmap(toroidal_shift)(keys[edge], sets[jnp.asarray(index[edge]), m:])
         est[edge] = (head[edge] + np.asarray(jnp.sum(f(rest), axis=1), np.float64)) / n
     if (~edge).any():

@@ -46,6 +46,24 @@ def test_reuse_is_unbiased_on_a_rounding_boundary(normal_deg):
     assert_pytree_round_trips(r)  # PixelEstimates
 
 
+def test_a_prefix_other_than_the_rule_is_taken_and_checked():
+    """``prefix=``: the rule's own prefix given explicitly gives the same bits; another size
+    gives sets that start with it bit for bit; sizes outside 16..n/4, other kinds and
+    non-multiples of 8 are refused naming ``prefix``."""
+    h = HalfPlane.through((0.47, 0.52), 30.0)
+    a = PA.integrand_estimates(h, 64, jax.random.key(7), 8)
+    b = PA.integrand_estimates(h, 64, jax.random.key(7), 8, prefix="dihedral-16")
+    np.testing.assert_array_equal(a.estimates, b.estimates)
+    sets = PA.prefix_sets([(30,)], 128, prefix="dihedral-16", progress=False)
+    np.testing.assert_array_equal(np.asarray(sets[0, :16]),
+                                  prefix_points("dihedral-16").astype(np.float32))
+    for bad in ("dihedral-8", "dihedral-40", "pmj02bn-16", "dihedral-20", "none"):
+        with pytest.raises(ValueError, match="prefix"):
+            PA.integrand_estimates(h, 128, jax.random.key(7), 4, prefix=bad)
+    with pytest.raises(TypeError, match="prefix"):
+        PA.check_pixel_prefix(16, 128)
+
+
 def test_smooth_fallback_is_unbiased_and_keeps_pmj02bn():
     """No edge: pmj02bn with its own shift and the prefix at weight m^2/(m^2+n^2); the mean
     matches the bump's closed form, the variance is pmj02bn's or lower (theory: 0.94x at
