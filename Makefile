@@ -17,7 +17,7 @@ JOBS   ?= 2
         h-shading-points \
         h-fig2 h-table4 h-table5 beyond-warped-aligned \
         beyond-differentiable-tuning beyond-prefix-sets beyond-sequences \
-        beyond-pixel-prefix
+        beyond-pixel-prefix beyond-sequences-four
 
 help:
 	@echo "make demo      set up .venv and run the headline experiment at small scale"
@@ -74,7 +74,7 @@ figures: demo-record w-directions-accuracy w-fig5-baselines \
          h-shading-points \
          h-fig2 h-table4 h-table5 beyond-warped-aligned \
          beyond-differentiable-tuning beyond-prefix-sets beyond-sequences \
-         beyond-pixel-prefix
+         beyond-pixel-prefix beyond-sequences-four
 	$(PY) docs/fill_numbers.py --write
 	@echo "figures done; docs/reproduction.md now quotes these results (make docs also refreshes docs/api.md)"
 
@@ -103,6 +103,9 @@ beyond-prefix-sets: $(VENV)/.installed
 
 beyond-sequences: $(VENV)/.installed
 	$(PY) experiments/beyond_sequences.py --scale $(SCALE)
+
+beyond-sequences-four: $(VENV)/.installed
+	$(PY) experiments/beyond_sequences.py --scale $(SCALE) --direction-count 4
 
 w-fig3: $(VENV)/.installed
 	$(PY) experiments/w_fig3.py --scale $(SCALE)

@@ -36,6 +36,7 @@ from ._validate import check_choice, check_int, check_points
 
 __all__ = ["axial_distance_deg", "nearest_neighbour_distance", "midpoint_grid", "off_axis_deg",
            "grid_values", "ImageError", "image_error", "mse_ratio", "efficiency",
+           "geometric_mean",
            "expected_power_spectrum", "expected_power_spectrum_grid", "radial_profile",
            "angular_profile", "variance_terms", "predicted_variance",
            "wraparound_discrepancy"]
@@ -195,6 +196,19 @@ def efficiency(mse: float, seconds: float, mse_stderr: float | None = None):
     if mse_stderr is None:
         return eff
     return eff, eff * mse_stderr / mse
+
+
+def geometric_mean(ratios) -> tuple[float, float]:
+    """``(g, its standard error)`` of positive ratios (e.g. per-pixel variance ratios, every
+    pixel weighing the same): ``g = exp(mean(log r))`` and ``g sd(log r) / sqrt(n)`` (the delta
+    method on the mean of the logs: the items' spread and each ratio's own noise together).
+    ``ValueError`` for fewer than two ratios or one that is not finite and positive."""
+    r = np.asarray(ratios, float)
+    if r.ndim != 1 or r.size < 2 or not np.all(np.isfinite(r) & (r > 0)):
+        raise ValueError(f"ratios must be at least two finite positive numbers, got {ratios!r:.80}")
+    lr = np.log(r)
+    g = float(np.exp(lr.mean()))
+    return g, g * float(lr.std(ddof=1)) / lr.size ** 0.5
 
 
 # --- power spectra of stacks of sets, and their profiles ------------------------------------------

@@ -61,10 +61,8 @@ def settings(scale, args):
 
 
 def _summary(ratios, errors=None, fallback=None, search=None) -> dict:
-    r = np.asarray(ratios, np.float64)
-    out = {"ratio_median": float(np.median(r)), "ratio_geomean": float(np.exp(np.mean(np.log(r)))),
-           "ratio_geomean_se": float(np.exp(np.mean(np.log(r))) * np.std(np.log(r), ddof=1)
-                                     / np.sqrt(len(r)))}
+    g, se = metrics.geometric_mean(ratios)
+    out = {"ratio_median": float(np.median(ratios)), "ratio_geomean": g, "ratio_geomean_se": se}
     if errors is not None:
         out.update(direction_error_median_deg=float(np.median(errors)),
                    fallback_share=float(np.mean(fallback)),

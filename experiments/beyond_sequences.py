@@ -16,6 +16,13 @@ every requested line, ``0 < |v| <= 32``, for n >= 1024 (white noise = 1).
 
 Targets (issue 22): each prefix within 1.25x of a standalone set, slope <= -1.70, variance at
 4096 <= 0.6x pmj02bn's, band energy <= 0.1.
+
+``--direction-count 4`` (written to ``results/beyond_sequences_four``): the same for
+4-direction sequences (0, 90 and two extra directions drawn at random, at least 20 degrees
+apart and 5 from the axes: ``four_direction_pairs`` of them, one at small scale), measured on
+the corner integrand whose two edges are perpendicular to the two extra directions
+(``integrands.edges``, the pixels W's 4-direction sets are for), against standalone
+4-direction sets.
 """
 
 from __future__ import annotations
@@ -36,6 +43,7 @@ DESIGNS = {"equal": {}, "equal, 600 steps": {"steps": 600},
            f"equal + {prefix.DEFAULT_PREFIX}": {"steps": 600, "prefix": prefix.DEFAULT_PREFIX}}
 # the four comparisons add 4 x 600 optimizer steps per direction to the default's 1500
 SMALL_DESIGNS = ("equal",)
+FOUR_DIRECTION_PAIRS = {"small": 1, "paper": 3}  # --direction-count 4: sequences per run
 KEYS = (1, 2, 3)
 # the sequences' length and first prefix, toroidal shifts per variance, extra directions, designs
 SCALES = {
@@ -54,6 +62,14 @@ def compute(cfg, args):
     designs = {k: DESIGNS[k] for k in cfg["designs"]}
     extra = [int(a) for a in rng.choice([a for a in range(5, 176) if abs(a - 90) >= 5], 6,
                                         replace=False)][:cfg["extra_directions"]]
+    if cfg.get("direction_count", 3) == 4:
+        pairs = np.random.default_rng(args.seed + 2)
+        extra = []
+        while len(extra) < cfg["four_direction_pairs"]:
+            a, b = (int(x) for x in pairs.choice([a for a in range(5, 176) if abs(a - 90) >= 5],
+                                                 2, replace=False))
+            if min(abs(a - b), 180 - abs(a - b)) >= 20:
+                extra.append((min(a, b), max(a, b)))
     key = jax.random.key(args.seed)
     vkey = jax.random.fold_in(key, 99)
 
@@ -64,10 +80,13 @@ def compute(cfg, args):
 
     records = {}
     for a in extra:
-        dirs = (0.0, 90.0, float(a))
-        f = asp.integrands.edges([float(a)])
+        chosen = [float(x) for x in np.atleast_1d(a)]
+        dirs = (0.0, 90.0, *chosen)
+        f = asp.integrands.edges(chosen)
+        name_a = "_".join(str(x) for x in np.atleast_1d(a))  # "134", or "40_121" for a pair
+        a = a if np.isscalar(a) else list(a)
         standalone = {n: [edge_variance(f, np.asarray(asp.synthesis.load_or_synthesize(
-            out / "sets" / f"a{a}_set_n{n}_k{k}.npz", jax.random.key(k), n, dirs,
+            out / "sets" / f"a{name_a}_set_n{n}_k{k}.npz", jax.random.key(k), n, dirs,
             show_progress=False).points), n) for k in KEYS] for n in ns}
         set_slope = asp.variance.fit_slope(ns, [float(np.mean(standalone[n]))
                                                 for n in ns]).slope
@@ -77,7 +96,7 @@ def compute(cfg, args):
             t0 = time.time()
             name = label.replace(" ", "").replace("+", "_").replace(",", "_")
             seq = np.asarray(asp.synthesis.load_or_synthesize(
-                out / "sets" / f"a{a}_seq_{name}.npz", jax.random.key(0), length, dirs,
+                out / "sets" / f"a{name_a}_seq_{name}.npz", jax.random.key(0), length, dirs,
                 sequence_from=start, show_progress=False,
                 **(synthesis.SEQUENCE_DEFAULTS | opts)).points)
             sec = time.time() - t0
@@ -86,7 +105,7 @@ def compute(cfg, args):
             bands = {str(n): max(diagnostics.band_energy(seq[:n], d) for d in dirs)
                      for n in ns if n >= 1024}
             fit = asp.variance.fit_slope(ns, var)
-            records[f"{a}/{label}"] = {
+            records[f"{name_a}/{label}"] = {
                 "extra_deg": a, "design": label, "variance": var, "ratio_to_set": ratio,
                 "ratio_to_pmj02bn": [v / pmj[n] for v, n in zip(var, ns, strict=True)],
                 "slope": fit.slope, "slope_ci": [fit.ci_low, fit.ci_high],
@@ -94,8 +113,8 @@ def compute(cfg, args):
                 "band_energy_max": bands, "seconds": sec,
                 "standalone_variance": {str(n): standalone[n] for n in ns},
                 "pmj02bn_variance": {str(n): pmj[n] for n in ns}}
-            print(record_line(records[f"{a}/{label}"], length), flush=True)  # as it goes
-        print(spread_line(a, records[f"{a}/{label}"]), flush=True)
+            print(record_line(records[f"{name_a}/{label}"], length), flush=True)  # as it goes
+        print(spread_line(a, records[f"{name_a}/{label}"]), flush=True)
     args.printed_records = True  # the report's first lines
 
     summary = {}
@@ -118,8 +137,12 @@ def compute(cfg, args):
             "keys": list(KEYS), "records": records, "summary": summary}
 
 
+def _deg(a) -> str:
+    return f"{a:3d}" if np.isscalar(a) else "/".join(str(x) for x in a)
+
+
 def record_line(r, length):
-    return (f"extra {r['extra_deg']:3d} deg, {r['design']:18s}: ratio to set per prefix "
+    return (f"extra {_deg(r['extra_deg'])} deg, {r['design']:18s}: ratio to set per prefix "
             f"{' '.join(f'{x:.2f}' for x in r['ratio_to_set'])}, slope {r['slope']:+.2f} (sets "
             f"{r['standalone_slope']:+.2f}), at {length}: "
             f"{r['ratio_to_pmj02bn'][-1]:.2f}x pmj02bn, worst band n P_S "
@@ -128,7 +151,7 @@ def record_line(r, length):
 
 def spread_line(a, r):
     spread = [max(v) / min(v) for v in r["standalone_variance"].values()]
-    return (f"extra {a:3d} deg: standalone sets over keys {KEYS}: max/min variance "
+    return (f"extra {_deg(a)} deg: standalone sets over keys {KEYS}: max/min variance "
             f"{' '.join(f'{s:.2f}' for s in spread)}")
 
 
@@ -168,8 +191,29 @@ def report(data, args):
     print(f"\nfigure:  {args.out / NAME}.png\nnumbers: {args.out / NAME}.json")
 
 
+def arguments(p):
+    p.add_argument("--direction-count", type=int, choices=(3, 4), default=3,
+                   help="3: one extra direction per sequence; 4: two (the corner integrand)")
+
+
+def adjust(args):
+    """4-direction sequences write to their own folder by default."""
+    if args.direction_count == 4 and args.out == common.ROOT / "results" / NAME:
+        args.out = common.ROOT / "results" / f"{NAME}_four"
+
+
+def settings_of(cfg, args) -> dict:
+    """The scale's settings (3 directions: as they always were, so their record is reused);
+    4 directions add the count and the number of direction pairs."""
+    out = {**cfg, "scale": args.scale, "seed": args.seed}
+    if args.direction_count == 4:
+        out.update(direction_count=4, four_direction_pairs=FOUR_DIRECTION_PAIRS[args.scale])
+    return out
+
+
 def main(argv=None):
-    return common.run(NAME, __doc__, SCALES, compute, figure=figure, report=report, argv=argv)
+    return common.run(NAME, __doc__, SCALES, compute, figure=figure, report=report,
+                      arguments=arguments, adjust=adjust, settings=settings_of, argv=argv)
 
 
 if __name__ == "__main__":

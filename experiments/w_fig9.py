@@ -286,11 +286,11 @@ def geomean_ratio(ratio) -> dict:
     spread and each ratio's noise together). Every pixel weighs the same, as in the median;
     the ratio of the summed variances, also tried, follows the few pixels with the most
     variance (cornell's lit-aligned-block: one pixel of 30 at 1.44 moved it to 1.20)."""
-    lr = np.log(np.asarray(ratio, float))
-    if lr.size < 2 or not np.all(np.isfinite(lr)):
+    ratio = np.asarray(ratio, float)
+    if ratio.size < 2 or not np.all(np.isfinite(ratio) & (ratio > 0)):
         return {}
-    g = float(np.exp(lr.mean()))
-    return {"ratio_geomean": g, "ratio_geomean_se": g * float(lr.std(ddof=1)) / lr.size ** 0.5}
+    g, se = metrics.geometric_mean(ratio)
+    return {"ratio_geomean": g, "ratio_geomean_se": se}
 
 
 def summarize(rows, ns=None) -> dict:

@@ -324,3 +324,14 @@ def test_wraparound_discrepancy_closed_forms_and_spectral_form():
     assert wd**2 - spectral == pytest.approx(3 / (np.pi**2 * r * 8), rel=0.3)
     with pytest.raises(ValueError, match="points must lie"):
         metrics.wraparound_discrepancy(np.array([[0.5, 1.5]]))
+
+
+def test_geometric_mean_closed_form_and_bad_input():
+    """(2, 8): g = 4, sd(log r) = log(4) / sqrt(2), so the standard error is 4 log(4) / 2; a
+    constant list has no spread; fewer than two, non-positive or non-finite ratios are refused."""
+    g, se = metrics.geometric_mean([2.0, 8.0])
+    assert g == pytest.approx(4.0, rel=1e-15) and se == pytest.approx(2 * np.log(4.0), rel=1e-14)
+    assert metrics.geometric_mean([0.5] * 7) == pytest.approx((0.5, 0.0), abs=1e-16)
+    for bad in ([1.0], [1.0, 0.0], [1.0, -2.0], [1.0, np.nan], [1.0, np.inf], [[1.0, 2.0]]):
+        with pytest.raises(ValueError, match="ratios"):
+            metrics.geometric_mean(bad)
