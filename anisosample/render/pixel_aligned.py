@@ -271,15 +271,15 @@ def prefix_chunk(scene: Scene, prefix, key, pixels, *, spp, options: IntegratorO
 
 
 @functools.partial(jax.jit, static_argnames=_STATIC[1:])
-def search_chunk(scene: Scene, prefix, values, key, pixels, *, options: IntegratorOptions,
-                 search: edges.SearchOptions):
+def search_chunk(scene: Scene, prefix, values, slot, key, pixels, *,
+                 options: IntegratorOptions, search: edges.SearchOptions):
     """The edge search of pixels with a candidate (:func:`prefix_chunk`), pixel ``q`` from its
-    prefix values ``values[q]``: its directions ``(..., 2)`` (NaN: none), its edge count and
-    the search's samples."""
+    prefix values ``values[slot[q]]`` (only the candidates' rows need be held): its directions
+    ``(..., 2)`` (NaN: none), its edge count and the search's samples."""
 
     def one(q):
         x = toroidal_shift_key(key, q, prefix)
-        r = edges.search(_pixel_integrand(scene, options, q), x, values[q], search)
+        r = edges.search(_pixel_integrand(scene, options, q), x, values[slot[q]], search)
         return r.directions_deg, r.count, r.samples
 
     return _over(one, pixels)

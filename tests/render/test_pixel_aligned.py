@@ -152,7 +152,7 @@ def test_search_on_candidates_equals_search_everywhere(cornell):
     search = edges.search_options(**s["search"])
     _, values, rough = PA.prefix_chunk(scene, prefix, k_pix, q, spp=64, options=o,
                                        search=search)
-    dirs, count, samples = PA.search_chunk(scene, prefix, values, k_pix, q, options=o,
+    dirs, count, samples = PA.search_chunk(scene, prefix, values, q, k_pix, q, options=o,
                                            search=search)
     assert 0 < int(rough.sum()) < q.size
     # the same counts and samples; directions to float32 rounding (the vmapped width differs,
