@@ -7,6 +7,10 @@ Two workloads, each per million samples (H Sec. 4.1 reports +1% / +6% run time i
 * ``fit+sample``: a different shading point per sample (as in a renderer): build the spherical
   rectangle, fit the PSS warp to the cosine at the point (H Eq. 9), sample, pdf.
 
+Then the eager fits a user calls from Python, one shading point per call (``--fits`` points
+after a first, compiling call): ``fit_least_squares`` and ``fit_min_variance`` (bilinear and
+biquadratic), milliseconds per call; each compiles its solve once per family and shapes.
+
 Prints, per technique, the best of ``--repeats`` runs after a warm-up (compilation) run, minimised
 over ``--rounds`` round-robin rounds (so a burst of other load hits every technique alike). Not a
 test: nothing is asserted.
@@ -59,6 +63,7 @@ def main(argv=None):
         seed=None, fresh=False)
     ap.add_argument("--n", type=int, default=1_000_000)
     ap.add_argument("--repeats", type=int, default=5, help="timed runs per round")
+    ap.add_argument("--fits", type=int, default=20, help="eager fits timed per technique")
     ap.add_argument("--rounds", type=int, default=3,
                     help="round-robin rounds over the techniques (min taken: robust to other load)")
     args = ap.parse_args(argv)
@@ -98,7 +103,27 @@ def main(argv=None):
             f"{workload:11s} {name:14s} wall {per_m * 1e3:8.2f} ms, cpu {cpu_m * 1e3:8.2f} ms"
             f" per million samples{extra}"
         )
+    eager_fits(origins[: args.fits + 1])
     print(f"load average after: {os.getloadavg()[0]:.1f}")
+
+
+def eager_fits(origins):
+    """Per call, after a first (compiling) call: eager fits at ``origins[1:]``, one each."""
+    for fit in (W.fit_least_squares, W.fit_min_variance):
+        for family in (W.Bilinear, W.Biquadratic):
+            def one(o, fit=fit, family=family):
+                rect = W.SphericalRectangle(CORNER, EU, EV, o)
+                return jax.block_until_ready(fit(family, _cos, [rect]).values)
+
+            t0 = time.perf_counter()
+            one(origins[0])
+            first = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            for o in origins[1:]:
+                one(o)
+            per = (time.perf_counter() - t0) / max(len(origins) - 1, 1)
+            print(f"eager fit   {fit.__name__:18s} {family.__name__:11s} first call "
+                  f"{first:6.2f} s, then {1e3 * per:7.1f} ms per call ({len(origins) - 1} points)")
 
 
 if __name__ == "__main__":
