@@ -353,7 +353,7 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
     if rough.size:
         # only the candidates' prefix values go to the search (npix x m float32 in all: about
         # 420 MB at 1280^2 and 64 points, where cornell's candidates are 8 %)
-        slot = np.zeros(values.shape[0], np.int32)
+        slot = np.zeros(npix, np.int32)
         slot[rough] = np.arange(rough.size, dtype=np.int32)
         found = over_pixels(search_chunk, (scene, prefix, jnp.asarray(values[rough]),
                                            jnp.asarray(slot), key),

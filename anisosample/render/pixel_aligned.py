@@ -81,8 +81,8 @@ def pixel_prefix(spp: int) -> str:
     (W Sec. 7's 16-64 points; at most a quarter of the set, the prefix sets' limit; at least 16,
     what the edge search needs). ``spp >= 64``. Measured on W Fig. 9's one-edge pixels
     (``experiments/beyond_pixel_prefix.py``): at 256 and 512 spp a 32-point prefix was within
-    about one standard error of 64 points, and 16 points worse (the search missed 17-32 % of the
-    edges)."""
+    about one standard error of 64 points, and 16 points worse (the search found no direction
+    in 17-32 % of the shifts)."""
     spp = check_int("spp", spp, minimum=64)
     return f"dihedral-{min(64, 8 * (spp // 32))}"
 
