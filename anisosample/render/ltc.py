@@ -4,7 +4,9 @@ Heitz, Dupuy, Hill & Neubelt 2016 approximate the GGX lobe ``f(w) = rho(w_i, w) 
 (Fresnel 1) seen from ``w_i`` by a linearly transformed cosine ``D`` (``warps.ltc``) with
 ``M = [[a, 0, b], [0, c, 0], [d, 0, 1]]`` in the frame whose x axis is ``w_i``'s projection on
 the surface (their Sec. 4: isotropic lobes need four parameters), tabulated over the roughness
-``alpha`` and the view angle. The table here is fitted by :func:`fit_ggx_table`, not copied:
+``alpha`` and the view angle. The table here is fitted by :func:`fit_ggx_table`, not copied
+(and shipped as the library's own fit, :data:`SHIPPED`, so that a process does not spend the
+fit's ~10 s on its first GGX render; :func:`write_ggx_table` remakes it):
 
 * per cell, the parameters ``(log a, b, log c, d)`` minimise the variance of ``f / D`` under
   sampling from ``D``, ``int f^2 / D`` (with ``f`` normalised by its albedo), estimated on a fixed
@@ -26,6 +28,7 @@ sample follows the BSDF-times-cosine lobe *and* the light's extent; the BSDF sam
 from __future__ import annotations
 
 import functools
+from pathlib import Path
 
 import equinox as eqx
 import jax
@@ -34,6 +37,7 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Float
 
+from .._validate import check_int
 from ..metrics import midpoint_grid
 from .bsdf import ggx_d, ggx_g1, sample_ggx_vndf
 from .scene import CONDUCTOR
@@ -130,10 +134,25 @@ def _fit_cell(theta, alpha, p0, u, max_steps):
 
 
 def fit_ggx_table(n_theta: int = 16, n_alpha: int = 16, *, probes: int = 32,
-                  max_steps: int = 200) -> LTCTable:
-    """Fit the GGX LTC table (see the module docstring); about 12 s for 16 x 16 on two shared
-    cores, compilation included."""
-    theta = jnp.asarray(np.radians(np.linspace(0.0, THETA_MAX_DEG, int(n_theta))), jnp.float32)
+                  max_steps: int = 200, rows=None) -> LTCTable:
+    """Fit the GGX LTC table (see the module docstring); about 10 s for 16 x 16 on two cores,
+    compilation included. ``rows`` (indices into the ``n_theta`` view angles, default all)
+    fits only those view angles: each is fitted on its own, so they are the whole table's rows
+    up to float rounding (the test of the shipped table refits a few)."""
+    n_theta = check_int("n_theta", n_theta, minimum=2)
+    n_alpha = check_int("n_alpha", n_alpha, minimum=2)
+    probes = check_int("probes", probes, minimum=2)
+    max_steps = check_int("max_steps", max_steps, minimum=1)
+    theta = np.radians(np.linspace(0.0, THETA_MAX_DEG, n_theta))
+    if rows is not None:
+        rows = np.asarray(rows)
+        if rows.ndim != 1 or rows.size == 0 or not np.issubdtype(rows.dtype, np.integer):
+            raise TypeError(f"rows must be a non-empty 1-D sequence of integers, got {rows!r}")
+        if rows.min() < 0 or rows.max() >= n_theta:
+            raise ValueError(f"rows must lie in [0, {n_theta - 1}] (n_theta={n_theta}), got "
+                             f"{rows.tolist()}")
+        theta = theta[rows]
+    theta = jnp.asarray(theta, jnp.float32)
     alpha = jnp.asarray(np.linspace(1.0, ALPHA_MIN, int(n_alpha)), jnp.float32)
     u = jnp.asarray(midpoint_grid(int(probes), indexing="ij").reshape(-1, 2))
 
@@ -150,18 +169,50 @@ def fit_ggx_table(n_theta: int = 16, n_alpha: int = 16, *, probes: int = 32,
                     objective=objective, vndf=vndf)
 
 
+SHIPPED = Path(__file__).parents[1] / "data" / "ltc" / "ggx.npz"
+"""The renderer's table, :func:`fit_ggx_table` with its defaults, written by
+:func:`write_ggx_table` (a test refits rows of it)."""
+
+
+def write_ggx_table(path=SHIPPED) -> Path:
+    """Fit the table with :func:`fit_ggx_table`'s defaults and save its leaves to ``path``
+    (``.npz``; refuses to overwrite an existing file other than the shipped one)."""
+    path = Path(path)
+    if path.exists() and path.resolve() != SHIPPED.resolve():
+        raise FileExistsError(f"path {path} exists; remove it first")
+    table = _fit_default()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, **{k: np.asarray(getattr(table, k)) for k in _LEAVES})
+    return path
+
+
+_LEAVES = ("theta", "alpha", "params", "albedo", "objective", "vndf")
+
+
+def _fit_default() -> LTCTable:
+    # Eager even inside a trace. (Its bits differ from a plain eager call's at float32
+    # rounding; the renderer has always used this one.)
+    with jax.ensure_compile_time_eval():
+        return fit_ggx_table()
+
+
 @functools.cache
 def _ggx_table_numpy() -> LTCTable:
     # Cached as NumPy leaves: a jax array made inside the trace that first asks for the table
     # would be that trace's tracer, leaked into every later trace.
     with jax.ensure_compile_time_eval():
-        table = fit_ggx_table()
+        if SHIPPED.exists():
+            with np.load(SHIPPED) as shipped:
+                table = LTCTable(**{k: jnp.asarray(shipped[k], jnp.float32) for k in _LEAVES})
+        else:
+            table = _fit_default()
     return jax.tree.map(lambda x: np.asarray(x), table)
 
 
 def ggx_table() -> LTCTable:
-    """The renderer's table (16 x 16), fitted once per process on first use, eagerly (also when
-    first asked for inside a trace); its leaves are made jax arrays in the caller's trace."""
+    """The renderer's table (16 x 16): read from :data:`SHIPPED` (the library's own fit; the
+    fit takes about 10 s per process), else fitted on first use, eagerly (also when first asked
+    for inside a trace); its leaves are made jax arrays in the caller's trace."""
     return jax.tree.map(jnp.asarray, _ggx_table_numpy())
 
 

@@ -29,6 +29,44 @@ def table():
     return ltc.ggx_table()
 
 
+def test_shipped_table_is_the_librarys_fit(table):
+    """The renderer reads the table from ``data/ltc/ggx.npz``; refitting three of its view
+    angles gives the same fit: albedo and ``int f^2 / D`` to float32 rounding, and parameters
+    close (the objective is flat along some of them, so they move by up to ~4e-3 between a
+    batch of 16 rows and one of 3)."""
+    assert ltc.SHIPPED.exists()
+    rows = [0, 7, 15]
+    fresh = ltc.fit_ggx_table(rows=rows)
+    np.testing.assert_array_equal(fresh.theta, table.theta[np.asarray(rows)])
+    np.testing.assert_array_equal(fresh.alpha, table.alpha)
+    for name in ("albedo", "objective", "vndf"):
+        np.testing.assert_allclose(getattr(fresh, name), getattr(table, name)[np.asarray(rows)],
+                                   rtol=1e-5, err_msg=name)
+    np.testing.assert_allclose(fresh.params, table.params[np.asarray(rows)], atol=1e-2)
+
+
+@pytest.mark.slow
+def test_whole_shipped_table_is_the_librarys_fit(table):
+    """The whole table refitted the way :func:`ltc.write_ggx_table` fits it (eagerly under
+    ``ensure_compile_time_eval``: a plain eager call's rounding differs, and a few cells whose
+    fit is fragile then land elsewhere)."""
+    with jax.ensure_compile_time_eval():
+        fresh = ltc.fit_ggx_table()
+    for name in ("albedo", "objective", "vndf"):
+        np.testing.assert_allclose(getattr(fresh, name), getattr(table, name), rtol=1e-5,
+                                   err_msg=name)
+    np.testing.assert_allclose(fresh.params, table.params, atol=1e-2)
+
+
+@pytest.mark.parametrize(("kw", "error"), [
+    (dict(rows=[16]), ValueError), (dict(rows=[-1]), ValueError), (dict(rows=[]), TypeError),
+    (dict(rows=[0.5]), TypeError), (dict(n_theta=1), ValueError), (dict(probes=2.0), TypeError)])
+def test_fit_arguments_are_checked(kw, error):
+    name = next(iter(kw))
+    with pytest.raises(error, match=name):
+        ltc.fit_ggx_table(**kw)
+
+
 def test_fitted_ltcs_are_densities(table):
     n = 400
     c = (np.arange(n) + 0.5) / n * 2 - 1  # cos theta over the whole sphere
