@@ -340,24 +340,21 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
 
     prefix = jnp.asarray(prefix_points(pixel_prefix(spp)), jnp.float32)
     m = prefix.shape[0]
-    head, values, rough = over_pixels(prefix_chunk, (scene, prefix, key),
-                                      dict(opts, spp=spp, search=sampler.search))
+    head, rough = over_pixels(prefix_chunk, (scene, prefix, key),
+                              dict(opts, spp=spp, search=sampler.search))
     # The search only where it has a candidate (elsewhere it finds nothing and samples nothing):
     # 8 % of cornell's pixels at 128^2 (the search's own test: 30 % of pillars'); run on every
     # pixel, the search was most of the render's time (cornell 128^2 x 256 spp: 2.5 s -> 1.2 s).
-    npix = values.shape[0]
+    # It evaluates the candidates' prefix values again rather than pass 1 returning every
+    # pixel's (npix x m float32: about 420 MB at 1280^2 and 64 points).
+    npix = head.shape[0]
     dirs = np.full((npix, 2), np.nan, np.float32)
     count = np.zeros(npix, np.int32)
     extra = np.zeros(npix, np.int32)
     rough = np.flatnonzero(rough)
     if rough.size:
-        # only the candidates' prefix values go to the search (npix x m float32 in all: about
-        # 420 MB at 1280^2 and 64 points, where cornell's candidates are 8 %)
-        slot = np.zeros(npix, np.int32)
-        slot[rough] = np.arange(rough.size, dtype=np.int32)
-        found = over_pixels(search_chunk, (scene, prefix, jnp.asarray(values[rough]),
-                                           jnp.asarray(slot), key),
-                            dict(options=opts["options"], search=sampler.search), rough)
+        found = over_pixels(search_chunk, (scene, prefix, key),
+                            dict(opts, spp=spp, search=sampler.search), rough)
         for out, res in zip((dirs, count, extra), found, strict=True):
             out[rough] = res[rough]
     if not exact_values(scene, opts["options"]):

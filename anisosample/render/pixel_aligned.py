@@ -13,7 +13,9 @@ one point set of ``spp`` points with one toroidal shift ``s_q`` (the pixel's, W 
    MIS): up to ``k`` spectral directions, strongest first, from the prefix's values plus the
    search's few dozen bisection samples. When the render's samples *are* that integrand
    (``pixel_center=True``, no MIS, no random lens), the prefix values are read, not
-   re-evaluated.
+   re-evaluated. Pass 1 keeps, per pixel, the prefix's sum and whether the search has a
+   candidate there; the search (on candidates only) evaluates their prefix values again, to
+   the same bits, rather than any pass holding every pixel's ``m`` values.
 2. **The rest of the pixel's set**: the directions, rounded by
    :func:`anisosample.selection.table_directions`, pick the table set with the fixed prefix
    (one direction: the 3-direction set, two, a corner: the 4-direction set;
@@ -249,37 +251,48 @@ def _over(one, pixels):
     return jax.lax.map(jax.vmap(one), pixels)
 
 
+def _prefix_samples(scene: Scene, g, options: IntegratorOptions, key, q, x, spp: int):
+    """Pixel ``q``'s first ``m`` samples at its shifted prefix ``x`` ``(m, 3)`` and its
+    integrand's values there ``(m,)`` (read from the samples where :func:`exact_values`): one
+    formula for pass 1 and the search, so that both see the same bits."""
+    rgb = pixel_samples(scene, g, x, key, q, spp, 0, options)
+    if exact_values(scene, options):
+        return rgb, rgb @ jnp.asarray(LUMINANCE, jnp.float32)
+    return rgb, _pixel_integrand(scene, options, q)(x)
+
+
 @functools.partial(jax.jit, static_argnames=_STATIC)
 def prefix_chunk(scene: Scene, prefix, key, pixels, *, spp, options: IntegratorOptions,
                  search: edges.SearchOptions):
     """Pass 1 for ``pixels`` (``options``: the render's, resolved): the sum of each pixel's
-    first ``m`` samples ``(..., 3)``, the values of its integrand at the prefix ``(..., m)``
-    (read from the samples where :func:`exact_values`) and whether the edge search has a
-    candidate there (:func:`anisosample.edges.candidate`; where not, the search would find
-    nothing and take no sample, so :func:`search_chunk` runs only where it has)."""
+    first ``m`` samples ``(..., 3)`` and whether the edge search has a candidate there
+    (:func:`anisosample.edges.candidate` on the integrand's values at the prefix; where not,
+    the search would find nothing and take no sample, so :func:`search_chunk` runs only where
+    it has). The values stay on the device: :func:`search_chunk` evaluates them again for the
+    candidates only."""
     g = sample_function(scene, options)
-    exact = exact_values(scene, options)
-    lum = jnp.asarray(LUMINANCE, jnp.float32)
 
     def one(q):
         x = toroidal_shift_key(key, q, prefix)
-        rgb = pixel_samples(scene, g, x, key, q, spp, 0, options)
-        values = rgb @ lum if exact else _pixel_integrand(scene, options, q)(x)
-        return jnp.sum(rgb, axis=0), values, edges.candidate(x, values, search)
+        rgb, values = _prefix_samples(scene, g, options, key, q, x, spp)
+        return jnp.sum(rgb, axis=0), edges.candidate(x, values, search)
 
     return _over(one, pixels)
 
 
-@functools.partial(jax.jit, static_argnames=_STATIC[1:])
-def search_chunk(scene: Scene, prefix, values, slot, key, pixels, *,
-                 options: IntegratorOptions, search: edges.SearchOptions):
-    """The edge search of pixels with a candidate (:func:`prefix_chunk`), pixel ``q`` from its
-    prefix values ``values[slot[q]]`` (only the candidates' rows need be held): its directions
-    ``(..., 2)`` (NaN: none), its edge count and the search's samples."""
+@functools.partial(jax.jit, static_argnames=_STATIC)
+def search_chunk(scene: Scene, prefix, key, pixels, *, spp, options: IntegratorOptions,
+                 search: edges.SearchOptions):
+    """The edge search of pixels with a candidate (:func:`prefix_chunk`), each from its
+    integrand's values at its prefix, evaluated here again (the same bits as pass 1's), so that
+    no pass holds every pixel's ``m`` values: its directions ``(..., 2)`` (NaN: none), its edge
+    count and the search's samples."""
+    g = sample_function(scene, options)
 
     def one(q):
         x = toroidal_shift_key(key, q, prefix)
-        r = edges.search(_pixel_integrand(scene, options, q), x, values[slot[q]], search)
+        _, values = _prefix_samples(scene, g, options, key, q, x, spp)
+        r = edges.search(_pixel_integrand(scene, options, q), x, values, search)
         return r.directions_deg, r.count, r.samples
 
     return _over(one, pixels)

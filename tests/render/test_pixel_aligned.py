@@ -150,9 +150,8 @@ def test_search_on_candidates_equals_search_everywhere(cornell):
     k_pix = jax.random.split(jax.random.fold_in(jax.random.key(3), 0))[1]
     q = jnp.arange(scene.width * scene.height, dtype=jnp.int32)
     search = edges.search_options(**s["search"])
-    _, values, rough = PA.prefix_chunk(scene, prefix, k_pix, q, spp=64, options=o,
-                                       search=search)
-    dirs, count, samples = PA.search_chunk(scene, prefix, values, q, k_pix, q, options=o,
+    _, rough = PA.prefix_chunk(scene, prefix, k_pix, q, spp=64, options=o, search=search)
+    dirs, count, samples = PA.search_chunk(scene, prefix, k_pix, q, spp=64, options=o,
                                            search=search)
     assert 0 < int(rough.sum()) < q.size
     # the same counts and samples; directions to float32 rounding (the vmapped width differs,
