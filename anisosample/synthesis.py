@@ -91,13 +91,15 @@ __all__ = ["RECIPES", "BOUNDARIES", "Recipe", "make_recipe", "recipe_defaults",
            "load_result", "load_or_synthesize", "max_directions", "usable_cpus", "usable_cores"]
 
 RECIPES = ("rate", "paper")
-SEQUENCE_STEPS = 1500
+SEQUENCE_STEPS = 3000
 """Optimizer steps of a sequence (:func:`synthesize_sequence`, sequence tables) unless given: the
 nested losses need far more than a set's 200. Measured at N = 4096 against the mean of three
 standalone sets (``experiments/beyond_sequences.py``'s measure, 16384 shifts), one sequence per
 setting at the rate 1.5, worst prefix ratio 256..4096: 1.22 / 1.37 (extra directions 81 / 166)
-at 600 steps, 1.18 / 1.24 at 1500; at the rate 0.5, 600 steps had been no worse than 1200 (512
-shifts: mean ratio 1.21 / 1.22), and 200 steps worse (1.31).
+at 600 steps, 1.18 / 1.24 at 1500; on the experiment's four directions 1.29 at 1500 steps and
+1.24 at 3000 (every prefix within 1.25x of a standalone set; the slope over the prefixes 0.01-0.04
+flatter, as the small prefixes gain most); at the rate 0.5, 600 steps had been no worse than
+1200 (512 shifts: mean ratio 1.21 / 1.22), and 200 steps worse (1.31).
 Applied where a sequence is asked for (:func:`synthesize_sequence`, a new sequence table's
 settings), not by :func:`make_recipe`: ``steps`` is one of a named recipe's defaults, which table
 fingerprints record as such, so a recipe-level default would give a table built before it (the

@@ -42,7 +42,7 @@ DESIGNS = {"equal": {}, "equal, 600 steps": {"steps": 600},
            "equal, lr 0.5": {"steps": 600, "learning_rate": 0.5},
            "size": {"steps": 600, "sequence_weights": "size"},
            f"equal + {prefix.DEFAULT_PREFIX}": {"steps": 600, "prefix": prefix.DEFAULT_PREFIX}}
-# the four comparisons add 4 x 600 optimizer steps per direction to the default's 1500
+# the four comparisons add 4 x 600 optimizer steps per direction to the default's 3000
 SMALL_DESIGNS = ("equal",)
 FOUR_DIRECTION_PAIRS = {"small": 2, "paper": 4}  # --direction-count 4: sequences per run
 KEYS = (1, 2, 3)
