@@ -67,6 +67,19 @@ def test_fit_arguments_are_checked(kw, error):
         ltc.fit_ggx_table(**kw)
 
 
+_density = jax.jit(jax.vmap(ltc.ltc_density, in_axes=(None, 0)))
+
+
+@jax.jit
+def _lobe_vndf_and_ltc(wi, a, params, u):
+    """At ``u``'s VNDF-sampled directions: the lobe, the VNDF density and the LTC's density."""
+    m = jax.vmap(lambda x: sample_ggx_vndf(wi, a, x))(u)
+    w = 2 * jnp.sum(m * wi[None, :], -1)[:, None] * m - wi[None, :]
+    f, q = jax.vmap(lambda x: ltc.ggx_lobe(wi, x, a))(w)
+    _, m_inv = ltc.matrix(params)
+    return f, q, _density(m_inv, w)
+
+
 def test_fitted_ltcs_are_densities(table):
     n = 400
     c = (np.arange(n) + 0.5) / n * 2 - 1  # cos theta over the whole sphere
@@ -78,7 +91,7 @@ def test_fitted_ltcs_are_densities(table):
     for i in (0, 5, 10, 15):
         for j in (0, 3, 6, 9):  # alpha from 1 down to 0.43
             _, m_inv = ltc.matrix(table.params[i, j])
-            d = np.asarray(jax.vmap(lambda x, m=m_inv: ltc.ltc_density(m, x))(w), np.float64)
+            d = np.asarray(_density(m_inv, w), np.float64)
             assert d.sum() * area == pytest.approx(1.0, abs=5e-3), (i, j)
 
 
@@ -89,13 +102,8 @@ def test_fitted_ltc_helps_visible_normal_sampling(table):
         th = float(table.theta[i])
         wi = jnp.asarray([np.sin(th), 0.0, np.cos(th)], jnp.float32)
         for j in range(0, 16, 3):
-            a = table.alpha[j]
-            m = jax.vmap(lambda x, a=a, wi=wi: sample_ggx_vndf(wi, a, x))(u)
-            w = 2 * jnp.sum(m * wi[None, :], -1)[:, None] * m - wi[None, :]
-            f, q = jax.vmap(lambda x, a=a, wi=wi: ltc.ggx_lobe(wi, x, a))(w)
-            _, m_inv = ltc.matrix(table.params[i, j])
-            d = jax.vmap(lambda x, m=m_inv: ltc.ltc_density(m, x))(w)
-            f, q, d = (np.asarray(v, np.float64) for v in (f, q, d))
+            f, q, d = (np.asarray(v, np.float64)
+                       for v in _lobe_vndf_and_ltc(wi, table.alpha[j], table.params[i, j], u))
             ok = q > 0
             vndf = np.mean(f[ok] ** 2 / q[ok] ** 2)
             mixed = np.mean(f[ok] ** 2 / (q[ok] * (0.5 * q[ok] + 0.5 * d[ok])))

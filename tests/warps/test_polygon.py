@@ -75,14 +75,20 @@ def test_clipping_against_the_fact_sheet_and_a_vertex_on_the_horizon():
     assert float(w.pdf(jnp.asarray([0.0, 0.0, -1.0]))) == 0.0
 
 
+@eqx.filter_jit
+def _samples_and_pdfs(a, b, u):
+    """``a``'s samples at ``u`` and both warps' pdfs there."""
+    wa = jax.vmap(a.sample)(u)
+    return jax.vmap(a.pdf)(wa), jax.vmap(b.pdf)(wa)
+
+
 def test_winding_does_not_matter():
     for verts in (P, T1, T3):
         a, b = psa(verts, TILT), psa(verts[::-1], TILT)
         assert float(a.projected_solid_angle) == pytest.approx(float(b.projected_solid_angle),
                                                                rel=1e-6)
-        wa = jax.vmap(a.sample)(jax.random.uniform(jax.random.key(0), (512, 2)))
-        np.testing.assert_allclose(np.asarray(jax.vmap(b.pdf)(wa)),
-                                   np.asarray(jax.vmap(a.pdf)(wa)), rtol=1e-5)
+        pa, pb = _samples_and_pdfs(a, b, jax.random.uniform(jax.random.key(0), (512, 2)))
+        np.testing.assert_allclose(np.asarray(pb), np.asarray(pa), rtol=1e-5)
 
 
 # Shapes, sizes and tilts for the integral, residual and chi-square tests: a distant small
@@ -226,7 +232,8 @@ def test_samples_are_cosine_distributed_in_the_polygon():
         inside &= np.cross(e, hit - verts[i]) @ nrm >= 0
     ref = d[inside & (t > 0)]
     w = psa(P)
-    s = np.asarray(jax.vmap(w.sample)(jax.random.uniform(jax.random.key(6), (400_000, 2))))
+    sample = eqx.filter_jit(lambda w, u: jax.vmap(w.sample)(u))
+    s = np.asarray(sample(w, jax.random.uniform(jax.random.key(6), (400_000, 2))))
     se = np.sqrt(ref.var(0) / len(ref) + s.var(0) / len(s))
     assert np.all(np.abs(s.mean(0) - ref.mean(0)) < 4 * se), (s.mean(0), ref.mean(0), se)
 
