@@ -38,8 +38,8 @@ sequences, :func:`anisosample.synthesis.synthesize_sequence`), built with 200 op
 at the learning rate 0.5 before sequences took :data:`~anisosample.synthesis.SEQUENCE_STEPS` =
 3000 and :data:`~anisosample.synthesis.SEQUENCE_LEARNING_RATE` = 1.5 (its settings say so; one
 3000-step sequence took 242-354 s on this project's 2-core machine at load 3-6, so a rebuild of
-the 46 was not run; new sequence tables take both). ``n = 4096`` uses the default (robust) weights of
-:mod:`anisosample.frequencies`
+the 46 was not run; new sequence tables take both). ``n = 4096`` uses the default (robust)
+weights of :mod:`anisosample.frequencies`
 (built with the rotated type-3 NUFFT of the time; ``experiments/bench_tables.py --full`` now
 projects 5.1 min for the 46 sets on this project's 2-core machine); ``n = 256``
 keeps the aligned-only weights (``offsets_deg=()``): at 256 points the robust weights measured

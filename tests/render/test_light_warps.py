@@ -257,7 +257,8 @@ def test_points_at_the_lights_edges_have_positive_light_pdf():
     origin = offset_origin(scene, hit.p, hit.n, -d)
     rec = Receiver(origin=origin, n=hit.n, wi=-d, material=hit.material)
     for lw in ("none", "cosine-biquadratic", "arvo2001", "projected-solid-angle"):
-        pdf = jax.jit(jax.vmap(lambda p, lw=lw: light_pdf(scene, 0, p, rec, "solid_angle", lw)))(pts)
+        pdf = jax.jit(jax.vmap(
+            lambda p, lw=lw: light_pdf(scene, 0, p, rec, "solid_angle", lw)))(pts)
         assert np.all(np.asarray(pdf) > 0), (lw, int(np.sum(np.asarray(pdf) <= 0)))
     at_surface = W.SphericalTriangle(jnp.asarray(verts, jnp.float32), hit.p)
     dirs = (pts - origin[None, :]) / jnp.linalg.norm(pts - origin[None, :], axis=-1)[:, None]
