@@ -286,10 +286,10 @@ def geomean_ratio(ratio) -> dict:
     spread and each ratio's noise together). Every pixel weighs the same, as in the median;
     the ratio of the summed variances, also tried, follows the few pixels with the most
     variance (cornell's lit-aligned-block: one pixel of 30 at 1.44 moved it to 1.20)."""
-    ratio = np.asarray(ratio, float)
-    if ratio.size < 2 or not np.all(np.isfinite(ratio) & (ratio > 0)):
+    try:
+        g, se = metrics.geometric_mean(ratio)
+    except ValueError:  # fewer than two pixels, or a ratio that is not finite and positive
         return {}
-    g, se = metrics.geometric_mean(ratio)
     return {"ratio_geomean": g, "ratio_geomean_se": se}
 
 

@@ -27,6 +27,7 @@ sample follows the BSDF-times-cosine lobe *and* the light's extent; the BSDF sam
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from pathlib import Path
 
@@ -174,6 +175,9 @@ SHIPPED = Path(__file__).parents[1] / "data" / "ltc" / "ggx.npz"
 :func:`write_ggx_table` (a test refits rows of it)."""
 
 
+_LEAVES = tuple(f.name for f in dataclasses.fields(LTCTable))  # what the .npz holds
+
+
 def write_ggx_table(path=SHIPPED) -> Path:
     """Fit the table with :func:`fit_ggx_table`'s defaults and save its leaves to ``path``
     (``.npz``; refuses to overwrite an existing file other than the shipped one)."""
@@ -184,9 +188,6 @@ def write_ggx_table(path=SHIPPED) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     np.savez(path, **{k: np.asarray(getattr(table, k)) for k in _LEAVES})
     return path
-
-
-_LEAVES = ("theta", "alpha", "params", "albedo", "objective", "vndf")
 
 
 def _fit_default() -> LTCTable:
