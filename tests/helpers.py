@@ -30,6 +30,29 @@ def brute_force_spectrum(points, freqs) -> np.ndarray:
     return (np.cos(ph).sum(1) ** 2 + np.sin(ph).sum(1) ** 2) / n**2
 
 
+def forced_host_devices(n: int) -> dict:
+    """The environment of a subprocess with ``n`` forced host devices, keeping the suite's own
+    ``XLA_FLAGS`` (its compile level, tests/conftest.py): the subprocess compiles as this process
+    does, so their results can be compared bit for bit."""
+    import os
+
+    flags = os.environ.get("XLA_FLAGS", "")
+    return {"XLA_FLAGS": f"{flags} --xla_force_host_platform_device_count={n}".strip()}
+
+
+def default_compile_env() -> dict:
+    """This process's environment without the suite's LLVM level (tests/conftest.py): for a
+    subprocess that must compile as a user's process does, e.g. to reproduce a shipped fit
+    whose end point depends on float32 rounding."""
+    import os
+    import re
+
+    env = dict(os.environ)
+    flags = re.sub(r"\s*--xla_backend_optimization_level=\S+", "", env.get("XLA_FLAGS", ""))
+    env["XLA_FLAGS"] = flags.strip()
+    return env
+
+
 def free_port() -> int:
     """A TCP port on localhost that nothing listens on now (for a jax.distributed coordinator)."""
     import socket

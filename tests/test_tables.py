@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import free_port
+from helpers import forced_host_devices, free_port
 
 import anisosample as asp
 from anisosample import _table_build, selection, tables
@@ -346,7 +346,7 @@ def test_build_kill_and_resume_on_two_devices(tmp_path):
               "--checkpoint-every", "5", "--seed", "3"]
     sets = [(0,), (45,)]
     ref_dir, run_dir = tmp_path / "ref", tmp_path / "run"
-    two = {"XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
+    two = forced_host_devices(2)
     cmd, env = _cli([*common, "--out", str(run_dir)], two)
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     # random moment after work began: wait for the table index, then a random extra delay
@@ -387,7 +387,7 @@ def test_batched_build_shards_groups_over_two_devices(tmp_path):
               "--batch", "2", "--seed", "1"]
     run_dir, ref_dir = tmp_path / "two", tmp_path / "one"
     cmd, env = _cli([*common, "--out", str(run_dir)],
-                    {"XLA_FLAGS": "--xla_force_host_platform_device_count=2"})
+                    forced_host_devices(2))
     done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert "on 2 device(s)" in done.stdout

@@ -13,10 +13,14 @@ The warp itself (round trip, Jacobian, chi-square) is in the warp battery (``ltc
 and its unbiasedness in the renderer in ``test_light_warps.py``.
 """
 
+import subprocess
+import sys
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import default_compile_env
 
 from anisosample.render import ltc
 from anisosample.render.bsdf import sample_ggx_vndf
@@ -31,31 +35,46 @@ def table():
 
 def test_shipped_table_is_the_librarys_fit(table):
     """The renderer reads the table from ``data/ltc/ggx.npz``; refitting three of its view
-    angles gives the same fit: albedo and ``int f^2 / D`` to float32 rounding, and parameters
-    close (the objective is flat along some of them, so they move by up to ~4e-3 between a
-    batch of 16 rows and one of 3)."""
+    angles gives the same fit: albedo to float32 rounding, ``int f^2 / D`` to 1e-4 and
+    parameters close (the objective is flat along some of them, so they move by up to ~4e-3
+    between a batch of 16 rows and one of 3; with LLVM at -O0, as the suite compiles, the
+    fit ends elsewhere in that valley: objective up to 3.3e-5 apart, one cell's parameters
+    by 0.022)."""
     assert ltc.SHIPPED.exists()
     rows = [0, 7, 15]
     fresh = ltc.fit_ggx_table(rows=rows)
     np.testing.assert_array_equal(fresh.theta, table.theta[np.asarray(rows)])
     np.testing.assert_array_equal(fresh.alpha, table.alpha)
-    for name in ("albedo", "objective", "vndf"):
+    for name, rtol in (("albedo", 1e-5), ("objective", 1e-4), ("vndf", 1e-5)):
         np.testing.assert_allclose(getattr(fresh, name), getattr(table, name)[np.asarray(rows)],
-                                   rtol=1e-5, err_msg=name)
-    np.testing.assert_allclose(fresh.params, table.params[np.asarray(rows)], atol=1e-2)
+                                   rtol=rtol, err_msg=name)
+    np.testing.assert_allclose(fresh.params, table.params[np.asarray(rows)], atol=5e-2)
+
+
+_WHOLE_TABLE = """
+import jax, numpy as np
+from anisosample.render import ltc
+table = ltc.ggx_table()
+with jax.ensure_compile_time_eval():
+    fresh = ltc.fit_ggx_table()
+for name in ("albedo", "objective", "vndf"):
+    np.testing.assert_allclose(getattr(fresh, name), getattr(table, name), rtol=1e-5,
+                               err_msg=name)
+np.testing.assert_allclose(fresh.params, table.params, atol=1e-2)
+print("same fit")
+"""
 
 
 @pytest.mark.slow
-def test_whole_shipped_table_is_the_librarys_fit(table):
+def test_whole_shipped_table_is_the_librarys_fit():
     """The whole table refitted the way :func:`ltc.write_ggx_table` fits it (eagerly under
     ``ensure_compile_time_eval``: a plain eager call's rounding differs, and a few cells whose
-    fit is fragile then land elsewhere)."""
-    with jax.ensure_compile_time_eval():
-        fresh = ltc.fit_ggx_table()
-    for name in ("albedo", "objective", "vndf"):
-        np.testing.assert_allclose(getattr(fresh, name), getattr(table, name), rtol=1e-5,
-                                   err_msg=name)
-    np.testing.assert_allclose(fresh.params, table.params, atol=1e-2)
+    fit is fragile then land elsewhere), in a process that compiles as a user's does (not at
+    the suite's -O0, where 32 of 256 cells' objectives move by up to 1e-3)."""
+    done = subprocess.run([sys.executable, "-c", _WHOLE_TABLE], env=default_compile_env(),
+                          capture_output=True, text=True, timeout=1800)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "same fit" in done.stdout
 
 
 @pytest.mark.parametrize(("kw", "error"), [

@@ -13,12 +13,12 @@ import textwrap
 import jax
 import numpy as np
 import pytest
-from helpers import free_port
+from helpers import forced_host_devices, free_port
 
 import anisosample.render as R
 from anisosample import cli, io, scenes, synthesis
 
-TWO_DEVICES = {"XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
+TWO_DEVICES = forced_host_devices(2)
 
 _SCRIPT = textwrap.dedent("""
     import sys, jax, numpy as np

@@ -173,7 +173,8 @@ def test_angular_iteration_residual_and_round_trip(name):
     assert err[:, 0].max() <= 4 * tol and err[:, 1].max() <= max(1e-3, 100 * tol), (
         name, err.max(0))
     assert np.all(r["pdf"] > 0) and np.all(np.isfinite(r["x"]))
-    np.testing.assert_allclose(r["pdf"], r["pdf_alg1"], rtol=1e-5)
+    # float32: 1.5e-5 on one of 101,089 values of P-tilted with LLVM at -O0 (tests/conftest.py)
+    np.testing.assert_allclose(r["pdf"], r["pdf_alg1"], rtol=3e-5)
 
 
 def test_fewer_iterations_leave_a_measurable_error():
