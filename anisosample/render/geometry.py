@@ -48,8 +48,19 @@ def closest_planar(scene: Scene, o, d, tmin, tmax):
         return closest_hit(scene.bvh, o, d, tmin, tmax)
     tt, b1, b2 = _triangle_t(scene, o, d)
     tt = jnp.where((tt > tmin) & (tt < tmax), tt, _INF)
-    it = jnp.argmin(tt)
-    return tt[it], it, b1[it], b2[it]
+    t, it = _first_min(tt)
+    return t, it, b1[it], b2[it]
+
+
+def _first_min(tt):
+    """``(min(tt), argmin(tt))`` for distances without NaN (misses are ``inf``; index 0 when
+    every entry is), as two plain reductions instead of ``argmin``'s variadic reduce. Same
+    bits; one-device render at 128^2 x 64 spp, best of 3, twice each (load 1.3-2): blinds
+    (44 planar primitives) 0.226-0.233 -> 0.198-0.206 s, cornell (18) 0.132-0.134 s either
+    way. Over dof's few spheres it was slower (0.157 -> 0.18 s): they keep ``argmin``."""
+    t = jnp.min(tt)
+    return t, jnp.min(jnp.where(tt == t, jnp.arange(tt.shape[0], dtype=jnp.int32),
+                                tt.shape[0] - 1))
 
 
 def _sphere_t(scene: Scene, o, d):
