@@ -28,7 +28,6 @@ made by :func:`block_sampler`; the steps live in their own modules:
 from __future__ import annotations
 
 import dataclasses
-import functools
 
 import jax
 import jax.numpy as jnp
@@ -38,6 +37,7 @@ from .. import selection
 from .._validate import check_choice, check_int, check_key, renamed_keywords
 from ..plot import direction_rgb as direction_rgb  # re-exports: see the note below __all__
 from ..plot import save_direction_map as save_direction_map
+from ._kernel import kernel
 from .estimation import BlockEstimate as BlockEstimate
 from .estimation import block_grid_values as block_grid_values
 from .estimation import estimate_blocks as estimate_blocks
@@ -388,7 +388,7 @@ def resolve_sampler(scene: Scene, sampler, sampler_options: dict | None, *,
     return sampler
 
 
-@functools.partial(jax.jit, static_argnames=("options",))
+@kernel(static_argnames=("options",))
 def render_chunk_sets(scene: Scene, sets, pixel_set, key, pixels, *,
                       options: IntegratorOptions):
     """The render kernel with per-pixel point sets:

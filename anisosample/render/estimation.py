@@ -40,6 +40,7 @@ import numpy as np
 
 from .._validate import check_int, check_positive_float
 from ..metrics import midpoint_grid
+from ._kernel import kernel
 from .integrator import PixelIntegrand, pixel_integrand
 from .options import IntegratorOptions
 from .scene import Scene
@@ -131,7 +132,7 @@ def _base_integrand(scene, integrand, options):
     return integrand
 
 
-@eqx.filter_jit
+@kernel(jit=eqx.filter_jit)
 def _films_eval(base, films, x):
     """``f_q(x_i)`` with pixel ``q``'s film position ``films[i]`` (vmapped)."""
     return jax.vmap(lambda film, xy: eqx.tree_at(lambda g: g.film, base, film)(xy))(films, x)

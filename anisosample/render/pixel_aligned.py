@@ -43,7 +43,6 @@ against the closed form on a rounding boundary (``tests/render/test_pixel_aligne
 from __future__ import annotations
 
 import dataclasses
-import functools
 
 import equinox as eqx
 import jax
@@ -52,6 +51,7 @@ import numpy as np
 
 from .. import edges, selection
 from .._validate import check_int
+from ._kernel import kernel
 from .integrator import pixel_samples, pixel_shift_key, sample_function
 from .options import IntegratorOptions
 from .scene import LUMINANCE, THINLENS, Scene
@@ -261,7 +261,7 @@ def _prefix_samples(scene: Scene, g, options: IntegratorOptions, key, q, x, spp:
     return rgb, _pixel_integrand(scene, options, q)(x)
 
 
-@functools.partial(jax.jit, static_argnames=_STATIC)
+@kernel(static_argnames=_STATIC)
 def prefix_chunk(scene: Scene, prefix, key, pixels, *, spp, options: IntegratorOptions,
                  search: edges.SearchOptions):
     """Pass 1 for ``pixels`` (``options``: the render's, resolved): the sum of each pixel's
@@ -280,7 +280,7 @@ def prefix_chunk(scene: Scene, prefix, key, pixels, *, spp, options: IntegratorO
     return _over(one, pixels)
 
 
-@functools.partial(jax.jit, static_argnames=_STATIC)
+@kernel(static_argnames=_STATIC)
 def search_chunk(scene: Scene, prefix, key, pixels, *, spp, options: IntegratorOptions,
                  search: edges.SearchOptions):
     """The edge search of pixels with a candidate (:func:`prefix_chunk`), each from its
@@ -305,7 +305,7 @@ def toroidal_shift_key(key, q, points):
     return toroidal_shift(pixel_shift_key(key, q), points)
 
 
-@functools.partial(jax.jit, static_argnames=_STATIC[:-1])
+@kernel(static_argnames=_STATIC[:-1])
 def rest_chunk(scene: Scene, rests, pixel_set, key, pixels, *, spp,
                options: IntegratorOptions):
     """Pass 2 for ``pixels``: the sum of samples ``m .. spp - 1`` ``(..., 3)``, pixel ``q``
@@ -326,7 +326,7 @@ def fallback_shift_key(key, q):
     return jax.random.fold_in(pixel_shift_key(key, q), 1)
 
 
-@functools.partial(jax.jit, static_argnames=(*_STATIC[:-1], "m"))
+@kernel(static_argnames=(*_STATIC[:-1], "m"))
 def fallback_chunk(scene: Scene, base, key, pixels, *, spp, m, options: IntegratorOptions):
     """Pass 2 for pixels without an edge: the mean ``(..., 3)`` over the ``spp`` points of
     ``base`` (pmj02bn) under the pixel's own fallback shift, on stream counters
