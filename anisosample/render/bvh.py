@@ -23,6 +23,15 @@ and pushes the farther; a leaf tests its primitives with the same plane test as 
 kernel (:func:`plane_test`) and pops. Closest hit keeps the nearest
 ``t`` (ties to the lowest primitive index, as ``argmin`` over all primitives does); any hit stops
 at the first primitive inside the segment (shadow rays).
+
+Vmapped, a while loop runs every ray of the batch until its slowest is done: on 4096 camera-like
+rays into a 9,800-triangle mesh the traversal takes 19 steps on average and 61 at most. So a
+vmap of :func:`closest_hit` or :func:`any_hit` (``jax.custom_batching.custom_vmap``; nested
+vmaps flatten into one) runs :func:`_traverse_queue` instead: :data:`LANES` lanes step their rays
+and a lane whose ray is done takes the next one from the batch. Each ray takes the same steps,
+so the results are the same bits. One device, light sampling, best of 3: the 9,800-triangle mesh
+at 64^2 x 16 spp 536 -> 184 ms, the 99k-triangle one at 128^2 x 64 spp 9.6 -> 3.6-3.8 s
+(lanes 1024-8192 within noise of each other, 16384 slower).
 """
 
 from __future__ import annotations
@@ -42,6 +51,8 @@ LEAF_SIZE = 8  # primitives per leaf slot block
 # 2400: 11065 / 9663, 2808: 10898 / 11291 and 7795 / 11200, 3968: 8309 / 14823 (load 0.8-2.8;
 # `python experiments/bench_render.py --no-mitsuba --prims 10,...,4000 --brute-max 4000`).
 THRESHOLD = 2500
+LANES = 4096  # traversal lanes fed from the ray queue (_traverse_queue)
+_NO_PRIM = np.int32(np.iinfo(np.int32).max)
 _PAD = 2.0**-16  # box padding, relative to the largest coordinate magnitude
 
 
@@ -229,66 +240,175 @@ def _inv_dir(d):
     return 1.0 / jnp.where(jnp.abs(d) > tiny, d, jnp.where(d >= 0, tiny, -tiny))
 
 
-def _traverse(bvh: BVH, o, d, tmin, tmax, any_hit: bool):
-    inv_d = _inv_dir(d)
+def _start(bvh: BVH):
+    """A traversal's initial state ``(node, sp, stack, best_t, best_prim, b1, b2)``."""
+    return (jnp.int32(0), jnp.int32(0), jnp.zeros(bvh.depth + 1, jnp.int32),
+            jnp.float32(jnp.inf), _NO_PRIM, jnp.float32(0), jnp.float32(0))
+
+
+def _active(state, any_hit: bool):
+    """Whether a traversal state has work left (any hit: and has found nothing yet)."""
+    go = state[0] >= 0
+    return go & ~jnp.isfinite(state[3]) if any_hit else go
+
+
+def _step(bvh: BVH, ray, state):
+    """One node of one ray's traversal: a leaf's plane tests, or an interior node's slab tests
+    and the stack; ``ray`` is ``(o, d, inv_d, tmin, tmax)``."""
+    o, d, inv_d, tmin, tmax = ray
+    node, sp, stack, best_t, best_p, b1s, b2s = state
     lane = jnp.arange(LEAF_SIZE, dtype=jnp.int32)
-    big = jnp.int32(np.iinfo(np.int32).max)
     inf = jnp.float32(jnp.inf)
-    tmin = jnp.asarray(tmin, jnp.float32)
-    tmax = jnp.asarray(tmax, jnp.float32)
+    cnt = bvh.count[node]
+    leaf = cnt > 0
+    # Leaf: the plane test on its LEAF_SIZE slots (the unused ones masked).
+    slot = bvh.start[node] + lane
+    r = bvh.rows[slot].T
+    t, b1, b2 = plane_test(r, o, d)
+    pid = bvh.prim[slot]
+    t = jnp.where(leaf & (lane < cnt) & (t > tmin) & (t < tmax), t, inf)
+    j = jnp.argmin(jnp.where(t == jnp.min(t), pid, _NO_PRIM))
+    tj, pj = t[j], pid[j]
+    better = jnp.isfinite(tj) & ((tj < best_t) | ((tj == best_t) & (pj < best_p)))
+    best_t = jnp.where(better, tj, best_t)
+    best_p = jnp.where(better, pj, best_p)
+    b1s = jnp.where(better, b1[j], b1s)
+    b2s = jnp.where(better, b2[j], b2s)
+    # Interior: both children's boxes (culled beyond the nearest hit so far).
+    tn, hit = _slab(bvh.box[node], o, inv_d, tmin, jnp.minimum(tmax, best_t))
+    hit = hit & ~leaf
+    ch = bvh.child[node]
+    near_first = tn[0] <= tn[1]
+    near = jnp.where(near_first, ch[0], ch[1])
+    far = jnp.where(near_first, ch[1], ch[0])
+    both = hit[0] & hit[1]
+    one = jnp.where(hit[0], ch[0], ch[1])
+    top = stack[jnp.maximum(sp - 1, 0)]
+    popped = jnp.where(sp > 0, top, -1)
+    nxt = jnp.where(both, near, jnp.where(hit[0] | hit[1], one, popped))
+    stack = jnp.where(both, stack.at[sp].set(far), stack)
+    sp = jnp.where(both, sp + 1, jnp.where(hit[0] | hit[1], sp, jnp.maximum(sp - 1, 0)))
+    return nxt, sp, stack, best_t, best_p, b1s, b2s
 
-    def cond(s):
-        node, _, _, best_t, _, _, _ = s
-        go = node >= 0
-        if any_hit:
-            go = go & ~jnp.isfinite(best_t)
-        return go
 
-    def body(s):
-        node, sp, stack, best_t, best_p, b1s, b2s = s
-        cnt = bvh.count[node]
-        leaf = cnt > 0
-        # Leaf: the plane test on its LEAF_SIZE slots (the unused ones masked).
-        slot = bvh.start[node] + lane
-        r = bvh.rows[slot].T
-        t, b1, b2 = plane_test(r, o, d)
-        pid = bvh.prim[slot]
-        t = jnp.where(leaf & (lane < cnt) & (t > tmin) & (t < tmax), t, inf)
-        j = jnp.argmin(jnp.where(t == jnp.min(t), pid, big))
-        tj, pj = t[j], pid[j]
-        better = jnp.isfinite(tj) & ((tj < best_t) | ((tj == best_t) & (pj < best_p)))
-        best_t = jnp.where(better, tj, best_t)
-        best_p = jnp.where(better, pj, best_p)
-        b1s = jnp.where(better, b1[j], b1s)
-        b2s = jnp.where(better, b2[j], b2s)
-        # Interior: both children's boxes (culled beyond the nearest hit so far).
-        tn, hit = _slab(bvh.box[node], o, inv_d, tmin, jnp.minimum(tmax, best_t))
-        hit = hit & ~leaf
-        ch = bvh.child[node]
-        near_first = tn[0] <= tn[1]
-        near = jnp.where(near_first, ch[0], ch[1])
-        far = jnp.where(near_first, ch[1], ch[0])
-        both = hit[0] & hit[1]
-        one = jnp.where(hit[0], ch[0], ch[1])
-        top = stack[jnp.maximum(sp - 1, 0)]
-        popped = jnp.where(sp > 0, top, -1)
-        nxt = jnp.where(both, near, jnp.where(hit[0] | hit[1], one, popped))
-        stack = jnp.where(both, stack.at[sp].set(far), stack)
-        sp = jnp.where(both, sp + 1, jnp.where(hit[0] | hit[1], sp, jnp.maximum(sp - 1, 0)))
-        return nxt, sp, stack, best_t, best_p, b1s, b2s
+def _result(state):
+    t, p = state[3], state[4]
+    return t, jnp.where(jnp.isfinite(t), p, 0), state[5], state[6]
 
-    init = (jnp.int32(0), jnp.int32(0), jnp.zeros(bvh.depth + 1, jnp.int32), inf,
-            big, jnp.float32(0), jnp.float32(0))
-    _, _, _, t, p, b1, b2 = jax.lax.while_loop(cond, body, init)
-    return t, jnp.where(jnp.isfinite(t), p, 0), b1, b2
+
+def _ray(o, d, tmin, tmax):
+    return (o, d, _inv_dir(d), jnp.asarray(tmin, jnp.float32), jnp.asarray(tmax, jnp.float32))
+
+
+def _traverse(bvh: BVH, o, d, tmin, tmax, any_hit: bool):
+    """One ray's traversal: a ``lax.while_loop`` over :func:`_step`."""
+    ray = _ray(o, d, tmin, tmax)
+    state = jax.lax.while_loop(lambda s: _active(s, any_hit), lambda s: _step(bvh, ray, s),
+                               _start(bvh))
+    return _result(state)
+
+
+def _traverse_queue(bvh: BVH, o, d, tmin, tmax, any_hit: bool):
+    """The traversal of ``R`` rays (``o``, ``d`` ``(R, 3)``, ``tmin``, ``tmax`` ``(R,)``) on
+    :data:`LANES` lanes fed from a queue: a lane whose ray is done writes its result and takes
+    the next ray, so that the loop runs about ``R x mean steps / LANES`` iterations instead of
+    the slowest ray's steps over all ``R`` (a vmapped while loop runs every ray until the last
+    is done). Each ray takes the steps of :func:`_traverse`: the same results."""
+    n = o.shape[0]
+    lanes = min(LANES, n)
+    ray_of = jax.vmap(_ray)
+    step = jax.vmap(lambda ray, st: _step(bvh, ray, st))
+    active = jax.vmap(lambda st: _active(st, any_hit))
+    start = jax.vmap(lambda _: _start(bvh))(jnp.arange(lanes))
+
+    def select(mask, a, b):
+        return jax.tree.map(lambda x, y: jnp.where(mask.reshape((-1,) + (1,) * (x.ndim - 1)),
+                                                   x, y), a, b)
+
+    def take(ids):
+        return ray_of(o[ids], d[ids], tmin[ids], tmax[ids])
+
+    def body(c):
+        rid, ray, st, nxt, out = c
+        st = select((rid >= 0) & active(st), step(ray, st), st)
+        done = (rid >= 0) & ~active(st)
+        res = jax.vmap(_result)(st)
+        out = tuple(a.at[jnp.where(done, rid, n)].set(v, mode="drop")
+                    for a, v in zip(out, res, strict=True))
+        free = done | (rid < 0)
+        new = nxt + jnp.cumsum(free.astype(jnp.int32)) - 1
+        got = free & (new < n)
+        ids = jnp.where(got, new, 0)
+        ray = select(got, take(ids), ray)
+        st = select(got, start, st)
+        rid = jnp.where(got, new, jnp.where(done, -1, rid))
+        return rid, ray, st, jnp.minimum(nxt + jnp.sum(free), n), out
+
+    out = (jnp.zeros(n, jnp.float32), jnp.zeros(n, jnp.int32), jnp.zeros(n, jnp.float32),
+           jnp.zeros(n, jnp.float32))
+    rid = jnp.arange(lanes, dtype=jnp.int32)
+    init = (rid, take(rid), start, jnp.int32(lanes), out)
+    return jax.lax.while_loop(lambda c: jnp.any(c[0] >= 0), body, init)[-1]
+
+
+def _batched(any_hit: bool):
+    """:func:`_traverse_queue` over ``(R,)`` rays as a function whose ``vmap`` flattens the new
+    axis into the rays (nested vmaps of a render: pixels x samples)."""
+
+    @jax.custom_batching.custom_vmap
+    def rays(bvh, o, d, tmin, tmax):
+        return _traverse_queue(bvh, o, d, tmin, tmax, any_hit)
+
+    @rays.def_vmap
+    def _(size, batched, bvh, o, d, tmin, tmax):
+        if any(jax.tree.leaves(batched[0])):
+            out = jax.vmap(lambda b, *a: rays(b, *a), in_axes=_axes(batched))(bvh, o, d, tmin,
+                                                                              tmax)
+            return out, (True,) * 4
+        args = [x if b else jnp.broadcast_to(x, (size,) + x.shape)
+                for x, b in zip((o, d, tmin, tmax), batched[1:], strict=True)]
+        r = args[0].shape[1]
+        flat = [x.reshape((size * r,) + x.shape[2:]) for x in args]
+        out = rays(bvh, *flat)
+        return tuple(x.reshape((size, r) + x.shape[1:]) for x in out), (True,) * 4
+
+    return rays
+
+
+def _axes(batched):
+    return tuple(jax.tree.map(lambda b: 0 if b else None, x) for x in batched)
+
+
+def _one_ray(any_hit: bool):
+    """:func:`_traverse` for one ray, whose ``vmap`` runs :func:`_batched`'s queue."""
+
+    @jax.custom_batching.custom_vmap
+    def ray(bvh, o, d, tmin, tmax):
+        return _traverse(bvh, o, d, tmin, tmax, any_hit)
+
+    @ray.def_vmap
+    def _(size, batched, bvh, o, d, tmin, tmax):
+        if any(jax.tree.leaves(batched[0])):
+            out = jax.vmap(lambda b, *a: _traverse(b, *a, any_hit),
+                           in_axes=_axes(batched))(bvh, o, d, tmin, tmax)
+            return out, (True,) * 4
+        args = [x if b else jnp.broadcast_to(x, (size,) + x.shape)
+                for x, b in zip((o, d, tmin, tmax), batched[1:], strict=True)]
+        return _BATCHED[any_hit](bvh, *args), (True,) * 4
+
+    return ray
+
+
+_BATCHED = {a: _batched(a) for a in (False, True)}
+_ONE_RAY = {a: _one_ray(a) for a in (False, True)}
 
 
 def closest_hit(bvh: BVH, o, d, tmin=0.0, tmax=jnp.inf):
     """Nearest planar primitive with ``tmin < t < tmax`` along ``o + t d``: ``(t, prim, b1,
     b2)`` with ``t = inf`` and ``prim = 0`` on a miss (as brute force's ``argmin``)."""
-    return _traverse(bvh, o, d, tmin, tmax, any_hit=False)
+    return _ONE_RAY[False](bvh, o, d, jnp.float32(tmin), jnp.float32(tmax))
 
 
 def any_hit(bvh: BVH, o, d, tmin, tmax):
     """Whether any planar primitive has ``tmin < t < tmax`` (stops at the first found)."""
-    return jnp.isfinite(_traverse(bvh, o, d, tmin, tmax, any_hit=True)[0])
+    return jnp.isfinite(_ONE_RAY[True](bvh, o, d, jnp.float32(tmin), jnp.float32(tmax))[0])

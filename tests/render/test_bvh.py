@@ -72,6 +72,33 @@ def test_closest_hit_equals_brute_force(n, seed, para):
     np.testing.assert_array_equal(np.asarray(b2b)[hit], np.asarray(b2n)[hit])
 
 
+def test_ray_queue_gives_each_ray_its_own_traversal(monkeypatch):
+    """Vmapped rays run on lanes fed from a queue (bvh._traverse_queue): with more rays than
+    lanes (lanes refilled), nested vmaps (flattened into one queue) and unbatched distance
+    limits, every ray gets the bits of its own traversal, one ray at a time (``lax.map``: the
+    plain while loop); the same for shadow rays."""
+    monkeypatch.setattr(B, "LANES", 64)
+    scene = _soup(300, 5, 10, bvh=True)
+    o, d, tmin, tmax = _rays(7, n=1000)
+    one = jax.jit(lambda *a: jax.lax.map(lambda r: closest_planar(scene, *r), a))
+    flat = jax.jit(jax.vmap(closest_planar, in_axes=(None, 0, 0, 0, 0)))
+    nested = jax.jit(jax.vmap(jax.vmap(closest_planar, in_axes=(None, 0, 0, None, None)),
+                              in_axes=(None, 0, 0, None, None)))
+    want = [np.asarray(x) for x in one(o, d, tmin, tmax)]
+    assert np.isfinite(want[0]).sum() > 50 and (~np.isfinite(want[0])).sum() > 50
+    for got, w in zip(flat(scene, o, d, tmin, tmax), want, strict=True):
+        np.testing.assert_array_equal(np.asarray(got), w)
+    limits = [np.asarray(x) for x in one(o, d, jnp.zeros(1000), jnp.full(1000, jnp.inf))]
+    got = nested(scene, o.reshape(10, 100, 3), d.reshape(10, 100, 3), 0.0, jnp.inf)
+    for g, w in zip(got, limits, strict=True):
+        np.testing.assert_array_equal(np.asarray(g).reshape(-1), w)
+    target = o + 2.0 * d
+    blocked_one = jax.jit(lambda a, b: jax.lax.map(lambda r: occluded(scene, *r), (a, b)))
+    blocked = np.asarray(jax.jit(jax.vmap(occluded, in_axes=(None, 0, 0)))(scene, o, target))
+    np.testing.assert_array_equal(blocked, np.asarray(blocked_one(o, target)))
+    assert 50 < blocked.sum() < 950
+
+
 def test_ties_go_to_the_lowest_index():
     """Forty copies of one triangle and of one square: every hit is the first copy's."""
     b = R.SceneBuilder()
