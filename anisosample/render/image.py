@@ -67,7 +67,7 @@ def render(
     mis: bool = False,
     square_aperture: bool = False,
     chunk: int | None = None,
-    chunk_samples: int = 65536,
+    chunk_samples: int | None = None,
     progress: bool = True,
     sampler_options: dict | None = None,
     devices=None,
@@ -104,6 +104,11 @@ def render(
     the user cache first (``sampler_options={"build_missing": False}`` refuses instead, naming
     the command that builds them). ``progress=False`` silences everything the call starts: the
     render's bar, the estimation's and those of the sets it builds.
+
+    ``chunk_samples`` (default :func:`default_chunk_samples`: 65536, or 4096 over many
+    primitives without a BVH) or ``chunk`` (pixels) sets how many samples one vmapped chunk
+    holds: speed and memory. It may move the image's last bit: chunks of 4096 to 262144 samples
+    gave the same image on every scene tried, 1024 moved one of cornell's by 8.9e-8.
 
     ``devices``: split the pixels over these devices, their blocks of ``chunk`` x ``per_call``
     pixels dealt out in turn, e.g. ``jax.local_devices()``; under ``jax.distributed`` every
@@ -149,10 +154,9 @@ def render(
     npix = w * h
     _check_memory(w, h)
     # A chunk of pixels is vmapped (about ``chunk_samples`` samples); ``per_call`` chunks run
-    # per jit call under lax.map (few dispatches, live progress). One device, 128^2 x 64 spp,
-    # best of 3 (load 1-1.8), chunk_samples 4096 / 32768 / 65536 / 131072: cornell 118 / 92 /
-    # 84 / - ms, blinds 161 / 146 / 137 / -, dof 148 / 112 / 113 / 139, attic 152 / 132 / 126 /
-    # 127, the 99k-triangle mesh 10.4 / 9.3 / 9.6 / 14.2 s; the same bits at every size.
+    # per jit call under lax.map (few dispatches, live progress).
+    if chunk_samples is None:
+        chunk_samples = default_chunk_samples(scene)
     chunk_samples = check_int("chunk_samples", chunk_samples, minimum=1)
     if chunk is None:
         chunk = max(1, min(npix, chunk_samples // spp))
@@ -272,6 +276,20 @@ def render(
         pixel_directions=dirs,
         pixel_estimation_samples=extra,
     )
+
+
+def default_chunk_samples(scene: Scene) -> int:
+    """Samples per vmapped chunk of :func:`render` (its ``chunk_samples=None``): 65536, or 4096
+    where the ray caster tests every one of more than
+    :data:`~anisosample.render.bvh.BRUTE_WIDE` planar primitives (its ``(samples x
+    primitives)`` arrays then leave the cache). One device, 128^2 x 64 spp, pmj02bn, best of 3
+    (load 1-1.8), chunk_samples 4096 / 32768 / 65536 / 131072: cornell 118 / 92 / 84 / - ms,
+    blinds 161 / 146 / 137 / -, dof 148 / 112 / 113 / 139, attic 152 / 132 / 126 / 127; the
+    same image at every size; brute force over more primitives: see ``bvh.BRUTE_WIDE``."""
+    from .bvh import BRUTE_WIDE
+
+    wide = scene.bvh is None and scene.tri_soa.shape[1] > BRUTE_WIDE
+    return 4096 if wide else 65536
 
 
 class _PixelSplit(NamedTuple):

@@ -107,10 +107,29 @@ def test_negative_spp_and_bad_options():
         R.render(scene, jax.random.key(0), spp=-1)
     with pytest.raises(ValueError, match="technique"):
         R.render(scene, jax.random.key(0), spp=1, technique="magic")
+    with pytest.raises(ValueError, match="chunk_samples must be >= 1"):
+        R.render(scene, jax.random.key(0), spp=1, chunk_samples=0)
+    with pytest.raises(TypeError, match="chunk_samples"):
+        R.render(scene, jax.random.key(0), spp=1, chunk_samples=4096.5)
     with pytest.raises(ValueError, match="thinlens"):
         R.pixel_integrand(scene, (0, 0), dimension="lens")
     with pytest.raises(ValueError, match="pixel"):
         R.pixel_integrand(scene, (4, 0))
+
+
+def test_default_chunk_follows_the_primitive_count():
+    """Brute force over more than bvh.BRUTE_WIDE primitives takes small chunks; the BVH and
+    small scenes large ones."""
+    assert R.image.default_chunk_samples(R.load_xml(SCENES / "cornell.xml")) == 65536
+    b = R.SceneBuilder()
+    m = b.diffuse(0.5)
+    n = R.bvh.BRUTE_WIDE + 1
+    v = np.random.default_rng(0).normal(size=(3 * n, 3))  # no degenerate triangle
+    b.triangles(v, np.arange(3 * n).reshape(-1, 3), m)
+    b.point_light((0, 0, 5), 1.0)
+    b.camera(np.eye(4), width=2, height=2)
+    assert R.image.default_chunk_samples(b.build(bvh=False)) == 4096
+    assert R.image.default_chunk_samples(b.build(bvh=True)) == 65536
 
 
 def test_cli_render_writes_outputs_and_refuses_overwrite(tmp_path, capsys):
