@@ -356,56 +356,44 @@ def _traverse_queue(bvh: BVH, o, d, tmin, tmax, any_hit: bool):
     return jax.lax.while_loop(lambda c: jnp.any(c[0] >= 0), body, init)[-1]
 
 
+def _vmappable(fun, batched_fun):
+    """``fun(bvh, o, d, tmin, tmax)`` whose ``vmap`` calls ``batched_fun`` with the same
+    arguments, the unbatched rays' broadcast along the new axis (``custom_vmap``); with a
+    batched BVH it vmaps ``fun`` itself."""
+
+    @jax.custom_batching.custom_vmap
+    def f(bvh, o, d, tmin, tmax):
+        return fun(bvh, o, d, tmin, tmax)
+
+    @f.def_vmap
+    def _(size, batched, bvh, *rays):
+        if any(jax.tree.leaves(batched[0])):
+            axes = tuple(jax.tree.map(lambda b: 0 if b else None, x) for x in batched)
+            return jax.vmap(fun, in_axes=axes)(bvh, *rays), (True,) * 4
+        rays = [x if b else jnp.broadcast_to(x, (size,) + x.shape)
+                for x, b in zip(rays, batched[1:], strict=True)]
+        return batched_fun(bvh, *rays), (True,) * 4
+
+    return f
+
+
 def _batched(any_hit: bool):
     """:func:`_traverse_queue` over ``(R,)`` rays as a function whose ``vmap`` flattens the new
     axis into the rays (nested vmaps of a render: pixels x samples)."""
 
-    @jax.custom_batching.custom_vmap
-    def rays(bvh, o, d, tmin, tmax):
-        return _traverse_queue(bvh, o, d, tmin, tmax, any_hit)
+    def flat(bvh, *rays):
+        size, r = rays[0].shape[:2]
+        out = queue(bvh, *(x.reshape((size * r,) + x.shape[2:]) for x in rays))
+        return tuple(x.reshape((size, r) + x.shape[1:]) for x in out)
 
-    @rays.def_vmap
-    def _(size, batched, bvh, o, d, tmin, tmax):
-        if any(jax.tree.leaves(batched[0])):
-            out = jax.vmap(lambda b, *a: rays(b, *a), in_axes=_axes(batched))(bvh, o, d, tmin,
-                                                                              tmax)
-            return out, (True,) * 4
-        args = [x if b else jnp.broadcast_to(x, (size,) + x.shape)
-                for x, b in zip((o, d, tmin, tmax), batched[1:], strict=True)]
-        r = args[0].shape[1]
-        flat = [x.reshape((size * r,) + x.shape[2:]) for x in args]
-        out = rays(bvh, *flat)
-        return tuple(x.reshape((size, r) + x.shape[1:]) for x in out), (True,) * 4
-
-    return rays
-
-
-def _axes(batched):
-    return tuple(jax.tree.map(lambda b: 0 if b else None, x) for x in batched)
-
-
-def _one_ray(any_hit: bool):
-    """:func:`_traverse` for one ray, whose ``vmap`` runs :func:`_batched`'s queue."""
-
-    @jax.custom_batching.custom_vmap
-    def ray(bvh, o, d, tmin, tmax):
-        return _traverse(bvh, o, d, tmin, tmax, any_hit)
-
-    @ray.def_vmap
-    def _(size, batched, bvh, o, d, tmin, tmax):
-        if any(jax.tree.leaves(batched[0])):
-            out = jax.vmap(lambda b, *a: _traverse(b, *a, any_hit),
-                           in_axes=_axes(batched))(bvh, o, d, tmin, tmax)
-            return out, (True,) * 4
-        args = [x if b else jnp.broadcast_to(x, (size,) + x.shape)
-                for x, b in zip((o, d, tmin, tmax), batched[1:], strict=True)]
-        return _BATCHED[any_hit](bvh, *args), (True,) * 4
-
-    return ray
+    queue = _vmappable(lambda bvh, *rays: _traverse_queue(bvh, *rays, any_hit), flat)
+    return queue
 
 
 _BATCHED = {a: _batched(a) for a in (False, True)}
-_ONE_RAY = {a: _one_ray(a) for a in (False, True)}
+# One ray (:func:`_traverse`), whose vmap runs the queue.
+_ONE_RAY = {a: _vmappable(lambda bvh, *rays, a=a: _traverse(bvh, *rays, a), _BATCHED[a])
+            for a in (False, True)}
 
 
 def closest_hit(bvh: BVH, o, d, tmin=0.0, tmax=jnp.inf):

@@ -74,9 +74,9 @@ def test_closest_hit_equals_brute_force(n, seed, para):
 
 def test_ray_queue_gives_each_ray_its_own_traversal(monkeypatch):
     """Vmapped rays run on lanes fed from a queue (bvh._traverse_queue): with more rays than
-    lanes (lanes refilled), nested vmaps (flattened into one queue) and unbatched distance
-    limits, every ray gets the bits of its own traversal, one ray at a time (``lax.map``: the
-    plain while loop); the same for shadow rays."""
+    lanes (lanes refilled), nested vmaps (flattened into one queue), unbatched distance limits
+    and a vmap over scenes, every ray gets the bits of its own traversal, one ray at a time
+    (``lax.map``: the plain while loop); the same for shadow rays."""
     monkeypatch.setattr(B, "LANES", 64)
     scene = _soup(300, 5, 10, bvh=True)
     o, d, tmin, tmax = _rays(7, n=1000)
@@ -92,6 +92,12 @@ def test_ray_queue_gives_each_ray_its_own_traversal(monkeypatch):
     got = nested(scene, o.reshape(10, 100, 3), d.reshape(10, 100, 3), 0.0, jnp.inf)
     for g, w in zip(got, limits, strict=True):
         np.testing.assert_array_equal(np.asarray(g).reshape(-1), w)
+    # A vmap over scenes (a batched BVH) of the vmap over rays: each copy as one scene.
+    pair = jax.tree.map(lambda x: jnp.stack([x, x]), scene)
+    over_scenes = jax.jit(jax.vmap(jax.vmap(closest_planar, in_axes=(None, 0, 0, 0, 0)),
+                                   in_axes=(0, None, None, None, None)))
+    for got, w in zip(over_scenes(pair, o, d, tmin, tmax), want, strict=True):
+        np.testing.assert_array_equal(np.asarray(got), np.stack([w, w]))
     target = o + 2.0 * d
     blocked_one = jax.jit(lambda a, b: jax.lax.map(lambda r: occluded(scene, *r), (a, b)))
     blocked = np.asarray(jax.jit(jax.vmap(occluded, in_axes=(None, 0, 0)))(scene, o, target))
