@@ -50,15 +50,13 @@ LEAF_SIZE = 4  # primitives per leaf slot block (was 8 before the ray queue)
 # Scenes with at least this many planar primitives get a BVH (SceneBuilder.build's default);
 # below it testing every primitive is faster. Measured 2026-12-06 on the 2-core reference CPU
 # (one device, load 0.8-1.8), light sampling 128^2 x 64 spp of a sphere mesh on a floor, ns per
-# sample, brute force at render's chunk for it (4096 samples above BRUTE_WIDE primitives) / the
-# BVH (65536): 48 tris 127 / 940, 288: 566 / 1637, 840: 1363 / 1827, 1224: 2066 / 1972, 2400:
-# 4836 / 2133 (/tmp script over experiments/bench_render.write_mesh_scene; the queue of
-# _traverse_queue moved the crossover down from about 2500).
+# sample, brute force at render's chunk for it (4096 samples above render._kernel.BRUTE_WIDE
+# primitives) / the BVH (65536, leaves of 8): 48 tris 127 / 940, 288: 566 / 1637, 840: 1363 /
+# 1827, 1224: 2066 / 1972, 2400: 4836 / 2133 (/tmp script over bench_render.write_mesh_scene;
+# the queue of _traverse_queue moved the crossover down from about 2500). Brute force was
+# compiled without YNNPACK there; with it, as now above render._kernel.BRUTE_YNN primitives,
+# 960 triangles at 64^2 x 16 spp took 1261-1386 ns per sample instead of 1631-1633.
 THRESHOLD = 1200
-# Brute force holds (samples x primitives) arrays: up to this many primitives a render's chunk
-# is 65536 samples, beyond it 4096 (render.image). Brute force, chunk 4096 / 16384 / 65536
-# samples: 48 tris 143 / 134 / 127 ns per sample, 288: 566 / 599 / 968, 840: 1363 / 1859 / 2656.
-BRUTE_WIDE = 64
 LANES = 4096  # traversal lanes fed from the ray queue (_traverse_queue)
 _NO_PRIM = np.int32(np.iinfo(np.int32).max)
 _PAD = 2.0**-16  # box padding, relative to the largest coordinate magnitude

@@ -281,15 +281,16 @@ def render(
 def default_chunk_samples(scene: Scene) -> int:
     """Samples per vmapped chunk of :func:`render` (its ``chunk_samples=None``): 65536, or 4096
     where the ray caster tests every one of more than
-    :data:`~anisosample.render.bvh.BRUTE_WIDE` planar primitives (its ``(samples x
+    :data:`~anisosample.render._kernel.BRUTE_WIDE` planar primitives (its ``(samples x
     primitives)`` arrays then leave the cache). One device, 128^2 x 64 spp, pmj02bn, best of 3
     (load 1-1.8), chunk_samples 4096 / 32768 / 65536 / 131072: cornell 118 / 92 / 84 / - ms,
     blinds 161 / 146 / 137 / -, dof 148 / 112 / 113 / 139, attic 152 / 132 / 126 / 127; the
-    same image at every size; brute force over more primitives: see ``bvh.BRUTE_WIDE``."""
-    from .bvh import BRUTE_WIDE
+    same image at every size. Brute force over a sphere mesh, ns per sample at 4096 / 16384 /
+    65536: 48 triangles 143 / 134 / 127, 80: 198 / - / 254, 168: 369 / - / 581, 288: 566 / 599
+    / 968, 840: 1363 / 1859 / 2656."""
+    from ._kernel import BRUTE_WIDE, brute_force_primitives
 
-    wide = scene.bvh is None and scene.tri_soa.shape[1] > BRUTE_WIDE
-    return 4096 if wide else 65536
+    return 4096 if brute_force_primitives(scene) > BRUTE_WIDE else 65536
 
 
 class _PixelSplit(NamedTuple):

@@ -118,12 +118,12 @@ def test_negative_spp_and_bad_options():
 
 
 def test_default_chunk_follows_the_primitive_count():
-    """Brute force over more than bvh.BRUTE_WIDE primitives takes small chunks; the BVH and
-    small scenes large ones."""
+    """Brute force over many primitives (200) takes small chunks; the BVH and small scenes large
+    ones."""
     assert R.image.default_chunk_samples(R.load_xml(SCENES / "cornell.xml")) == 65536
     b = R.SceneBuilder()
     m = b.diffuse(0.5)
-    n = R.bvh.BRUTE_WIDE + 1
+    n = 200
     v = np.random.default_rng(0).normal(size=(3 * n, 3))  # no degenerate triangle
     b.triangles(v, np.arange(3 * n).reshape(-1, 3), m)
     b.point_light((0, 0, 5), 1.0)
