@@ -26,6 +26,7 @@ from .aligned import BlockSampler as BlockSampler
 from .aligned import block_sampler as block_sampler
 from .builder import SceneBuilder as SceneBuilder
 from .image import RenderResult as RenderResult
+from .image import default_chunk_samples as default_chunk_samples
 from .image import render as render
 from .image import save_result as save_result
 from .image import tonemap as tonemap

@@ -120,7 +120,7 @@ def test_negative_spp_and_bad_options():
 def test_default_chunk_follows_the_primitive_count():
     """Brute force over many primitives (200) takes small chunks; the BVH and small scenes large
     ones."""
-    assert R.image.default_chunk_samples(R.load_xml(SCENES / "cornell.xml")) == 65536
+    assert R.default_chunk_samples(R.load_xml(SCENES / "cornell.xml")) == 65536
     b = R.SceneBuilder()
     m = b.diffuse(0.5)
     n = 200
@@ -128,8 +128,8 @@ def test_default_chunk_follows_the_primitive_count():
     b.triangles(v, np.arange(3 * n).reshape(-1, 3), m)
     b.point_light((0, 0, 5), 1.0)
     b.camera(np.eye(4), width=2, height=2)
-    assert R.image.default_chunk_samples(b.build(bvh=False)) == 4096
-    assert R.image.default_chunk_samples(b.build(bvh=True)) == 65536
+    assert R.default_chunk_samples(b.build(bvh=False)) == 4096
+    assert R.default_chunk_samples(b.build(bvh=True)) == 65536
 
 
 def test_cli_render_writes_outputs_and_refuses_overwrite(tmp_path, capsys):
