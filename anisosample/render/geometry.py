@@ -21,6 +21,7 @@ from .bvh import any_hit, closest_hit, plane_test
 from .patch import closest_patch_hit, intersect_patches, patch_frame
 from .scene import Scene
 
+_ARGMIN_MAX = 32  # _first_min: argmin up to this many planar primitives
 _INF = np.float32(np.inf)  # numpy: importing must not start the XLA backend (jax.distributed)
 
 
@@ -54,10 +55,15 @@ def closest_planar(scene: Scene, o, d, tmin, tmax):
 
 def _first_min(tt):
     """``(min(tt), argmin(tt))`` for distances without NaN (misses are ``inf``; index 0 when
-    every entry is), as two plain reductions instead of ``argmin``'s variadic reduce. Same
-    bits; one-device render at 128^2 x 64 spp, best of 3, twice each (load 1.3-2): blinds
-    (44 planar primitives) 0.226-0.233 -> 0.198-0.206 s, cornell (18) 0.132-0.134 s either
-    way. Over dof's few spheres it was slower (0.157 -> 0.18 s): they keep ``argmin``."""
+    every entry is): ``argmin``'s variadic reduce over at most :data:`_ARGMIN_MAX` primitives,
+    above that two plain reductions. Same bits either way. One-device render at 128^2 x 64
+    spp, best of 3 (load 1.0-1.2), two reductions / argmin, since the render kernels compile
+    without YNNPACK: cornell (18 planar primitives) 82-84 / 75 ms, attic (18) 121 / 115, dof
+    (14) 107 / 103, blinds (44) 140 / 167. (Compiled with YNNPACK, f6a79a5 measured blinds with
+    argmin 0.226-0.233 s, with two reductions 0.198-0.206 s, and cornell equal.)"""
+    if tt.shape[0] <= _ARGMIN_MAX:
+        it = jnp.argmin(tt).astype(jnp.int32)
+        return tt[it], it
     t = jnp.min(tt)
     return t, jnp.min(jnp.where(tt == t, jnp.arange(tt.shape[0], dtype=jnp.int32),
                                 tt.shape[0] - 1))
