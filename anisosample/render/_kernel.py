@@ -1,5 +1,7 @@
 """How the ray caster's kernels are compiled: :func:`kernel`, ``jax.jit`` with
-:func:`compiler_options` chosen per scene.
+:func:`compiler_options` chosen per scene; and the scene sizes both that choice and the render's
+chunk size (:data:`BRUTE_WIDE`, :func:`~anisosample.render.image.default_chunk_samples`) are
+read from (:func:`brute_force_primitives`).
 
 XLA:CPU (jaxlib 0.10.2) hands reductions to YNNPACK fusions by default. In the ray caster those
 reductions mostly run over tiny trailing axes (3-vector dot products and norms in the warps, the

@@ -349,7 +349,7 @@ def _traverse_queue(bvh: BVH, o, d, tmin, tmax, any_hit: bool):
         ids = jnp.where(got, new, 0)
         ray = select(got, take(ids), ray)
         # A new ray's stack is empty (sp = 0): its old entries are never read.
-        st = select(got, start[:2] + st[2:3] + start[3:], st[:2] + st[2:3] + st[3:])
+        st = select(got, start[:2] + st[2:3] + start[3:], st)
         rid = jnp.where(got, new, jnp.where(done, -1, rid))
         return rid, ray, st, jnp.minimum(nxt + jnp.sum(free), n), out
 

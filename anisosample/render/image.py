@@ -184,11 +184,15 @@ def render(
             todo = np.arange(npix) if pixels is None else np.asarray(pixels, np.int64)
             per_step = chunk * per_call
             steps = max(1, -(-todo.size // per_step))
-            shapes = _output_shapes(kernel, args, static, (per_call, chunk))
-            outs = [np.zeros((npix, *r.shape[2:]), r.dtype) for r in shapes]
+            outs = []  # allocated from the first block's outputs (no trace of the kernel)
+
+            def allocate(results):
+                outs.extend(np.zeros((npix, *r.shape[2:]), r.dtype) for r in results)
 
             def collect(idx, valid, res):
                 res = res if isinstance(res, tuple) else (res,)
+                if not outs:
+                    allocate(res)
                 for o, r in zip(outs, res, strict=True):
                     o[idx[valid]] = np.asarray(r).reshape(-1, *r.shape[2:])[valid]
                 if pixels is None:
@@ -209,6 +213,10 @@ def render(
                     collect(*pending.popleft())
             while pending:
                 collect(*pending.popleft())
+            if not outs:  # this process rendered no block: the shapes from a trace
+                shapes = jax.eval_shape(lambda i: kernel(*args, i, **static),
+                                        jax.ShapeDtypeStruct((per_call, chunk), jnp.int32))
+                allocate(shapes if isinstance(shapes, tuple) else (shapes,))
             if split.processes > 1:  # every process gets the blocks the others rendered
                 outs = split.gather(outs, todo, per_step)
             if pixels is not None:
@@ -274,32 +282,6 @@ def render(
         pixel_directions=dirs,
         pixel_estimation_samples=extra,
     )
-
-
-_SHAPES: dict = {}  # _output_shapes' cache: (kernel, argument structure and shapes) -> shapes
-
-
-def _output_shapes(kernel, args, static: dict, block: tuple[int, int]) -> tuple:
-    """The shapes of ``kernel(*args, idx, **static)`` for a ``block`` of pixel indices
-    (``jax.eval_shape``, which traces the kernel: about 2-3 ms, most of a small render's time,
-    so cached by the arguments' structure, shapes and static values)."""
-    leaves, tree = jax.tree.flatten(args)
-    key = (kernel, tree, tuple((np.shape(x), str(getattr(x, "dtype", type(x)))) for x in leaves),
-           tuple(sorted(static.items())), block)
-    try:
-        hash(key)
-    except TypeError:  # an unhashable static value: trace every time
-        key = None
-    if key is None or key not in _SHAPES:
-        shapes = jax.eval_shape(lambda i: kernel(*args, i, **static),
-                                jax.ShapeDtypeStruct(block, jnp.int32))
-        shapes = shapes if isinstance(shapes, tuple) else (shapes,)
-        if key is None:
-            return shapes
-        if len(_SHAPES) > 256:
-            _SHAPES.clear()
-        _SHAPES[key] = shapes
-    return _SHAPES[key]
 
 
 def default_chunk_samples(scene: Scene) -> int:
