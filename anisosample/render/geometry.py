@@ -43,8 +43,17 @@ def _triangle_t(scene: Scene, o, d):
     return plane_test(scene.tri_soa, o, d)
 
 
-def closest_planar(scene: Scene, o, d, tmin, tmax):
-    """``(t, index, b1, b2)`` of the nearest planar primitive (``t = inf``, index 0: none)."""
+def closest_planar(scene: Scene, o, d, tmin, tmax, subset=None):
+    """``(t, index, b1, b2)`` of the nearest planar primitive (``t = inf``, index 0: none).
+
+    ``subset``: a :class:`~anisosample.render.culling.Subset` of candidates holding every
+    primitive the ray can meet (:func:`~anisosample.render.culling.pixel_view`), or None."""
+    if subset is not None:
+        tt, b1, b2 = plane_test(subset.soa, o, d)
+        tt = jnp.where((tt > tmin) & (tt < tmax), tt, _INF)
+        t, k = _first_min(tt)
+        it = jnp.where(jnp.isfinite(t), subset.index[k], 0)
+        return t, it, b1[k], b2[k]
     if scene.bvh is not None:
         return closest_hit(scene.bvh, o, d, tmin, tmax)
     tt, b1, b2 = _triangle_t(scene, o, d)
@@ -91,9 +100,11 @@ def intersect(
     d: Float[Array, "3"],
     tmin: float | Array = 0.0,
     tmax: float | Array = jnp.inf,
+    subset=None,
 ) -> Hit:
-    """Closest hit with ``tmin < t < tmax``; ``d`` must be a unit vector."""
-    t_tri, it, w1, w2 = closest_planar(scene, o, d, tmin, tmax)
+    """Closest hit with ``tmin < t < tmax``; ``d`` must be a unit vector. ``subset``: the
+    planar primitives to test (:func:`closest_planar`; None: all)."""
+    t_tri, it, w1, w2 = closest_planar(scene, o, d, tmin, tmax, subset)
     attr = scene.tri_attr[it]  # n, uv0, uv1, uv2: one gather
     ids = scene.tri_ids[it]  # material, light
     uv_tri = (1 - w1 - w2) * attr[3:5] + w1 * attr[5:7] + w2 * attr[7:9]
@@ -133,18 +144,23 @@ def intersect(
 
 
 def occluded(
-    scene: Scene, o: Float[Array, "3"], target: Float[Array, "3"], eps: float = 1e-4
+    scene: Scene, o: Float[Array, "3"], target: Float[Array, "3"], eps: float = 1e-4,
+    subset=None,
 ) -> Bool[Array, ""]:
     """Whether anything blocks the open segment from ``o`` to ``target``.
 
     ``eps`` trims both ends of the segment (relative to its length) against self-hits.
+    ``subset``: the planar primitives that can block it (:func:`closest_planar`; None: all).
     """
     v = target - o
     dist = norm(v)
     d = v / jnp.maximum(dist, 1e-30)
     lo, hi = dist * eps, dist * (1 - eps)
     inside = lambda t: (t > lo) & (t < hi)
-    if scene.bvh is not None:  # any hit, stopping at the first (render/bvh.py)
+    if subset is not None:
+        tt, _, _ = plane_test(subset.soa, o, d)
+        blocked = jnp.any(inside(tt))
+    elif scene.bvh is not None:  # any hit, stopping at the first (render/bvh.py)
         blocked = any_hit(scene.bvh, o, d, lo, hi)
     else:
         tt, _, _ = _triangle_t(scene, o, d)

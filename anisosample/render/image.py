@@ -72,6 +72,7 @@ def render(
     sampler_options: dict | None = None,
     devices=None,
     options: IntegratorOptions | None = None,
+    culling: bool = True,
 ) -> RenderResult:
     """Render ``scene`` ``realizations`` times with ``spp`` points per pixel per realization.
 
@@ -116,8 +117,18 @@ def render(
     the whole image, gathered with ``multihost_utils.process_allgather``). The same bits as one
     device: each block runs the one-device program, and a pixel's estimate depends only on its
     index and ``key``. ``None``: the default device.
+
+    ``culling`` (default on): a scene without a BVH tests, per 8x8-pixel tile, only the planar
+    primitives the tile's primary and shadow rays can meet (:mod:`anisosample.render.culling`,
+    computed here on the host and cached); off, every ray tests every primitive. The same
+    nearest hits either way (the image may move by float32 rounding).
     """
     key = check_key("key", key)
+    if not isinstance(culling, (bool, np.bool_)):
+        raise TypeError(f"culling must be True or False, got {culling!r}")
+    from .culling import with_culling
+
+    scene = with_culling(scene, bool(culling))
     spp = check_int("spp", spp, minimum=1)
     realizations = check_int("realizations", realizations, minimum=1)
     options = options_of(options, pixel_center=pixel_center, dimension=dimension,

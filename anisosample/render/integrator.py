@@ -46,6 +46,7 @@ from ._kernel import kernel
 from ._vec import dot
 from .bsdf import eval_bsdf, pdf_bsdf, sample_bsdf
 from .camera import generate_ray
+from .culling import film_view, pixel_view, with_culling
 from .film import film_offsets
 from .geometry import intersect, occluded, offset_origin
 from .light_warps import Receiver
@@ -76,14 +77,17 @@ def radiance(
     light: Float[Array, "2"],
     bsdf_u: Float[Array, "2"],
     options: IntegratorOptions | None = None,
+    view=None,
 ) -> Float[Array, "3"]:
     """One sample of the radiance through film point ``film`` (``[0, 1]^2``, row 0 on top),
     with ``options``' technique, light warp, MIS and aperture (its dimension and film rule are
-    the callers': :func:`sample_function`, :func:`pixel_samples`; None: the defaults)."""
+    the callers': :func:`sample_function`, :func:`pixel_samples`; None: the defaults).
+    ``view``: the film tile's candidate primitives for the primary and the shadow ray
+    (:func:`anisosample.render.culling.pixel_view`; None: every primitive)."""
     options = IntegratorOptions() if options is None else options
     technique, light_warp, mis = options.technique, options.light_warp, options.mis
     o, d = generate_ray(scene.camera, film, lens, square_aperture=options.square_aperture)
-    hit = intersect(scene, o, d)
+    hit = intersect(scene, o, d, subset=None if view is None else view.primary)
     wi = -d
     mats = scene.materials
     # Emission seen directly (front side only, Mitsuba's area emitter).
@@ -101,7 +105,7 @@ def radiance(
     wo = v * jax.lax.rsqrt(d2)
     cos_l = jnp.where(ls.delta, 1.0, dot(ls.n, -wo))
     f = eval_bsdf(mats, hit.material, hit.n, wi, wo)
-    visible = ~occluded(scene, rec.origin, ls.p)
+    visible = ~occluded(scene, rec.origin, ls.p, subset=None if view is None else view.shadow)
     ok = hit.valid & (cos_l > 0) & (ls.pdf > 0) & visible & jnp.any(f > 0)
     contrib = f * ls.radiance * (cos_l / (d2 * jnp.where(ls.pdf > 0, ls.pdf, 1.0)))
     if mis:
@@ -126,16 +130,17 @@ def radiance(
 
 
 def sample_function(scene: Scene, options: IntegratorOptions):
-    """``g(x, film, other, bsdf_u) -> rgb``: one sample of :func:`radiance` where ``x``
-    drives ``options.dimension`` (resolved; the other dimension's sample is ``other``)."""
+    """``g(x, film, other, bsdf_u, view=None) -> rgb``: one sample of :func:`radiance` where
+    ``x`` drives ``options.dimension`` (resolved; the other dimension's sample is ``other``;
+    ``view`` the pixel's candidate primitives)."""
 
-    def g(x, film, other, bsdf_u):
+    def g(x, film, other, bsdf_u, view=None):
         if options.dimension == "light":
             lens = other if scene.camera.projection == THINLENS else jnp.full(2, 0.5, jnp.float32)
             light = x
         else:
             lens, light = x, other
-        return radiance(scene, film, lens, light, bsdf_u, options)
+        return radiance(scene, film, lens, light, bsdf_u, options, view)
 
     return g
 
@@ -171,7 +176,7 @@ class PixelIntegrand(eqx.Module):
         flat = x.reshape(-1, 2)
         n = flat.shape[0]
         if isinstance(x, jax.core.Tracer) or n == 0:
-            out = _integrand_rgb(self, flat)
+            out = _integrand_rgb(self, flat, film_view(self.scene, self.film))
         else:
             # Concrete input: blocks of three fixed sizes, so that three compilations serve
             # every size: as many of the large as fit, then the middle, the last one padded.
@@ -180,7 +185,8 @@ class PixelIntegrand(eqx.Module):
             big = (n + pad) // _CALL_BLOCK * _CALL_BLOCK
             starts = [(i, _CALL_BLOCK) for i in range(0, big, _CALL_BLOCK)]
             starts += [(i, min(_BLOCK, n + pad)) for i in range(big, n + pad, _BLOCK)]
-            out = jnp.concatenate([_integrand_rgb(self, xs[i:i + size], _CALL_BLOCK)
+            view = film_view(self.scene, self.film)  # gathered once, outside the kernel
+            out = jnp.concatenate([_integrand_rgb(self, xs[i:i + size], view, _CALL_BLOCK)
                                    for i, size in starts])[:n]
         return out.reshape(*x.shape[:-1], 3)
 
@@ -195,7 +201,7 @@ _CALL_BLOCK = 65536
 
 
 @kernel(jit=eqx.filter_jit)
-def _integrand_rgb(f: PixelIntegrand, flat, block: int = _BLOCK):
+def _integrand_rgb(f: PixelIntegrand, flat, view, block: int = _BLOCK):
     """``f.rgb`` at the points ``flat`` ``(n, 2)``: vmapped, over blocks of ``block`` points
     (static) under ``lax.map`` where ``n`` is larger."""
     g = sample_function(f.scene, f.options)
@@ -203,10 +209,10 @@ def _integrand_rgb(f: PixelIntegrand, flat, block: int = _BLOCK):
 
     def point(xi):
         if f.warp is None:
-            return g(xi, f.film, half, half)
+            return g(xi, f.film, half, half, view)
         y = f.warp.sample(xi)
         jac = f.warp.pdf(y)
-        val = g(y, f.film, half, half)
+        val = g(y, f.film, half, half, view)
         return jnp.where(jac > 0, val / jnp.where(jac > 0, jac, 1.0), 0.0)
 
     one = jax.vmap(point)
@@ -255,7 +261,7 @@ def pixel_integrand(
     if film is None:
         film = ((col + 0.5) / scene.width, (row + 0.5) / scene.height)
     return PixelIntegrand(
-        scene=scene,
+        scene=with_culling(scene),
         film=jnp.asarray(film, jnp.float32),
         weights=jnp.asarray(weights, jnp.float32),
         options=options,
@@ -323,7 +329,9 @@ def pixel_samples(scene: Scene, g, x, key, q, spp: int, start: int,
     dimension's and the BSDF's random numbers are the same counters of the pixel's streams
     (``fold_in(key, q)``) whatever the split, so a pixel rendered in parts (a prefix, then the
     rest of its set: :mod:`anisosample.render.pixel_aligned`) gets the bits it gets whole.
-    ``options`` (resolved) says which of them the configuration draws."""
+    ``options`` (resolved) says which of them the configuration draws. The rays test the
+    pixel's candidate primitives (:func:`~anisosample.render.culling.pixel_view`) where the
+    scene carries them."""
     k = x.shape[0]
     w, h = scene.width, scene.height
     _, k_film, k_other, k_bsdf = jax.random.split(jax.random.fold_in(key, q), 4)
@@ -345,5 +353,6 @@ def pixel_samples(scene: Scene, g, x, key, q, spp: int, start: int,
     need_other = options.dimension == "light" and scene.camera.projection == THINLENS
     other = stream(k_other) if need_other else half
     bsdf_u = stream(k_bsdf) if options.mis else half
-    return jax.vmap(g)(x, film, other, bsdf_u)
+    view = pixel_view(scene, q)  # gathered inside the samples' loop: faster than a loop input
+    return jax.vmap(g, in_axes=(0, 0, 0, 0, None))(x, film, other, bsdf_u, view)
 

@@ -140,6 +140,9 @@ class Scene(eqx.Module):
     patches: Patches  # bilinear patches (render/patch.py)
     # A BVH over the planar primitives (render/bvh.py), or None: every primitive is tested.
     bvh: BVH | None = None
+    # Per-tile candidate primitives of brute force (render/culling.py), or None: render()
+    # attaches them (culling.with_culling); every ray of a scene without them tests everything.
+    culling: object | None = None
     has_spheres: bool = eqx.field(static=True, default=True)
     has_textures: bool = eqx.field(static=True, default=True)
     has_patches: bool = eqx.field(static=True, default=False)

@@ -1,0 +1,514 @@
+"""Per-tile culling for brute force: which planar primitives a tile's rays can meet.
+
+A scene without a BVH tests every planar primitive with every ray (:mod:`.geometry`); its cost
+grows by about 3 ms per primitive per million samples (cornell, one device). The rays of one
+image tile are few in kind: primary rays leave the lens through the tile's part of the film,
+and shadow rays join those rays' hits to the lights. :func:`tile_culling` finds, on the host
+and conservatively, the primitives each can meet, and the render kernels test only those
+(:func:`pixel_view`; the BSDF rays of MIS still test everything). The nearest hit, and so the
+image, is the brute-force one: the candidate lists keep the primitives' order, so ties break
+the same way, and the tests are the same arithmetic (the image may move by float32 rounding
+where XLA fuses the smaller loop differently).
+
+* **Primary rays** (camera rays, pinhole or thin lens). A tile's film rectangle ``F`` (its
+  pixels, widened by the reconstruction filter's support) placed on the focus plane, and the
+  lens' bounding square ``L`` (a point for the pinhole): every ray ``a + s (f - a)``,
+  ``a`` in ``L``, ``f`` in ``F``, ``s >= 0``, lies in the convex hull of ``L`` and ``F``
+  (``s <= 1``) or in the convex region behind ``F`` bounded by the planes through each edge of
+  ``F`` and the opposite edge of ``L`` (``s >= 1``). A primitive is a candidate when clipping
+  it (Sutherland & Hodgman 1974) to either region leaves something.
+* **Shadow rays.** Their origins lie in the clipped pieces of the primary candidates (moved off
+  the surface by :func:`~anisosample.render.geometry.offset_origin`), their ends on a light, so
+  each lies in the convex hull ``H`` of those pieces (and the bounding boxes of spheres and
+  bilinear patches, which are not culled) and the light. A primitive is culled when
+  a separating axis (Gottschalk et al. 1996) parts it from ``H``: its normal (where the hull
+  lies on the camera's side, the offset points of its own plane counted on that side), the
+  coordinate axes, the light's normal, and cross products of the primitive's edges, the
+  light's edges, the coordinate axes and the direction from the tile's hits to the light.
+
+Every test keeps a margin of ``MARGIN * scene.scale`` (world units), twice the surface offset,
+which also covers the float32 rounding of the rays and of the primitives' corners (recovered
+here from the intersection rows).
+
+A class of rays keeps the full primitive list where its longest candidate list, rounded up to a
+power of two, would not be shorter than it. XLA:CPU vectorizes those sizes: on cornell at
+128^2 x 64 spp (one device), lists of 8 took 49 ms, lists of 7, 9, 10 or 12 candidates
+116-168 ms (gathered per pixel), all 18 primitives 74 ms. Each tile's rows are stored gathered
+(one contiguous read per pixel): lists of 16 took 59.5 ms so, 83.5 ms gathered per pixel.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from typing import NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float, Int
+
+from .scene import LIGHT_PARALLELOGRAM, LIGHT_PATCH, LIGHT_POINT, LIGHT_SPHERE, THINLENS, Scene
+
+MARGIN = 2e-4  # of scene.scale: geometry.offset_origin moves by 1e-4 scale
+TILE_PX = 8  # pixels per tile side (more where the image would have over MAX_TILES_SIDE)
+MAX_TILES_SIDE = 64
+_SLOTS = 12  # polygon vertex slots: 4 corners + one per clipping plane (6)
+
+
+class Subset(eqx.Module):
+    """Some planar primitives: their intersection rows and their indices (``-1``: padding,
+    rows that never report a hit). Stacked per tile in :class:`TileCulling`."""
+
+    soa: Float[Array, "*n 13 k"]
+    index: Int[Array, "*n k"]
+
+
+class TileCulling(eqx.Module):
+    """Candidate planar primitives per tile for primary and shadow rays (None: all of them),
+    in ascending order, each tile's rows gathered once (one contiguous read per pixel). Tile
+    ``(i, j)`` (row, column) is number ``i * tiles_x + j`` and covers pixels
+    ``[j tile, (j + 1) tile) x [i tile, (i + 1) tile)``."""
+
+    primary: Subset | None
+    shadow: Subset | None
+    tile: int = eqx.field(static=True)
+    tiles_x: int = eqx.field(static=True)
+
+
+class View(NamedTuple):
+    """The candidates of one pixel's primary and shadow rays (None: every primitive)."""
+
+    primary: Subset | None
+    shadow: Subset | None
+
+
+def pixel_view(scene: Scene, q) -> View | None:
+    """The candidates for flat pixel index ``q`` (row-major), or None (no culling)."""
+    c = scene.culling
+    if c is None:
+        return None
+    tile = (q // scene.width) // c.tile * c.tiles_x + (q % scene.width) // c.tile
+    pick = lambda s: None if s is None else jax.tree.map(lambda a: a[tile], s)  # noqa: E731
+    return View(pick(c.primary), pick(c.shadow))
+
+
+def film_view(scene: Scene, film) -> View | None:
+    """The candidates for film position ``film`` in ``[0, 1]^2`` (row 0 on top), or None."""
+    c = scene.culling
+    if c is None:
+        return None
+    px = jnp.floor(film * jnp.asarray([scene.width, scene.height], jnp.float32))
+    col = jnp.clip(px[0].astype(jnp.int32), 0, scene.width - 1)
+    row = jnp.clip(px[1].astype(jnp.int32), 0, scene.height - 1)
+    return pixel_view(scene, row * scene.width + col)
+
+
+def with_culling(scene: Scene, enabled: bool = True) -> Scene:
+    """``scene`` carrying its :func:`tile_culling` (or none: ``enabled=False``, or a BVH)."""
+    c = tile_culling(scene) if enabled else None
+    return eqx.tree_at(lambda s: s.culling, scene, c, is_leaf=lambda x: x is None)
+
+
+def tile_culling(scene: Scene, tile: int | None = None) -> TileCulling | None:
+    """The candidate lists of ``scene`` (:func:`tile_candidates`), or None where a BVH serves
+    the scene or neither class of rays gains (module docstring)."""
+    if scene.bvh is not None:
+        return None
+    tile = _tile_px(scene, tile)
+    primary, shadow = tile_candidates(scene, tile)
+    t = primary.shape[1]
+    lists = _pad_lists(primary, t), _pad_lists(shadow, t)
+    if lists[0] is None and lists[1] is None:
+        return None
+    soa = np.concatenate([np.asarray(scene.tri_soa), np.zeros((13, 1), np.float32)], 1)
+    soa[7, -1] = 1.0  # b1 = -1: never inside (builder._plane_rows' degenerate rows)
+
+    def subset(cols):  # (n, k) indices padded with t
+        if cols is None:
+            return None
+        return Subset(soa=jnp.asarray(np.moveaxis(soa[:, cols], 0, 1)),
+                      index=jnp.asarray(np.where(cols < t, cols, -1).astype(np.int32)))
+
+    return TileCulling(primary=subset(lists[0]), shadow=subset(lists[1]), tile=tile,
+                       tiles_x=-(-scene.width // tile))
+
+
+def tile_candidates(scene: Scene, tile: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(primary, shadow)``: boolean ``(tiles, t)`` masks of the planar primitives that a
+    tile's primary rays and shadow rays may meet (module docstring). ``tile``: pixels per
+    tile side (default :data:`TILE_PX`, larger where the image would have more than
+    :data:`MAX_TILES_SIDE` tiles a side). Computed on the host in float64; the last few
+    scenes' are cached by their contents."""
+    tile = _tile_px(scene, tile)
+    key = (_digest(scene), tile)
+    if key not in _CACHE:
+        if len(_CACHE) >= 16:
+            _CACHE.pop(next(iter(_CACHE)))
+        masks = _compute(_Host(scene), tile)
+        for m in masks:
+            m.flags.writeable = False
+        _CACHE[key] = masks
+    return _CACHE[key]
+
+
+_CACHE: dict = {}
+
+
+def _tile_px(scene: Scene, tile) -> int:
+    if tile is None:
+        return max(TILE_PX, -(-max(scene.width, scene.height) // MAX_TILES_SIDE))
+    from .._validate import check_int
+
+    return check_int("tile", tile, minimum=1)
+
+
+def _digest(scene: Scene) -> str:
+    h = hashlib.sha256()
+    cam = scene.camera
+    for a in (scene.tri_soa, scene.sph_center, scene.sph_radius, scene.patches.corners,
+              scene.lights.shape, scene.lights.p0, scene.lights.e1, scene.lights.e2,
+              scene.lights.patch, scene.scale, cam.to_world, cam.tan_half_fov_x, cam.aspect,
+              cam.aperture_radius, cam.focus_distance):
+        a = np.asarray(a)
+        h.update(str((a.dtype, a.shape)).encode())
+        h.update(a.tobytes())
+    h.update(repr((cam.projection, cam.width, cam.height, cam.rfilter, cam.rfilter_stddev,
+                   scene.has_spheres, scene.has_patches)).encode())
+    return h.hexdigest()
+
+
+class _Host:
+    """What the culling reads of a scene, as float64 numpy (hashable by identity only: the
+    cache key is the digest)."""
+
+    def __init__(self, scene: Scene):
+        cam = scene.camera
+        self.soa = np.asarray(scene.tri_soa, np.float64)
+        self.scale = float(scene.scale)
+        self.m = np.asarray(cam.to_world, np.float64)
+        self.tan = float(cam.tan_half_fov_x)
+        self.aspect = float(cam.aspect)
+        thin = cam.projection == THINLENS
+        self.radius = float(cam.aperture_radius) if thin else 0.0
+        self.focus = float(cam.focus_distance) if thin else 1.0
+        self.width, self.height = cam.width, cam.height
+        self.support = 4.0 * cam.rfilter_stddev if cam.rfilter == "gaussian" else 0.0
+        lights = scene.lights
+        self.light_shape = np.asarray(lights.shape)
+        self.light_p0 = np.asarray(lights.p0, np.float64)
+        self.light_e1 = np.asarray(lights.e1, np.float64)
+        self.light_e2 = np.asarray(lights.e2, np.float64)
+        self.light_patch = np.asarray(lights.patch)
+        corners = np.asarray(scene.patches.corners, np.float64).reshape(-1, 4, 3)
+        self.patch_corners = corners
+        # Non-planar surfaces whose hits shade: their bounding boxes join every tile's hits.
+        extra = []
+        if scene.has_spheres:
+            c = np.asarray(scene.sph_center, np.float64)
+            r = np.asarray(scene.sph_radius, np.float64)[:, None]
+            live = r[:, 0] > 0
+            extra += [_box_corners(c[live] - r[live], c[live] + r[live]).reshape(-1, 3)]
+        if scene.has_patches:
+            extra += [corners.reshape(-1, 3)]
+        self.extra = np.concatenate(extra) if extra else np.zeros((0, 3))
+
+
+# --- geometry ---------------------------------------------------------------------------------
+
+
+def _box_corners(lo, hi):
+    """The 8 corners of boxes ``[lo, hi]`` (``(..., 3)``): ``(..., 8, 3)``."""
+    bits = np.array([[(i >> k) & 1 for k in range(3)] for i in range(8)], np.float64)
+    return lo[..., None, :] + bits * (hi - lo)[..., None, :]
+
+
+def planar_corners(soa: np.ndarray):
+    """Corners of the planar primitives from their intersection rows (builder._plane_rows):
+    ``(corners (t, 4, 3), count (t,))``, count 3 (triangle), 4 (parallelogram: p0, p0 + e1,
+    p0 + e1 + e2, p0 + e2) or 0 (a degenerate primitive, which no ray hits). The rows hold
+    ``n, n.p0, r1, p0.r1, r2, p0.r2`` with ``r_i . e_j = delta_ij`` and ``n . e_j = 0``, so
+    ``p0``, ``e1`` and ``e2`` solve one 3x3 system each."""
+    n, r1, r2 = soa[0:3].T, soa[4:7].T, soa[8:11].T
+    a = np.stack([n, r1, r2], axis=1)  # (t, 3, 3)
+    good = np.abs(np.linalg.det(a)) > 0
+    a = np.where(good[:, None, None], a, np.eye(3))
+    rhs = np.stack([soa[3], soa[7], soa[11]], axis=1)
+    p0 = np.linalg.solve(a, rhs[..., None])[..., 0]
+    inv = np.linalg.inv(a)  # columns: the duals of n, r1, r2
+    e1, e2 = inv[:, :, 1], inv[:, :, 2]
+    para = soa[12] > 0
+    corners = np.stack([p0, p0 + e1, np.where(para[:, None], p0 + e1 + e2, p0 + e2),
+                        p0 + e2], axis=1)
+    count = np.where(good, np.where(para, 4, 3), 0)
+    return corners, count
+
+
+def _plane(a, b, c, inside):
+    """Unit normal ``n`` and offset ``d`` of the plane through ``a, b, c`` (``(..., 3)``),
+    oriented so that ``n . inside >= d``."""
+    n = np.cross(b - a, c - a)
+    n = n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-300)
+    d = np.sum(n * a, -1)
+    flip = np.sum(n * inside, -1) < d
+    return np.where(flip[..., None], -n, n), np.where(flip, -d, d)
+
+
+def clip_polygons(poly, count, n, d):
+    """Sutherland & Hodgman: convex polygons ``poly`` ``(N, S, 3)`` with ``count`` corners
+    each, clipped to the half-spaces ``n . x >= d`` (``n`` ``(N, 3)``, ``d`` ``(N,)``):
+    ``(poly, count)``, count 0 where nothing is left."""
+    big, slots = poly.shape[0], poly.shape[1]
+    idx = np.arange(slots)[None, :]
+    valid = idx < count[:, None]
+    nxt = (idx + 1) % np.maximum(count[:, None], 1)
+    q = np.take_along_axis(poly, nxt[..., None], 1)
+    da = np.einsum("nsk,nk->ns", poly, n) - d[:, None]
+    db = np.take_along_axis(da, nxt, 1)
+    ina, inb = da >= 0, db >= 0
+    t = da / np.where(ina != inb, da - db, 1.0)
+    cut = poly + t[..., None] * (q - poly)
+    emit_a, emit_x = valid & ina, valid & (ina != inb)
+    k = emit_a.astype(np.int64) + emit_x
+    off = np.cumsum(k, 1) - k
+    out = np.zeros_like(poly)
+    rows = np.broadcast_to(np.arange(big)[:, None], (big, slots))
+    out[rows[emit_a], off[emit_a]] = poly[emit_a]
+    pos = off + emit_a
+    out[rows[emit_x], pos[emit_x]] = cut[emit_x]
+    return out, k.sum(1)
+
+
+def _regions(h: _Host, rects):
+    """Planes ``(n, d)`` bounding each tile's near region (the hull of lens and focus
+    rectangle: 6 planes) and far region (behind the focus rectangle: 5 planes, the sixth
+    repeated) in world space, widened by the margin: ``n`` ``(tiles, 2, 6, 3)``."""
+    s0, s1, t0, t1 = (rects[:, i] for i in range(4))
+    fd, tan, r = h.focus, h.tan, h.radius
+
+    def film(s, t):  # camera-space point of the focus plane (generate_ray)
+        return np.stack([(1 - 2 * s) * tan * fd, (1 - 2 * t) * tan / h.aspect * fd,
+                         np.full_like(s, fd)], -1)
+
+    def world(p):
+        return p @ h.m[:3, :3].T + h.m[:3, 3]
+
+    # Film s grows to camera -x, t to -y: the s0 edge is at F's largest x, the t0 edge at its
+    # largest y; the near region pairs each with the lens edge at +r, the far one with -r.
+    f = {(i, j): world(film(s, t)) for i, s in enumerate((s0, s1)) for j, t in enumerate((t0, t1))}
+    lens = {(i, j): world(np.array([r * (1 - 2 * i), r * (1 - 2 * j), 0.0]))
+            for i in range(2) for j in range(2)}
+    zero = np.zeros_like(s0)[:, None]
+    lens = {k: v + zero for k, v in lens.items()}
+    f_mid = sum(f.values()) / 4
+    l_mid = sum(lens.values()) / 4
+    near_in, far_in = 0.5 * (f_mid + l_mid), 2 * f_mid - l_mid
+    edges = [((0, 0), (0, 1), 0, 0), ((1, 0), (1, 1), 0, 1),  # s0, s1 edges: lens x side
+             ((0, 0), (1, 0), 1, 0), ((0, 1), (1, 1), 1, 1)]  # t0, t1 edges: lens y side
+
+    def lens_edge(axis, side):
+        i = side
+        return (lens[(i, 0)], lens[(i, 1)]) if axis == 0 else (lens[(0, i)], lens[(1, i)])
+
+    cam_x, cam_y = world(np.array([1.0, 0, 0])) + zero, world(np.array([0, 1.0, 0])) + zero
+    origin = world(np.zeros(3)) + zero
+    near = [_plane(origin, cam_x, cam_y, near_in),
+            _plane(f[(0, 0)], f[(1, 0)], f[(0, 1)], near_in)]
+    far = [_plane(f[(0, 0)], f[(1, 0)], f[(0, 1)], far_in)]
+    for a, b, axis, side in edges:
+        la, _ = lens_edge(axis, side)
+        lo, _ = lens_edge(axis, 1 - side)
+        near.append(_plane(f[a], f[b], la, near_in))
+        far.append(_plane(f[a], f[b], lo, far_in))
+    far.append(far[0])
+    n = np.stack([np.stack([p[0] for p in near], 1), np.stack([p[0] for p in far], 1)], 1)
+    d = np.stack([np.stack([p[1] for p in near], 1), np.stack([p[1] for p in far], 1)], 1)
+    eye = np.stack(list(lens.values()), 1)  # (tiles, 4, 3): the lens corners
+    return n, d - MARGIN * h.scale, eye
+
+
+def _tile_rects(h: _Host, tile: int):
+    """Film rectangles ``(s0, s1, t0, t1)`` in ``[0, 1]`` of the tiles, row-major, widened
+    by the filter's support (pixels) and a thousandth of a pixel."""
+    tx, ty = -(-h.width // tile), -(-h.height // tile)
+    j, i = np.meshgrid(np.arange(tx), np.arange(ty), indexing="xy")
+    j, i = j.ravel(), i.ravel()
+    pad = h.support + 1e-3
+    x0 = np.maximum(j * tile - pad, 0.0) / h.width
+    x1 = np.minimum((j + 1) * tile + pad, h.width) / h.width
+    y0 = np.maximum(i * tile - pad, 0.0) / h.height
+    y1 = np.minimum((i + 1) * tile + pad, h.height) / h.height
+    return np.stack([x0, x1, y0, y1], 1).astype(np.float64)
+
+
+def _light_points(h: _Host):
+    """Per light primitive, points whose convex hull holds it: ``(l, 8, 3)`` (repeated)."""
+    out = []
+    for s, p0, e1, e2, k in zip(h.light_shape, h.light_p0, h.light_e1, h.light_e2,
+                                h.light_patch, strict=True):
+        if s == LIGHT_POINT:
+            pts = p0[None]
+        elif s == LIGHT_SPHERE:
+            pts = _box_corners(p0 - e1[0], p0 + e1[0])
+        elif s == LIGHT_PATCH:
+            pts = h.patch_corners[k]
+        elif s == LIGHT_PARALLELOGRAM:
+            pts = np.stack([p0, p0 + e1, p0 + e1 + e2, p0 + e2])
+        else:
+            pts = np.stack([p0, p0 + e1, p0 + e2])
+        out.append(np.concatenate([pts, np.repeat(pts[-1:], 8 - len(pts), 0)]))
+    return np.stack(out)
+
+
+def _pad_lists(mask: np.ndarray, t: int):
+    """Ascending candidate indices per row of ``mask`` ``(n, t)``, padded with ``t`` to a
+    power of two (None where that is over half of ``t``)."""
+    most = int(mask.sum(1).max()) if mask.size else 0
+    k = max(2, 1 << max(0, most - 1).bit_length())
+    if k >= t:
+        return None
+    order = np.argsort(~mask, axis=1, kind="stable")[:, :k]
+    return np.where(np.take_along_axis(mask, order, 1), order, t).astype(np.int32)
+
+
+class _Geometry(NamedTuple):
+    """The planar primitives as the tests read them (float64, world space)."""
+
+    corners: np.ndarray  # (t, 4, 3), planar_corners
+    count: np.ndarray  # (t,)
+    cpts: np.ndarray  # (t, 4, 3): corners, a triangle's fourth repeating its first
+    normal: np.ndarray  # (t, 3) unit
+    offset: np.ndarray  # (t,): normal . p0
+    edges: np.ndarray  # (t, 3, 3): unit edge directions (and a diagonal)
+    same: np.ndarray  # (t, t): the two primitives lie in one plane
+    lights: np.ndarray  # (l, 8, 3): points whose hull holds each light primitive
+
+
+def _geometry(h: _Host) -> _Geometry:
+    corners, count = planar_corners(h.soa)
+    normal = _unit(np.cross(corners[:, 1] - corners[:, 0], corners[:, 3] - corners[:, 0]))
+    offset = np.sum(normal * corners[:, 0], -1)
+    cpts = np.where((np.arange(4) < np.maximum(count, 3)[:, None])[..., None], corners,
+                    corners[:, :1])
+    edges = _unit(np.stack([corners[:, 1] - corners[:, 0], corners[:, 3] - corners[:, 0],
+                            corners[:, 3] - corners[:, 1]], 1))
+    # Coplanar within 1.4e-5 rad and 1e-5 scale: a tenth of the surface offset and less.
+    dist = normal @ corners[:, 0].T - offset[:, None]  # [p, q]: q's p0 from p's plane
+    same = (np.abs(normal @ normal.T) > 1 - 1e-10) & (np.abs(dist) <= 1e-5 * h.scale)
+    return _Geometry(corners, count, cpts, normal, offset, edges, same, _light_points(h))
+
+
+def _compute(h: _Host, tile: int):
+    t = h.soa.shape[1]
+    g = _geometry(h)
+    rects = _tile_rects(h, tile)
+    nt = rects.shape[0]
+    primary = np.zeros((nt, t), bool)
+    shadow = np.zeros((nt, t), bool)
+    step = max(1, 2_000 // t)  # bounds the shadow test's (tiles, t, axes, points) arrays
+    for a in range(0, nt, step):
+        b = min(nt, a + step)
+        primary[a:b], shadow[a:b] = _tiles(h, g, rects[a:b])
+    return primary, shadow
+
+
+def _unit(v):
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.where(n > 1e-12, v / np.maximum(n, 1e-300), 0.0)
+
+
+def _tiles(h: _Host, g: _Geometry, rects):
+    """``(primary, shadow)`` candidate masks ``(tiles, t)`` of a batch of tiles."""
+    nt, t = rects.shape[0], g.count.shape[0]
+    n, d, lens = _regions(h, rects)
+    # Primary: every primitive clipped to both regions of every tile.
+    poly = np.zeros((nt, t, 2, _SLOTS, 3))
+    poly[:, :, :, :4] = g.corners[None, :, None]
+    flat_p = poly.reshape(-1, _SLOTS, 3)
+    flat_c = np.broadcast_to(g.count[None, :, None], (nt, t, 2)).reshape(-1)
+    nn = np.broadcast_to(n[:, None], (nt, t, 2, 6, 3)).reshape(-1, 6, 3)
+    dd = np.broadcast_to(d[:, None], (nt, t, 2, 6)).reshape(-1, 6)
+    for k in range(6):
+        flat_p, flat_c = clip_polygons(flat_p, flat_c, nn[:, k], dd[:, k])
+    pieces = flat_p.reshape(nt, t, 2, _SLOTS, 3)
+    piece_n = flat_c.reshape(nt, t, 2)
+    primary = (piece_n > 0).any(2)
+    return primary, _shadow(h, g, primary, pieces, piece_n, lens)
+
+
+def _one_side(a, b, delta):
+    """Whether segments between points at heights ``>= a`` and ``>= b`` above a plane (float32
+    positions good to ``delta``) stay off it but within their trimmed ends (occluded's
+    ``eps = 1e-4``; half of it here): both ends clear of the plane, or one within ``delta`` of
+    it and the other so high that the crossing falls in the trimmed part."""
+    a_clear, b_clear = a > delta, b > delta
+    a_near = (a >= -delta) & (2 * delta < 5e-5 * np.maximum(b, 0))
+    b_near = (b >= -delta) & (2 * delta < 5e-5 * np.maximum(a, 0))
+    return (a_clear | a_near) & (b_clear | b_near)
+
+
+def _shadow(h: _Host, g: _Geometry, primary, pieces, piece_n, lens):
+    """``(tiles, t)``: whether a primitive may block a shadow ray of the tile (module
+    docstring): no separating axis parts it from the hull of the tile's hits and a light."""
+    nt, t = primary.shape
+    m = MARGIN * h.scale
+    # The tile's hit points: its primary candidates' pieces, and the non-planar surfaces.
+    kp = max(1, int(primary.sum(1).max()))
+    order = np.argsort(~primary, axis=1, kind="stable")[:, :kp]  # (nt, kp)
+    live = np.take_along_axis(primary, order, 1)
+    pts = np.take_along_axis(pieces, order[:, :, None, None, None], 1)  # (nt, kp, 2, S, 3)
+    pn = np.take_along_axis(piece_n, order[:, :, None], 1)
+    ok = (np.arange(_SLOTS) < pn[..., None]) & live[:, :, None, None]
+    src = np.broadcast_to(order[:, :, None, None], ok.shape)
+    pts, ok, src = pts.reshape(nt, -1, 3), ok.reshape(nt, -1), src.reshape(nt, -1)
+    if h.extra.shape[0]:
+        ne = h.extra.shape[0]
+        pts = np.concatenate([pts, np.broadcast_to(h.extra, (nt, ne, 3))], 1)
+        ok = np.concatenate([ok, np.ones((nt, ne), bool)], 1)
+        src = np.concatenate([src, np.full((nt, ne), -1)], 1)
+    keep = ok.sum(0) > 0  # drop the slots no tile of the batch uses
+    pts, ok, src = pts[:, keep], ok[:, keep], src[:, keep]
+    if not keep.any():  # no tile of the batch sees anything: no shadow rays
+        return np.zeros((nt, t), bool)
+    any_hit = ok.any(1)
+    # Own-normal test: the camera's side of each plane (+1 / -1; 0 where the lens straddles
+    # it), the hits' heights above it on that side (those in the plane: their offset), and the
+    # lowest of them.
+    sd = np.einsum("nck,pk->ncp", lens, g.normal) - g.offset[None, None, :]  # (nt, 4, t)
+    side = np.where((sd > 0).all(1), 1.0, np.where((sd < 0).all(1), -1.0, 0.0))
+    v = (np.einsum("tk,bxk->btx", g.normal, pts) - g.offset[None, :, None]) * side[:, :, None]
+    coplanar = (src >= 0)[:, None, :] & g.same[:, np.maximum(src, 0)].transpose(1, 0, 2)
+    v = np.where(coplanar, 1e-4 * h.scale, v)
+    low_x = np.where(ok[:, None], v, np.inf).min(-1)  # (nt, t)
+    c_x = np.sum(np.where(ok[..., None], pts, 0.0), 1) / np.maximum(ok.sum(1), 1)[:, None]
+    fixed = np.eye(3)
+    blocked = np.zeros((nt, t), bool)
+    for light in g.lights:  # (8, 3)
+        ly = _unit(np.stack([light[1] - light[0], light[2] - light[1], light[3] - light[0]]))
+        ny = _unit(np.cross(ly[0], ly[1]))
+        dirv = _unit(light.mean(0)[None] - c_x)  # (nt, 3)
+        e = g.edges  # (t, 3, 3)
+
+        def each(a):  # axes shared by all tiles -> (nt, t, A, 3)
+            return np.broadcast_to(a, (nt, t, *a.shape[-2:]))
+
+        ax = _unit(np.concatenate([
+            each(fixed[None, None]), each(ny[None, None, None]),
+            each(np.cross(e[:, :, None], fixed[None, None]).reshape(1, t, 9, 3)),
+            each(np.cross(e[:, :, None], ly[None, None]).reshape(1, t, 9, 3)),
+            np.cross(e[None], dirv[:, None, None]),
+            each(np.cross(dirv[:, None], fixed[None])[:, None]),
+            each(np.cross(dirv[:, None], ly[None])[:, None]),
+        ], 2))
+        hull = np.concatenate([pts, np.broadcast_to(light, (nt, 8, 3))], 1)
+        hmask = np.concatenate([ok, np.ones((nt, 8), bool)], 1)
+        proj = np.einsum("btak,bxk->btax", ax, hull)
+        hi = np.where(hmask[:, None, None], proj, -np.inf).max(-1)
+        lo = np.where(hmask[:, None, None], proj, np.inf).min(-1)
+        pp = np.einsum("btak,tck->btac", ax, g.cpts)
+        used = np.linalg.norm(ax, axis=-1) > 0
+        apart = (used & ((hi + m < pp.min(-1)) | (lo - m > pp.max(-1)))).any(-1)
+        low_y = ((light @ g.normal.T - g.offset[None]) * side[:, None, :]).min(1)  # (nt, t)
+        own = (side != 0) & _one_side(low_x, low_y, 1e-6 * h.scale)
+        blocked |= ~(apart | own)
+    return blocked & any_hit[:, None] & (g.count > 0)[None]

@@ -1,0 +1,207 @@
+"""Per-tile culling (render/culling.py) against brute force.
+
+Truth: the brute-force tests of every planar primitive (``closest_planar`` and the plane test
+of ``occluded`` without a subset). Rays drawn inside each tile's pixels and lens, on random
+triangle soups seen by pinhole and thin-lens cameras with box and gaussian filters, under area,
+point and sphere lights: every nearest hit must be among the tile's primary candidates, and
+every primitive that cuts a shadow segment (within occluded's trimmed ends) among its shadow
+candidates. Renders with and without culling must give the same image.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import anisosample.render as R
+from anisosample import scenes
+from anisosample.render import culling as C
+from anisosample.render.bvh import plane_test
+from anisosample.render.camera import generate_ray
+from anisosample.render.geometry import closest_planar, offset_origin
+
+
+def _soup_scene(seed, *, thin=False, rfilter="box", light="area", size=16):
+    rng = np.random.default_rng(seed)
+    b = R.SceneBuilder()
+    m = b.diffuse(0.5)
+    n = 40
+    c = rng.uniform(-1, 1, (n, 3)) * [1.2, 1.2, 0.8]
+    v = (c[:, None] + rng.normal(0, 0.25, (n, 3, 3))).reshape(-1, 3)
+    b.triangles(v, np.arange(3 * n).reshape(-1, 3), m)
+    for _ in range(4):
+        t = np.eye(4)
+        t[:3, :3] = rng.normal(0, 0.3, (3, 3))
+        t[:3, 3] = rng.uniform(-1, 1, 3)
+        b.rectangle(t, m)
+    floor = np.diag([3.0, 3.0, 1.0, 1.0])
+    floor[:3, :3] = floor[:3, :3] @ np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]])
+    floor[:3, 3] = (0, -1.5, 0)
+    b.rectangle(floor, m)
+    back = np.diag([3.0, 3.0, 1.0, 1.0])
+    back[:3, 3] = (0, 0, 2.5)
+    b.rectangle(back, m, flip_normals=True)
+    if light == "area":
+        lt = np.diag([0.4, 0.4, 1.0, 1.0])
+        lt[:3, :3] = lt[:3, :3] @ np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]]).T
+        lt[:3, 3] = (0.3, 2.2, 0.2)
+        b.rectangle(lt, m, radiance=5.0)
+    elif light == "point":
+        b.point_light((0.5, 2.5, -0.5), 3.0)
+    else:
+        b.sphere((-0.4, 2.4, 0.3), 0.3, m, radiance=4.0)
+    cam = np.eye(4)
+    cam[:3, 3] = (0.2, 0.3, -4.5)
+    b.camera(cam, width=size, height=size, fov=50, thinlens=thin, aperture_radius=0.15,
+             focus_distance=4.0, rfilter=rfilter, rfilter_stddev=0.5)
+    return b.build(bvh=False)
+
+
+def _tile_rays(scene, tile, rng, per_tile, square):
+    """Random rays of every tile: film positions anywhere a sample of its pixels may land
+    (the pixels, widened by the filter's support), random lens points."""
+    w, h = scene.width, scene.height
+    tx = -(-w // tile)
+    ty = -(-h // tile)
+    sup = 2.0 if scene.camera.rfilter == "gaussian" else 0.0
+    ids, films = [], []
+    for i in range(ty):
+        for j in range(tx):
+            x0, x1 = max(j * tile - sup, 0), min((j + 1) * tile + sup, w)
+            y0, y1 = max(i * tile - sup, 0), min((i + 1) * tile + sup, h)
+            u = rng.random((per_tile, 2))
+            films.append(np.stack([(x0 + u[:, 0] * (x1 - x0)) / w,
+                                   (y0 + u[:, 1] * (y1 - y0)) / h], 1))
+            ids.append(np.full(per_tile, i * tx + j))
+    films = jnp.asarray(np.concatenate(films), jnp.float32)
+    lens = jnp.asarray(rng.random((films.shape[0], 2)), jnp.float32)
+    o, d = jax.vmap(lambda f, a: generate_ray(scene.camera, f, a, square_aperture=square))(
+        films, lens)
+    return np.concatenate(ids), o, d
+
+
+@jax.jit
+def _shadow_cuts(scene, o, d, targets):
+    """Per ray: the primitives cutting its shadow segments to ``targets`` ``(m, 3)`` within
+    occluded's trimmed ends (eps = 1e-4), and whether the primary ray hit anything."""
+
+    def one(o, d):
+        t, it, _, _ = closest_planar(scene, o, d, 0.0, jnp.inf)
+        n = scene.tri_attr[it, :3]
+        p = o + jnp.where(jnp.isfinite(t), t, 0.0) * d
+        origin = offset_origin(scene, p, n, -d)
+
+        def seg(y):
+            v = y - origin
+            dist = jnp.linalg.norm(v)
+            tt, _, _ = plane_test(scene.tri_soa, origin, v / dist)
+            return (tt > dist * 1e-4) & (tt < dist * (1 - 1e-4))
+
+        return it, jnp.isfinite(t), jax.vmap(seg)(targets).any(0)
+
+    return jax.vmap(one)(o, d)
+
+
+def _light_targets(scene, rng, m=24):
+    lt = scene.lights
+    shape, p0, e1, e2 = (np.asarray(a) for a in (lt.shape, lt.p0, lt.e1, lt.e2))
+    out = []
+    for s, a, b, c in zip(shape, p0, e1, e2, strict=True):
+        u = rng.random((m, 2))
+        if s == 3:  # point
+            out.append(np.repeat(a[None], m, 0))
+        elif s == 2:  # sphere: points on it
+            z = rng.normal(size=(m, 3))
+            out.append(a + b[0] * z / np.linalg.norm(z, axis=1, keepdims=True))
+        else:
+            out.append(a + u[:, :1] * b + u[:, 1:] * c)
+    return jnp.asarray(np.concatenate(out), jnp.float32)
+
+
+@pytest.mark.parametrize("seed,thin,rfilter,light", [
+    (0, False, "box", "area"), (1, True, "box", "area"), (2, False, "gaussian", "point"),
+    (3, True, "gaussian", "sphere")])
+def test_every_hit_is_a_candidate(seed, thin, rfilter, light):
+    scene = _soup_scene(seed, thin=thin, rfilter=rfilter, light=light)
+    tile = 4
+    primary, shadow = C.tile_candidates(scene, tile)
+    rng = np.random.default_rng(100 + seed)
+    ids, o, d = _tile_rays(scene, tile, rng, 600, square=False)
+    it, hit, cuts = (np.asarray(a) for a in _shadow_cuts(scene, o, d, _light_targets(scene, rng)))
+    assert hit.mean() > 0.8
+    # Every nearest hit among the tile's primary candidates.
+    assert primary[ids[hit], it[hit]].all()
+    # Every primitive cutting a shadow segment of a hit among the tile's shadow candidates.
+    rows, prims = np.nonzero(cuts & hit[:, None])
+    assert rows.size > 0
+    assert shadow[ids[rows], prims].all()
+    # And the lists cull: most tiles test far fewer primitives than the scene holds.
+    t = scene.tri_soa.shape[1]
+    assert np.median(primary.sum(1)) < t / 2
+    assert np.median(shadow.sum(1)) < 0.75 * t
+
+
+def test_square_aperture_rays_are_candidates_too():
+    scene = _soup_scene(5, thin=True)
+    primary, _ = C.tile_candidates(scene, 4)
+    ids, o, d = _tile_rays(scene, 4, np.random.default_rng(7), 400, square=True)
+    it, hit, _ = (np.asarray(a) for a in _shadow_cuts(scene, o, d, jnp.zeros((1, 3))))
+    assert primary[ids[hit], it[hit]].all()
+
+
+@pytest.mark.parametrize("name,options", [
+    ("cornell", {}), ("dof", {}), ("blinds", {}), ("cornell", dict(mis=True)),
+    ("cornell", dict(technique="solid_angle", light_warp="cosine-bilinear"))])
+def test_render_with_and_without_culling_agree(name, options):
+    scene = R.load_xml(scenes.path(name), width=24, height=16)
+    assert C.tile_culling(scene) is not None
+    key = jax.random.key(3)
+    a, b = (R.render(scene, key, spp=8, sampler="pmj02bn", progress=False, culling=c,
+                     **options).mean for c in (True, False))
+    np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-7)
+
+
+def test_pixel_integrand_with_and_without_culling_agree():
+    scene = R.load_xml(scenes.path("cornell"), width=32, height=32)
+    f = R.pixel_integrand(scene, (20, 25))
+    assert f.scene.culling is not None
+    g = R.pixel_integrand(C.with_culling(scene, False), (20, 25))
+    g = type(g)(scene=C.with_culling(scene, False), film=g.film, weights=g.weights,
+                options=g.options)
+    x = jax.random.uniform(jax.random.key(0), (5000, 2))
+    np.testing.assert_array_equal(np.asarray(f(x)), np.asarray(g(x)))
+
+
+def test_corners_recovered_from_the_rows():
+    b = R.SceneBuilder()
+    m = b.diffuse(0.5)
+    t = np.array([[0.5, 0.1, 0, 1.0], [0, 0.3, 0.2, -2.0], [0.1, 0, 0.7, 0.5], [0, 0, 0, 1]])
+    b.rectangle(t, m)
+    b.triangles(np.array([[0, 0, 1.0], [2, 0, 1], [0, 3, 2]]), np.array([[0, 1, 2]]), m)
+    b.point_light((0, 0, 5), 1.0)
+    b.camera(np.eye(4), width=4, height=4)
+    scene = b.build(bvh=False)
+    corners, count = C.planar_corners(np.asarray(scene.tri_soa, np.float64))
+    p = lambda x, y: t[:3, :3] @ np.array([x, y, 0.0]) + t[:3, 3]  # noqa: E731
+    np.testing.assert_allclose(corners[0], [p(-1, -1), p(1, -1), p(1, 1), p(-1, 1)], atol=1e-5)
+    np.testing.assert_allclose(corners[1, :3], [[0, 0, 1], [2, 0, 1], [0, 3, 2]], atol=1e-5)
+    assert count.tolist() == [4, 3]
+
+
+def test_clipping_a_square():
+    sq = np.zeros((2, 12, 3))
+    sq[:, :4] = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+    # x + y >= 1.5 keeps a corner triangle; x >= 2 keeps nothing.
+    out, k = C.clip_polygons(sq, np.array([4, 4]), np.array([[1.0, 1, 0], [1, 0, 0]]),
+                             np.array([1.5, 2.0]))
+    assert k.tolist() == [3, 0]
+    got = sorted(map(tuple, np.round(out[0, :3], 12)))
+    assert got == [(0.5, 1.0, 0.0), (1.0, 0.5, 0.0), (1.0, 1.0, 0.0)]
+
+
+def test_bad_culling_argument():
+    scene = R.load_xml(scenes.path("cornell"), width=8, height=8)
+    with pytest.raises(TypeError, match="culling"):
+        R.render(scene, jax.random.key(0), spp=4, culling="yes", progress=False)
+    with pytest.raises(ValueError, match="tile"):
+        C.tile_candidates(scene, 0)
