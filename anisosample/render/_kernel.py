@@ -37,8 +37,15 @@ BRUTE_YNN = 128
 
 
 def brute_force_primitives(scene) -> int:
-    """How many planar primitives the scene's rays test one by one (0 with a BVH)."""
-    return 0 if scene.bvh is not None else int(scene.tri_soa.shape[1])
+    """How many planar primitives the scene's rays test one by one (0 with a BVH): with
+    per-tile culling (:mod:`~anisosample.render.culling`), the longer candidate list."""
+    if scene.bvh is not None:
+        return 0
+    t = int(scene.tri_soa.shape[1])
+    c = scene.culling
+    if c is None:
+        return t
+    return max(t if s is None else int(s.index.shape[-1]) for s in (c.primary, c.shadow))
 
 
 @functools.cache

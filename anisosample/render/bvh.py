@@ -56,7 +56,10 @@ LEAF_SIZE = 4  # primitives per leaf slot block (was 8 before the ray queue)
 # the queue of _traverse_queue moved the crossover down from about 2500). Brute force was
 # compiled without YNNPACK there; with it, as now above render._kernel.BRUTE_YNN primitives,
 # 960 triangles at 64^2 x 16 spp took 1261-1386 ns per sample instead of 1631-1633.
-THRESHOLD = 1200
+# With per-tile culling (render/culling.py), 64^2 x 16 spp, best of 3 (bench_render.py --prims,
+# load about 1): brute force / BVH 1368 tris 1282 / 1858, 1848: 1906 / 1927, 2808: 5205 / 2010
+# (no culling above culling.MAX_PRIMITIVES): the crossover moved from 1200 to about 1850.
+THRESHOLD = 1600
 LANES = 4096  # traversal lanes fed from the ray queue (_traverse_queue)
 _NO_PRIM = np.int32(np.iinfo(np.int32).max)
 _PAD = 2.0**-16  # box padding, relative to the largest coordinate magnitude

@@ -51,8 +51,15 @@ from jaxtyping import Array, Float, Int
 from .scene import LIGHT_PARALLELOGRAM, LIGHT_PATCH, LIGHT_POINT, LIGHT_SPHERE, THINLENS, Scene
 
 MARGIN = 2e-4  # of scene.scale: geometry.offset_origin moves by 1e-4 scale
-TILE_PX = 8  # pixels per tile side (more where the image would have over MAX_TILES_SIDE)
-MAX_TILES_SIDE = 64
+TILE_PX = 8  # pixels per tile side, doubled while tiles x primitives exceed MAX_PAIRS
+MAX_PAIRS = 2**18  # (tile, primitive) pairs the host tests: about a second at most
+MAX_TILE_PX = 128  # beyond: no culling (a scene that large wants its BVH)
+MAX_PRIMITIVES = 2048  # above: no culling (the host's lists take seconds; see bvh.THRESHOLD)
+# render(culling=None) culls from this many samples per realization: the lists' shapes follow
+# the image's tiles, so each image size compiles its own kernel (about 1.5 s on cornell).
+AUTO_SAMPLES = 2**18
+AUTO_PIXELS = 64 * 64  # pixel_integrand(culling=None) culls from this image size
+_HULL_POINTS = 256  # a tile's hit points beyond which its shadow hull takes their bounding box
 _SLOTS = 12  # polygon vertex slots: 4 corners + one per clipping plane (6)
 
 
@@ -112,10 +119,14 @@ def with_culling(scene: Scene, enabled: bool = True) -> Scene:
 
 def tile_culling(scene: Scene, tile: int | None = None) -> TileCulling | None:
     """The candidate lists of ``scene`` (:func:`tile_candidates`), or None where a BVH serves
-    the scene or neither class of rays gains (module docstring)."""
-    if scene.bvh is not None:
+    the scene, it holds more than :data:`MAX_PRIMITIVES` planar primitives, or neither class
+    of rays gains (module docstring). Host time (2 cores): cornell at 128^2 about 0.1 s, an
+    842-triangle mesh at 64^2 1.2 s."""
+    if scene.bvh is not None or scene.tri_soa.shape[1] > MAX_PRIMITIVES:
         return None
     tile = _tile_px(scene, tile)
+    if tile is None:
+        return None
     primary, shadow = tile_candidates(scene, tile)
     t = primary.shape[1]
     lists = _pad_lists(primary, t), _pad_lists(shadow, t)
@@ -137,10 +148,14 @@ def tile_culling(scene: Scene, tile: int | None = None) -> TileCulling | None:
 def tile_candidates(scene: Scene, tile: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(primary, shadow)``: boolean ``(tiles, t)`` masks of the planar primitives that a
     tile's primary rays and shadow rays may meet (module docstring). ``tile``: pixels per
-    tile side (default :data:`TILE_PX`, larger where the image would have more than
-    :data:`MAX_TILES_SIDE` tiles a side). Computed on the host in float64; the last few
-    scenes' are cached by their contents."""
+    tile side (default :data:`TILE_PX`, doubled while the tiles times the primitives exceed
+    :data:`MAX_PAIRS`). Computed on the host in float64; the last few scenes' are cached by
+    their contents."""
     tile = _tile_px(scene, tile)
+    if tile is None:
+        raise ValueError(f"{scene.tri_soa.shape[1]} planar primitives at "
+                         f"{scene.width}x{scene.height}: more than MAX_PAIRS even with tiles of "
+                         f"{MAX_TILE_PX} pixels; pass tile")
     key = (_digest(scene), tile)
     if key not in _CACHE:
         if len(_CACHE) >= 16:
@@ -155,12 +170,19 @@ def tile_candidates(scene: Scene, tile: int | None = None) -> tuple[np.ndarray, 
 _CACHE: dict = {}
 
 
-def _tile_px(scene: Scene, tile) -> int:
-    if tile is None:
-        return max(TILE_PX, -(-max(scene.width, scene.height) // MAX_TILES_SIDE))
-    from .._validate import check_int
+def _tile_px(scene: Scene, tile) -> int | None:
+    """``tile``, validated, or the default (None: no tile size keeps the work bounded)."""
+    if tile is not None:
+        from .._validate import check_int
 
-    return check_int("tile", tile, minimum=1)
+        return check_int("tile", tile, minimum=1)
+    t = scene.tri_soa.shape[1]
+    tile = TILE_PX
+    while -(-scene.width // tile) * -(-scene.height // tile) * t > MAX_PAIRS:
+        tile *= 2
+        if tile > MAX_TILE_PX:
+            return None
+    return tile
 
 
 def _digest(scene: Scene) -> str:
@@ -405,7 +427,7 @@ def _compute(h: _Host, tile: int):
     nt = rects.shape[0]
     primary = np.zeros((nt, t), bool)
     shadow = np.zeros((nt, t), bool)
-    step = max(1, 2_000 // t)  # bounds the shadow test's (tiles, t, axes, points) arrays
+    step = max(1, 500 // t)  # bounds the shadow test's (tiles, t, axes, points) arrays
     for a in range(0, nt, step):
         b = min(nt, a + step)
         primary[a:b], shadow[a:b] = _tiles(h, g, rects[a:b])
@@ -470,6 +492,13 @@ def _shadow(h: _Host, g: _Geometry, primary, pieces, piece_n, lens):
     pts, ok, src = pts[:, keep], ok[:, keep], src[:, keep]
     if not keep.any():  # no tile of the batch sees anything: no shadow rays
         return np.zeros((nt, t), bool)
+    if pts.shape[1] > _HULL_POINTS:  # bounded work: the hits' bounding box instead
+        lo = np.where(ok[..., None], pts, np.inf).min(1)
+        hi = np.where(ok[..., None], pts, -np.inf).max(1)
+        seen = ok.any(1)
+        pts = _box_corners(np.where(seen[:, None], lo, 0.0), np.where(seen[:, None], hi, 0.0))
+        ok = np.broadcast_to(seen[:, None], (nt, 8))
+        src = np.full((nt, 8), -1)
     any_hit = ok.any(1)
     # Own-normal test: the camera's side of each plane (+1 / -1; 0 where the lens straddles
     # it), the hits' heights above it on that side (those in the plane: their offset), and the
@@ -482,20 +511,35 @@ def _shadow(h: _Host, g: _Geometry, primary, pieces, piece_n, lens):
     low_x = np.where(ok[:, None], v, np.inf).min(-1)  # (nt, t)
     c_x = np.sum(np.where(ok[..., None], pts, 0.0), 1) / np.maximum(ok.sum(1), 1)[:, None]
     fixed = np.eye(3)
+    box_lo, box_hi = g.cpts.min(1), g.cpts.max(1)  # (t, 3)
+    x_lo = np.where(ok[..., None], pts, np.inf).min(1)
+    x_hi = np.where(ok[..., None], pts, -np.inf).max(1)
     blocked = np.zeros((nt, t), bool)
     for light in g.lights:  # (8, 3)
+        # Cheap tests first, for every pair: the primitive's own normal, and the boxes.
+        low_y = ((light @ g.normal.T - g.offset[None]) * side[:, None, :]).min(1)  # (nt, t)
+        own = (side != 0) & _one_side(low_x, low_y, 1e-6 * h.scale)
+        lo = np.minimum(x_lo, light.min(0))[:, None]
+        hi = np.maximum(x_hi, light.max(0))[:, None]
+        boxed = ((hi + m < box_lo[None]) | (lo - m > box_hi[None])).any(-1)
+        open_ = ~(own | boxed)
+        cols = np.nonzero(open_.any(0))[0]
+        if cols.size == 0:
+            continue
+        # The separating axes for the primitives left.
         ly = _unit(np.stack([light[1] - light[0], light[2] - light[1], light[3] - light[0]]))
         ny = _unit(np.cross(ly[0], ly[1]))
         dirv = _unit(light.mean(0)[None] - c_x)  # (nt, 3)
-        e = g.edges  # (t, 3, 3)
+        e = g.edges[cols]  # (c, 3, 3)
+        nc = cols.size
 
-        def each(a):  # axes shared by all tiles -> (nt, t, A, 3)
-            return np.broadcast_to(a, (nt, t, *a.shape[-2:]))
+        def each(a, nc=nc):  # axes shared by all tiles -> (nt, c, A, 3)
+            return np.broadcast_to(a, (nt, nc, *a.shape[-2:]))
 
         ax = _unit(np.concatenate([
-            each(fixed[None, None]), each(ny[None, None, None]),
-            each(np.cross(e[:, :, None], fixed[None, None]).reshape(1, t, 9, 3)),
-            each(np.cross(e[:, :, None], ly[None, None]).reshape(1, t, 9, 3)),
+            each(ny[None, None, None]),
+            each(np.cross(e[:, :, None], fixed[None, None]).reshape(1, nc, 9, 3)),
+            each(np.cross(e[:, :, None], ly[None, None]).reshape(1, nc, 9, 3)),
             np.cross(e[None], dirv[:, None, None]),
             each(np.cross(dirv[:, None], fixed[None])[:, None]),
             each(np.cross(dirv[:, None], ly[None])[:, None]),
@@ -503,12 +547,12 @@ def _shadow(h: _Host, g: _Geometry, primary, pieces, piece_n, lens):
         hull = np.concatenate([pts, np.broadcast_to(light, (nt, 8, 3))], 1)
         hmask = np.concatenate([ok, np.ones((nt, 8), bool)], 1)
         proj = np.einsum("btak,bxk->btax", ax, hull)
-        hi = np.where(hmask[:, None, None], proj, -np.inf).max(-1)
-        lo = np.where(hmask[:, None, None], proj, np.inf).min(-1)
-        pp = np.einsum("btak,tck->btac", ax, g.cpts)
+        p_hi = np.where(hmask[:, None, None], proj, -np.inf).max(-1)
+        p_lo = np.where(hmask[:, None, None], proj, np.inf).min(-1)
+        pp = np.einsum("btak,tck->btac", ax, g.cpts[cols])
         used = np.linalg.norm(ax, axis=-1) > 0
-        apart = (used & ((hi + m < pp.min(-1)) | (lo - m > pp.max(-1)))).any(-1)
-        low_y = ((light @ g.normal.T - g.offset[None]) * side[:, None, :]).min(1)  # (nt, t)
-        own = (side != 0) & _one_side(low_x, low_y, 1e-6 * h.scale)
-        blocked |= ~(apart | own)
+        apart = (used & ((p_hi + m < pp.min(-1)) | (p_lo - m > pp.max(-1)))).any(-1)
+        still = open_.copy()
+        still[:, cols] &= ~apart
+        blocked |= still
     return blocked & any_hit[:, None] & (g.count > 0)[None]

@@ -72,7 +72,7 @@ def render(
     sampler_options: dict | None = None,
     devices=None,
     options: IntegratorOptions | None = None,
-    culling: bool = True,
+    culling: bool | None = None,
 ) -> RenderResult:
     """Render ``scene`` ``realizations`` times with ``spp`` points per pixel per realization.
 
@@ -118,16 +118,20 @@ def render(
     device: each block runs the one-device program, and a pixel's estimate depends only on its
     index and ``key``. ``None``: the default device.
 
-    ``culling`` (default on): a scene without a BVH tests, per 8x8-pixel tile, only the planar
-    primitives the tile's primary and shadow rays can meet (:mod:`anisosample.render.culling`,
-    computed here on the host and cached); off, every ray tests every primitive. The same
-    nearest hits either way (the image may move by float32 rounding).
+    ``culling``: a scene without a BVH tests, per tile of pixels, only the planar primitives
+    the tile's primary and shadow rays can meet (:mod:`anisosample.render.culling`, computed
+    here on the host and cached); off, every ray tests every primitive. The same nearest hits
+    either way (the image may move by float32 rounding). ``None`` (default): on from
+    :data:`~anisosample.render.culling.AUTO_SAMPLES` samples per realization, where it saves
+    more than the kernel it compiles for the image's tiles costs.
     """
     key = check_key("key", key)
-    if not isinstance(culling, (bool, np.bool_)):
-        raise TypeError(f"culling must be True or False, got {culling!r}")
-    from .culling import with_culling
+    if culling is not None and not isinstance(culling, (bool, np.bool_)):
+        raise TypeError(f"culling must be True, False or None, got {culling!r}")
+    from .culling import AUTO_SAMPLES, with_culling
 
+    if culling is None:
+        culling = scene.width * scene.height * int(spp) >= AUTO_SAMPLES
     scene = with_culling(scene, bool(culling))
     spp = check_int("spp", spp, minimum=1)
     realizations = check_int("realizations", realizations, minimum=1)

@@ -46,7 +46,7 @@ from ._kernel import kernel
 from ._vec import dot
 from .bsdf import eval_bsdf, pdf_bsdf, sample_bsdf
 from .camera import generate_ray
-from .culling import film_view, pixel_view, with_culling
+from .culling import AUTO_PIXELS, film_view, pixel_view, with_culling
 from .film import film_offsets
 from .geometry import intersect, occluded, offset_origin
 from .light_warps import Receiver
@@ -236,6 +236,7 @@ def pixel_integrand(
     film: tuple[float, float] | None = None,
     square_aperture: bool = False,
     warp=None,
+    culling: bool | None = None,
 ) -> PixelIntegrand:
     """The 2D integrand ``f_q`` of pixel ``pixel = (column, row)`` (row 0 at the image top).
 
@@ -247,7 +248,10 @@ def pixel_integrand(
     (no MIS, film at the pixel centre). ``channel``: ``"luminance"`` (Rec. 709 weights),
     ``"r"``, ``"g"`` or ``"b"``. ``film`` overrides the film position inside ``[0, 1]^2``
     (default: the pixel centre). ``warp``: a primary-sample-space warp composed in front of
-    the light/lens technique (see :class:`PixelIntegrand`).
+    the light/lens technique (see :class:`PixelIntegrand`). ``culling``: its rays test only the
+    planar primitives its film position's tile can meet (:mod:`anisosample.render.culling`;
+    the same values); ``None`` (default): on for images of at least
+    :data:`~anisosample.render.culling.AUTO_PIXELS` pixels.
     """
     from .._validate import check_choice, check_int
 
@@ -257,11 +261,15 @@ def pixel_integrand(
     col = check_int("pixel[0] (column)", pixel[0], minimum=0, maximum=scene.width - 1)
     row = check_int("pixel[1] (row)", pixel[1], minimum=0, maximum=scene.height - 1)
     check_choice("channel", channel, ("luminance", "r", "g", "b"))
+    if culling is not None and not isinstance(culling, (bool, np.bool_)):
+        raise TypeError(f"culling must be True, False or None, got {culling!r}")
+    if culling is None:
+        culling = scene.width * scene.height >= AUTO_PIXELS
     weights = {"luminance": LUMINANCE, "r": (1, 0, 0), "g": (0, 1, 0), "b": (0, 0, 1)}[channel]
     if film is None:
         film = ((col + 0.5) / scene.width, (row + 0.5) / scene.height)
     return PixelIntegrand(
-        scene=with_culling(scene),
+        scene=with_culling(scene, bool(culling)),
         film=jnp.asarray(film, jnp.float32),
         weights=jnp.asarray(weights, jnp.float32),
         options=options,
