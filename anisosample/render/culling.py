@@ -58,7 +58,6 @@ MAX_PRIMITIVES = 2048  # above: no culling (the host's lists take seconds; see b
 # render(culling=None) culls from this many samples per realization: the lists' shapes follow
 # the image's tiles, so each image size compiles its own kernel (about 1.5 s on cornell).
 AUTO_SAMPLES = 2**18
-AUTO_PIXELS = 64 * 64  # pixel_integrand(culling=None) culls from this image size
 _HULL_POINTS = 256  # a tile's hit points beyond which its shadow hull takes their bounding box
 _SLOTS = 12  # polygon vertex slots: 4 corners + one per clipping plane (6)
 

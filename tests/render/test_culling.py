@@ -165,7 +165,7 @@ def test_pixel_integrand_with_and_without_culling_agree():
     scene = R.load_xml(scenes.path("cornell"), width=32, height=32)
     f = R.pixel_integrand(scene, (20, 25), culling=True)
     assert f.scene.culling is not None
-    g = R.pixel_integrand(scene, (20, 25))  # 32x32: below AUTO_PIXELS, no culling
+    g = R.pixel_integrand(scene, (20, 25))  # culling off by default
     assert g.scene.culling is None
     x = jax.random.uniform(jax.random.key(0), (5000, 2))
     np.testing.assert_array_equal(np.asarray(f(x)), np.asarray(g(x)))
