@@ -200,8 +200,7 @@ def _digest(scene: Scene) -> str:
 
 
 class _Host:
-    """What the culling reads of a scene, as float64 numpy (hashable by identity only: the
-    cache key is the digest)."""
+    """What the culling reads of a scene, as float64 numpy."""
 
     def __init__(self, scene: Scene):
         cam = scene.camera
