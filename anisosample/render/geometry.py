@@ -6,7 +6,9 @@ discriminant written as ``r^2 - |(o - c) - b' d|^2``); bilinear patches Reshetov
 :mod:`anisosample.render.patch`. The scenes this package ships hold tens of
 primitives, for which testing every primitive is faster under XLA than walking a hierarchy;
 a scene with many planar primitives (meshes) carries a BVH (:mod:`anisosample.render.bvh`,
-``Scene.bvh``), which :func:`intersect` and :func:`occluded` then walk instead.
+``Scene.bvh``), which :func:`intersect` and :func:`occluded` then walk instead. Without one,
+a render tests only the candidates of each pixel's tile (``subset=``,
+:mod:`anisosample.render.culling`).
 """
 
 from __future__ import annotations
