@@ -52,7 +52,7 @@ from .scene import LIGHT_PARALLELOGRAM, LIGHT_PATCH, LIGHT_POINT, LIGHT_SPHERE, 
 
 MARGIN = 2e-4  # of scene.scale: geometry.offset_origin moves by 1e-4 scale
 TILE_PX = 8  # pixels per tile side, doubled while tiles x primitives exceed MAX_PAIRS
-MAX_PAIRS = 2**18  # (tile, primitive) pairs the host tests: about a second at most
+MAX_PAIRS = 2**18  # (tile, primitive) pairs the host tests (54k over 842 triangles: 1.2 s)
 MAX_TILE_PX = 128  # beyond: no culling (a scene that large wants its BVH)
 MAX_PRIMITIVES = 2048  # above: no culling (the host's lists take seconds; see bvh.THRESHOLD)
 # render(culling=None) culls from this many samples per realization: the lists' shapes follow
@@ -119,13 +119,17 @@ def with_culling(scene: Scene, enabled: bool = True) -> Scene:
 def tile_culling(scene: Scene, tile: int | None = None) -> TileCulling | None:
     """The candidate lists of ``scene`` (:func:`tile_candidates`), or None where a BVH serves
     the scene, it holds more than :data:`MAX_PRIMITIVES` planar primitives, or neither class
-    of rays gains (module docstring). Host time (2 cores): cornell at 128^2 about 0.1 s, an
-    842-triangle mesh at 64^2 1.2 s."""
+    of rays gains (module docstring). Host time (2 cores), once per scene and size (cached by
+    contents): cornell at 128^2 0.12-0.25 s, an 842-triangle mesh at 64^2 1.2 s."""
     if scene.bvh is not None or scene.tri_soa.shape[1] > MAX_PRIMITIVES:
         return None
     tile = _tile_px(scene, tile)
     if tile is None:
         return None
+    return _cached(_LISTS, (_digest(scene), tile), lambda: _tile_culling(scene, tile))
+
+
+def _tile_culling(scene: Scene, tile: int) -> TileCulling | None:
     primary, shadow = tile_candidates(scene, tile)
     t = primary.shape[1]
     lists = _pad_lists(primary, t), _pad_lists(shadow, t)
@@ -155,18 +159,26 @@ def tile_candidates(scene: Scene, tile: int | None = None) -> tuple[np.ndarray, 
         raise ValueError(f"{scene.tri_soa.shape[1]} planar primitives at "
                          f"{scene.width}x{scene.height}: more than MAX_PAIRS even with tiles of "
                          f"{MAX_TILE_PX} pixels; pass tile")
-    key = (_digest(scene), tile)
-    if key not in _CACHE:
-        if len(_CACHE) >= 16:
-            _CACHE.pop(next(iter(_CACHE)))
-        masks = _compute(_Host(scene), tile)
-        for m in masks:
-            m.flags.writeable = False
-        _CACHE[key] = masks
-    return _CACHE[key]
+    return _cached(_MASKS, (_digest(scene), tile), lambda: _read_only(_compute(_Host(scene),
+                                                                                tile)))
 
 
-_CACHE: dict = {}
+_MASKS: dict = {}  # (digest, tile) -> tile_candidates' masks, the last few scenes'
+_LISTS: dict = {}  # (digest, tile) -> tile_culling's result
+
+
+def _cached(store: dict, key, make):
+    if key not in store:
+        if len(store) >= 16:
+            store.pop(next(iter(store)))
+        store[key] = make()
+    return store[key]
+
+
+def _read_only(masks):
+    for m in masks:
+        m.flags.writeable = False
+    return masks
 
 
 def _tile_px(scene: Scene, tile) -> int | None:

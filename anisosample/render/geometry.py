@@ -39,29 +39,25 @@ class Hit(eqx.Module):
     light: Int[Array, ""]  # light primitive index, -1 if the surface does not emit
 
 
-def _triangle_t(scene: Scene, o, d):
-    """Distances to every planar primitive (inf where missed) and coordinates ``(b1, b2)``."""
-    # Structure of arrays: every line of plane_test is a vectorised op over all primitives.
-    return plane_test(scene.tri_soa, o, d)
+def _planar_rows(scene: Scene, subset):
+    """The rows brute force tests: ``subset``'s candidates, or every planar primitive
+    (structure of arrays: every line of plane_test is a vectorised op over them)."""
+    return scene.tri_soa if subset is None else subset.soa
 
 
 def closest_planar(scene: Scene, o, d, tmin, tmax, subset=None):
     """``(t, index, b1, b2)`` of the nearest planar primitive (``t = inf``, index 0: none).
 
     ``subset``: a :class:`~anisosample.render.culling.Subset` of candidates holding every
-    primitive the ray can meet (:func:`~anisosample.render.culling.pixel_view`), or None."""
-    if subset is not None:
-        tt, b1, b2 = plane_test(subset.soa, o, d)
-        tt = jnp.where((tt > tmin) & (tt < tmax), tt, _INF)
-        t, k = _first_min(tt)
-        it = jnp.where(jnp.isfinite(t), subset.index[k], 0)
-        return t, it, b1[k], b2[k]
-    if scene.bvh is not None:
+    primitive the ray can meet (:func:`~anisosample.render.culling.pixel_view`), tested
+    instead of the BVH or of every primitive; None: those."""
+    if subset is None and scene.bvh is not None:
         return closest_hit(scene.bvh, o, d, tmin, tmax)
-    tt, b1, b2 = _triangle_t(scene, o, d)
+    tt, b1, b2 = plane_test(_planar_rows(scene, subset), o, d)
     tt = jnp.where((tt > tmin) & (tt < tmax), tt, _INF)
-    t, it = _first_min(tt)
-    return t, it, b1[it], b2[it]
+    t, k = _first_min(tt)
+    it = k if subset is None else jnp.where(jnp.isfinite(t), subset.index[k], 0)
+    return t, it, b1[k], b2[k]
 
 
 def _first_min(tt):
@@ -159,14 +155,10 @@ def occluded(
     d = v / jnp.maximum(dist, 1e-30)
     lo, hi = dist * eps, dist * (1 - eps)
     inside = lambda t: (t > lo) & (t < hi)
-    if subset is not None:
-        tt, _, _ = plane_test(subset.soa, o, d)
-        blocked = jnp.any(inside(tt))
-    elif scene.bvh is not None:  # any hit, stopping at the first (render/bvh.py)
+    if subset is None and scene.bvh is not None:  # any hit, stopping at the first (bvh.py)
         blocked = any_hit(scene.bvh, o, d, lo, hi)
     else:
-        tt, _, _ = _triangle_t(scene, o, d)
-        blocked = jnp.any(inside(tt))
+        blocked = jnp.any(inside(plane_test(_planar_rows(scene, subset), o, d)[0]))
     if scene.has_patches:
         blocked = blocked | jnp.any(inside(intersect_patches(scene.patches.corners, o, d)[0]))
     if not scene.has_spheres:

@@ -126,14 +126,14 @@ def render(
     more than the kernel it compiles for the image's tiles costs.
     """
     key = check_key("key", key)
+    spp = check_int("spp", spp, minimum=1)
     if culling is not None and not isinstance(culling, (bool, np.bool_)):
         raise TypeError(f"culling must be True, False or None, got {culling!r}")
     from .culling import AUTO_SAMPLES, with_culling
 
     if culling is None:
-        culling = scene.width * scene.height * int(spp) >= AUTO_SAMPLES
+        culling = scene.width * scene.height * spp >= AUTO_SAMPLES
     scene = with_culling(scene, bool(culling))
-    spp = check_int("spp", spp, minimum=1)
     realizations = check_int("realizations", realizations, minimum=1)
     options = options_of(options, pixel_center=pixel_center, dimension=dimension,
                          technique=technique, light_warp=light_warp, mis=mis,

@@ -142,7 +142,7 @@ class Scene(eqx.Module):
     bvh: BVH | None = None
     # Per-tile candidate primitives of brute force (render/culling.py), or None: render()
     # attaches them (culling.with_culling); every ray of a scene without them tests everything.
-    culling: object | None = None
+    culling: eqx.Module | None = None  # culling.TileCulling (culling imports this module)
     has_spheres: bool = eqx.field(static=True, default=True)
     has_textures: bool = eqx.field(static=True, default=True)
     has_patches: bool = eqx.field(static=True, default=False)

@@ -19,6 +19,7 @@ from anisosample.render import culling as C
 from anisosample.render.bvh import plane_test
 from anisosample.render.camera import generate_ray
 from anisosample.render.geometry import closest_planar, offset_origin
+from anisosample.render.scene import LIGHT_POINT, LIGHT_SPHERE
 
 
 def _soup_scene(seed, *, thin=False, rfilter="box", light="area", size=16):
@@ -108,9 +109,9 @@ def _light_targets(scene, rng, m=24):
     out = []
     for s, a, b, c in zip(shape, p0, e1, e2, strict=True):
         u = rng.random((m, 2))
-        if s == 3:  # point
+        if s == LIGHT_POINT:
             out.append(np.repeat(a[None], m, 0))
-        elif s == 2:  # sphere: points on it
+        elif s == LIGHT_SPHERE:  # points on it
             z = rng.normal(size=(m, 3))
             out.append(a + b[0] * z / np.linalg.norm(z, axis=1, keepdims=True))
         else:
