@@ -58,8 +58,7 @@ def main(argv=None):
                    help="accepted for uniformity; the benchmark size is fixed by --size/--spp")
     p.add_argument("--scenes", default=DEFAULT_SCENES,
                    help="comma-separated shipped scene names and meshNk ('' skips)")
-    p.add_argument("--cpu-devices", type=int, default=os.cpu_count() or 1,
-                   help="JAX CPU devices to render over (default: one per core)")
+    common.devices_option(p)
     p.add_argument("--scalar", action="store_true", help="also time Mitsuba's scalar_rgb")
     p.add_argument("--costs", action="store_true",
                    help="also the aligned sampler's and the light warps' cost on the first scene")
@@ -73,10 +72,7 @@ def main(argv=None):
                    help="triangles of the OBJ file read and built (0 skips)")
     p.add_argument("--no-mitsuba", action="store_true", help="skip the Mitsuba comparison")
     args = p.parse_args(argv)
-    if args.cpu_devices < 1:
-        p.error(f"--cpu-devices must be at least 1, got {args.cpu_devices}")
-    if args.cpu_devices > 1:  # before anything starts the backend
-        jax.config.update("jax_num_cpu_devices", args.cpu_devices)
+    args.devices = common.render_devices(args)  # before anything starts the backend
     names = [s.strip() for s in args.scenes.split(",") if s.strip()]
     if names:
         scene_table(names, args)
@@ -179,7 +175,7 @@ def timed(fn, repeats: int):
 
 def scene_table(names, args):
     mi, variants = mitsuba_variants(args)
-    devices = jax.devices() if len(jax.devices()) > 1 else None
+    devices = args.devices
     n = args.size * args.size * args.spp
     print(f"{args.size}x{args.size}, {args.spp} spp = {n} samples per image; "
           f"{os.cpu_count()} CPUs, load {os.getloadavg()[0]:.2f}; jax {jax.__version__} on "

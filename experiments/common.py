@@ -147,6 +147,31 @@ def run(name: str, doc: str | None, scales: dict, compute, *, figure=None, repor
     return data
 
 
+def devices_option(p) -> None:
+    """``--cpu-devices N`` (default: one per core): JAX's CPU backend starts with ``N`` devices
+    (``jax_num_cpu_devices``) for the renders to be split over (:func:`render_devices`); 1: one
+    device. On a GPU the option changes nothing: the GPUs are the devices."""
+    import os
+
+    p.add_argument("--cpu-devices", type=int, default=os.cpu_count() or 1,
+                   help="JAX CPU devices to render over (default: one per core)")
+
+
+def render_devices(args) -> list | None:
+    """The ``devices`` argument of ``render(...)`` for the parsed ``--cpu-devices``: every local
+    device when there are several, else None (the default device). The first call configures
+    the CPU backend, so it must come before anything runs on JAX."""
+    import jax
+
+    if args.cpu_devices < 1:
+        raise SystemExit(f"--cpu-devices must be at least 1, got {args.cpu_devices}")
+    if args.cpu_devices > 1 and not getattr(args, "_devices_set", False):
+        jax.config.update("jax_num_cpu_devices", args.cpu_devices)
+        args._devices_set = True
+    devices = jax.local_devices()
+    return devices if len(devices) > 1 else None
+
+
 def run_script(name: str, out: Path, *args: str) -> dict:
     """Run the experiment ``experiments/<name>.py`` with ``--out out`` and ``args`` in its own
     process (an experiment never imports another) and return its record ``out/<name>.json``.

@@ -25,6 +25,7 @@ from . import pixel_classes as pixel_classes
 from .aligned import BlockSampler as BlockSampler
 from .aligned import block_sampler as block_sampler
 from .builder import SceneBuilder as SceneBuilder
+from .camera import crop as crop
 from .image import RenderResult as RenderResult
 from .image import default_chunk_samples as default_chunk_samples
 from .image import render as render

@@ -12,6 +12,8 @@ that shades every pixel's primary hit outside the renderer (fitting warps per pi
 
 from __future__ import annotations
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -23,7 +25,10 @@ from ._vec import matvec, norm
 from .geometry import intersect
 from .scene import THINLENS, Camera, Scene
 
-__all__ = ["PrimaryHit", "generate_ray", "primary_hits"]
+__all__ = ["FULL_FILM", "PrimaryHit", "crop", "generate_ray", "primary_hits"]
+
+FULL_FILM = (0.0, 0.0, 1.0, 1.0)
+"""``Camera.window`` of an image that is the whole film."""
 
 
 def generate_ray(
@@ -36,8 +41,13 @@ def generate_ray(
     """World-space ray ``(origin, unit direction)`` through film point ``film`` and lens ``lens``.
 
     ``lens`` is ignored by the pinhole camera; for the thin lens it is the 2D aperture sample.
+    ``film`` is a position on the image, which is the camera's ``window`` of the whole film
+    (:func:`crop`).
     """
     tan = camera.tan_half_fov_x
+    if camera.window != FULL_FILM:  # a crop: the image's position on the whole film
+        s0, t0, ds, dt = camera.window
+        film = jnp.stack([s0 + film[0] * ds, t0 + film[1] * dt]).astype(jnp.float32)
     near = jnp.stack(
         [(1 - 2 * film[0]) * tan, (1 - 2 * film[1]) * tan / camera.aspect, jnp.float32(1.0)]
     )
@@ -55,6 +65,35 @@ def generate_ray(
     o = matvec(m, ap) + m[:3, 3]
     d = matvec(m, d_local)
     return o, d / norm(d)
+
+
+def crop(scene: Scene, offset, size) -> Scene:
+    """``scene`` rendering only the ``size = (width, height)`` pixels from pixel ``offset = (x,
+    y)`` of its image (Mitsuba's ``crop_offset_x/y``, ``crop_width/height``): the same rays as
+    those pixels of the whole image, so a small window of a large image is rendered at the
+    large image's pixel scale (W renders 1280^2: ``crop(load_xml(p, width=1280, height=1280),
+    (x, y), (128, 128))``). A crop of a crop is a window of the same film. The crop's pixels,
+    keys and blocks count from its own corner. The film's filter keeps its stddev in pixels."""
+    if not isinstance(scene, Scene):
+        raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
+    try:
+        x, y = (int(v) if float(v) == int(v) else None for v in offset)
+        w, h = (int(v) if float(v) == int(v) else None for v in size)
+    except (TypeError, ValueError):
+        raise TypeError(f"offset and size must be pairs of integers, got {offset!r} and "
+                        f"{size!r}") from None
+    if None in (x, y, w, h) or isinstance(offset, str) or isinstance(size, str):
+        raise TypeError(f"offset and size must be pairs of integers, got {offset!r} and "
+                        f"{size!r}")
+    cam = scene.camera
+    if x < 0 or y < 0 or w < 1 or h < 1 or x + w > cam.width or y + h > cam.height:
+        raise ValueError(f"the crop (offset {x}, {y}, size {w} x {h}) must lie inside the "
+                         f"{cam.width} x {cam.height} image and hold at least one pixel")
+    s0, t0, ds, dt = cam.window
+    window = (s0 + ds * x / cam.width, t0 + dt * y / cam.height, ds * w / cam.width,
+              dt * h / cam.height)
+    camera = dataclasses.replace(cam, width=w, height=h, window=window)
+    return dataclasses.replace(scene, camera=camera, culling=None)
 
 
 class PrimaryHit(eqx.Module):

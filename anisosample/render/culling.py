@@ -207,7 +207,7 @@ def _digest(scene: Scene) -> str:
         h.update(str((a.dtype, a.shape)).encode())
         h.update(a.tobytes())
     h.update(repr((cam.projection, cam.width, cam.height, cam.rfilter, cam.rfilter_stddev,
-                   scene.has_spheres, scene.has_patches)).encode())
+                   cam.window, scene.has_spheres, scene.has_patches)).encode())
     return h.hexdigest()
 
 
@@ -221,6 +221,7 @@ class _Host:
         self.m = np.asarray(cam.to_world, np.float64)
         self.tan = float(cam.tan_half_fov_x)
         self.aspect = float(cam.aspect)
+        self.window = cam.window
         thin = cam.projection == THINLENS
         self.radius = float(cam.aperture_radius) if thin else 0.0
         self.focus = float(cam.focus_distance) if thin else 1.0
@@ -319,6 +320,7 @@ def _regions(h: _Host, rects):
     fd, tan, r = h.focus, h.tan, h.radius
 
     def film(s, t):  # camera-space point of the focus plane (generate_ray)
+        s, t = h.window[0] + s * h.window[2], h.window[1] + t * h.window[3]
         return np.stack([(1 - 2 * s) * tan * fd, (1 - 2 * t) * tan / h.aspect * fd,
                          np.full_like(s, fd)], -1)
 

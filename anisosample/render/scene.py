@@ -55,6 +55,10 @@ class Camera(eqx.Module):
     # in pixels), which decides where a pixel's samples land on the film.
     rfilter: str = eqx.field(static=True, default="box")
     rfilter_stddev: float = eqx.field(static=True, default=0.5)
+    # The image's window of the whole film (Mitsuba's crop): (s0, t0, ds, dt), so that image
+    # position (s, t) is film position (s0 + s ds, t0 + t dt); width x height are the window's
+    # pixels (render/camera.py's crop).
+    window: tuple = eqx.field(static=True, default=(0.0, 0.0, 1.0, 1.0))
 
 
 class Materials(eqx.Module):

@@ -18,7 +18,9 @@ Supported (everything else is an error naming the tag and line):
   ``sample_visible``), ``twosided``; declared at top level with ``id`` and used by
   ``<ref id=...>``;
 * emitters ``area`` (constant ``radiance`` or an EXR ``bitmap`` texture) and ``point``;
-* sensors ``perspective`` and ``thinlens`` with an ``hdrfilm`` (default 768 x 576) and a
+* sensors ``perspective`` and ``thinlens`` with an ``hdrfilm`` (default 768 x 576; its
+  ``crop_offset_x/y`` and ``crop_width/height`` render a window of the film:
+  :func:`anisosample.render.camera.crop`) and a
   ``box`` or ``gaussian`` (``stddev``) ``rfilter``; a film without one, or a sensor without a
   film, gets Mitsuba's default, the gaussian with stddev 0.5 pixels, rendered by filter
   importance sampling (:mod:`anisosample.render.film`: Mitsuba's image in expectation, each
@@ -47,6 +49,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .builder import SceneBuilder
+from .camera import crop
 from .film import GAUSSIAN_STDDEV, RFILTERS
 from .obj import read_obj as _read_obj
 from .scene import Scene
@@ -113,6 +116,7 @@ class _Ctx:
         self.bsdfs: dict[str, _Node] = {}
         self.settings = RenderSettings()
         self.size: dict[str, int] = {}  # film width/height set directly (no such parameter)
+        self.crop = None  # (film node, its crop_* properties)
 
     def err(self, node: _Node, msg: str) -> SceneFormatError:
         t = node.attrs.get("type")
@@ -544,9 +548,15 @@ def _sensor(ctx: _Ctx, b: SceneBuilder, node: _Node):
                     "pixel_format": "string",
                     "component_format": "string",
                     "file_format": "string",
+                    "crop_offset_x": "integer",
+                    "crop_offset_y": "integer",
+                    "crop_width": "integer",
+                    "crop_height": "integer",
                 },
             )
             width, height = fp.get("width", width), fp.get("height", height)
+            if any(k.startswith("crop_") for k in fp):
+                ctx.crop = (o, {k: fp[k] for k in fp if k.startswith("crop_")})
             if width < 1 or height < 1:
                 raise ctx.err(o, f"film size must be positive, got {width}x{height}")
             if any(r.tag != "rfilter" for r in fo) or len(fo) > 1:
@@ -769,6 +779,15 @@ def load_xml_with_settings(path, *, bvh: bool | None = None,
     if "spp" in ctx.size:
         ctx.settings = ctx.settings._replace(spp=ctx.size["spp"])
     try:
-        return b.build(bvh=bvh), ctx.settings
+        scene = b.build(bvh=bvh)
     except ValueError as exc:
         raise SceneFormatError(f"{path}: {exc}") from None
+    if ctx.crop is not None:  # Mitsuba's defaults: from the corner to the film's far edges
+        node, c = ctx.crop
+        x, y = c.get("crop_offset_x", 0), c.get("crop_offset_y", 0)
+        size = (c.get("crop_width", scene.width - x), c.get("crop_height", scene.height - y))
+        try:
+            scene = crop(scene, (x, y), size)
+        except ValueError as exc:
+            raise ctx.err(node, str(exc)) from None
+    return scene, ctx.settings
