@@ -1,42 +1,62 @@
 """W Fig. 8: per-pixel variance images after many samples per pixel.
 
-Per scene, the principal directions are estimated per block (W Sec. 5.3, as in ``w_fig7``), and
-every pixel's estimator (fixed primary hit, light or lens sample; W Sec. 6.2) is measured with
-``spp`` points from one set per block and method, decorrelated by toroidal shifts per pixel and
-realization (W Sec. 5.4; the variance engine's ``"shift"`` randomization):
+The regime is W's: a ``film``^2 image (W: 1280^2) in 16-pixel blocks. Rendering all of it at W's
+4096 spp is a GPU's work, so the image mean is estimated on ``windows x windows`` windows of
+``window``^2 pixels (:func:`anisosample.render.crop`), one centred in each stratum of the film
+(:func:`window_offsets`, on the block grid; chosen by position, not by content, so the mean over
+the windows is a stratified estimate of the whole image's).
 
-* ``pmj02bn`` (unaligned: 0 and 90 degrees),
-* ``sheared pmj02bn`` (Singh & Jarosz 2017, sheared to the block's strongest direction),
-* ``aligned 3-dir`` (the table set for 0, 90 and the block's strongest direction),
+Per window, the principal directions are estimated per block (W Sec. 5.3,
+``render.estimation.estimate_blocks`` with the gate's per-pixel probes), and every pixel's
+estimator (fixed primary hit, light or lens sample, luminance; W Sec. 6.2) is rendered with
+``spp`` points by :func:`anisosample.render.render` -- the renderer's own samplers, split over
+the devices (``--cpu-devices``, default one per core; the same bits as one device) -- once per
+realization, and its variance is the sample variance of the pixel's luminance over the
+``realizations`` renders. Every method's render of realization ``r`` uses the key
+``fold_in(window key, r)``: the same base pmj02bn set (one per realization, shared by the
+pixels) and the same per-pixel toroidal shifts (W Sec. 5.4):
+
+* ``pmj02bn`` (unaligned: 0 and 90 degrees; ``sampler="pmj02bn"``),
+* ``sheared pmj02bn`` (Singh & Jarosz 2017: the realization's pmj02bn set sheared to the block's
+  strongest direction; ``block_sampler(scene, "sheared", k=1)``),
+* ``aligned 3-dir`` (the table set for 0, 90 and the block's strongest direction;
+  ``block_sampler(scene, "aligned", k=1, gate=False)``),
 * ``aligned 3-dir gated`` (beyond W: the same, but pixels whose own probe of their integrand
-  shows no jump -- fully lit, fully occluded -- keep pmj02bn; ``_w_render.pixel_gate``, the
-  renderer's default for ``sampler="aligned"``). A gated pixel's estimator *is* the pmj02bn
-  pixel's (same set, same per-pixel shift), so its variance is taken from that column.
-* ``aligned (pixel)`` (beyond W: the renderer's ``sampler="aligned-pixel"``,
-  ``render.pixel_aligned.integrand_estimates``): per realization the pixel's own edge search on
-  its fixed prefix, its own prefix set (pmj02bn without an edge), the prefix reused; the
-  search's samples beyond ``spp`` are recorded (``pixel_search_samples``).
+  shows no jump -- fully lit, fully occluded -- keep pmj02bn; the renderer's default for
+  ``sampler="aligned"``). A gated pixel's estimator *is* the pmj02bn pixel's (same set, same
+  shift, same bits), so its variance is taken from that column.
+* ``aligned (pixel)`` (beyond W: ``sampler="aligned-pixel"``,
+  :mod:`anisosample.render.pixel_aligned`): the pixel's own edge search on its fixed prefix,
+  its own prefix set (pmj02bn without an edge), the prefix reused; the search's samples beyond
+  ``spp`` are recorded (``pixel_search_samples_mean``; ``pixel_estimation_samples_mean`` adds
+  the prefix that pixels without an edge take beside pmj02bn's ``spp``).
 
-Blocks without an extra direction use pmj02bn for every method. W's 4-direction sets are not
-measured here (no 4141-set table ships; the renderer builds them on demand, one n = 256 set in
-11 s at load 3.8). The variance of a pixel is the sample variance over ``realizations`` shifts;
-the image number is its mean over all pixels (W: "variance calculated over the entire image").
+Blocks without an extra direction use pmj02bn for every block method. W's 4-direction sets are
+not measured for the block method (``k=1``); the per-pixel sampler takes them at corners (built
+on demand into ``results/w_render_tables``). The image number is the mean pixel variance (W:
+"variance calculated over the entire image").
 
-Writes per scene and method ``<scene>_<method>_variance.exr`` (one channel, row 0 on top) and a
-PNG panel ``w_fig8.png`` (log10 variance, one colour scale per scene), and ``w_fig8.json`` (image
-means, per-block means, ratios to pmj02bn, the block directions). Reuses finished scenes on rerun.
+Writes per scene and method ``<scene>_<method>_variance.exr`` (one channel: the windows side by
+side, row-major, row 0 on top) and a PNG panel ``w_fig8.png`` (log10 variance, one colour scale
+per scene), and ``w_fig8.json`` (means over the windows' pixels, per-block means, ratios to
+pmj02bn, the block directions, the windows' offsets). Resumable: each finished window is kept
+in ``scenes/`` and reused on rerun, as is each finished scene.
 
-Scale: small = 32^2 pixels in 8-pixel blocks (96^2 estimation samples per block), 256 spp;
-paper = 128^2 pixels in W's 16-pixel blocks, W's 4096 spp (W renders 1280^2: too many per-pixel
-variance runs for this script's pixel loop).
+Scale: small = 4 x 4 windows of 32^2 pixels of a 1280^2 image (16,384 pixels), 16-pixel blocks
+(96^2 estimation samples per block), 256 spp, 16 realizations; paper = 8 x 8 windows of 64^2
+(262,144 pixels), W's 4096 spp, 32 realizations (the guide's performance section projects the
+time).
 
 ``--spp N`` replaces the scale's spp (e.g. ``--scale small --spp 4096``: W's spp on the small
 image; needs a table for N points or builds one).
 
     python experiments/w_fig8.py --scale small|paper [--spp N] [--out DIR] [--scenes ...]
+        [--cpu-devices N]
 """
 
 from __future__ import annotations
+
+import functools
 
 import _w_render as W
 import common
@@ -44,16 +64,18 @@ import jax
 import numpy as np
 
 import anisosample as asp
-from anisosample import plot
+from anisosample import plot, render
 from anisosample.progress import progress
+from anisosample.render import aligned, estimation
+from anisosample.render.scene import LUMINANCE
 
 NAME = "w_fig8"
 GATED = "aligned 3-dir gated"
 PIXEL = "aligned (pixel)"
 METHODS = (*W.METHODS, GATED, PIXEL)
 SCALES = {
-    "small": dict(size=32, block_px=8, spp=256, realizations=16),
-    "paper": dict(size=128, block_px=16, spp=4096, realizations=32),
+    "small": dict(film=1280, windows=4, window=32, block_px=16, spp=256, realizations=16),
+    "paper": dict(film=1280, windows=8, window=64, block_px=16, spp=4096, realizations=32),
 }
 
 
@@ -61,51 +83,95 @@ def _slug(m: str) -> str:
     return m.replace(" ", "_").replace("-", "")
 
 
-def run_scene(name, cfg, key, out, fresh):
+def window_offsets(cfg) -> list[tuple[int, int]]:
+    """``(x, y)`` of each window: one centred in each of the ``windows x windows`` strata of the
+    film, rounded down to the block grid (row-major)."""
+    stratum, w, bp = cfg["film"] // cfg["windows"], cfg["window"], cfg["block_px"]
+    off = [i * stratum + (stratum - w) // 2 // bp * bp for i in range(cfg["windows"])]
+    return [(x, y) for y in off for x in off]
+
+
+def window_variance(scene, name, cfg, key, devices, probe):
+    """Every method's per-pixel variance on one window (a cropped scene), its block estimate's
+    gate and directions, and the per-pixel search's samples: a dict of lists (JSON)."""
+    bp, n, R = cfg["block_px"], cfg["spp"], cfg["realizations"]
+    options = render.IntegratorOptions(pixel_center=True,
+                                       square_aperture=W.SCENES[name]["square_aperture"])
+    est = estimation.estimate_blocks(scene, bp, 96, 2, options=options, gate=True, probe=probe)
+    # One key per realization for every method: the base pmj02bn set and each pixel's shift
+    # are the same in every method's render, so a gated pixel's estimator is the pmj02bn
+    # pixel's. One render per realization: the variance is the luminance estimate's (W's f_q).
+    blocks = aligned.block_sampler(scene, "aligned", estimate=est, k=1, gate=False,
+                                   options=options)
+    samplers = {"pmj02bn": "pmj02bn",
+                "sheared pmj02bn": aligned.block_sampler(scene, "sheared", estimate=est, k=1,
+                                                         options=options),
+                "aligned 3-dir": blocks, PIXEL: "aligned-pixel"}
+    lum = np.asarray(LUMINANCE, np.float64)
+    var, extra, search = {}, [], []
+    for m, sampler in samplers.items():
+        opts = dict(table=W.TABLES, build_missing=True) if m == PIXEL else None
+        values = []
+        for r in range(R):
+            res = render.render(scene, jax.random.fold_in(key, r), spp=n, sampler=sampler,
+                                options=options, devices=devices, progress=False,
+                                sampler_options=opts)
+            values.append(res.mean.astype(np.float64) @ lum)
+            if m == PIXEL:  # the search's samples; the render's count adds the prefix that
+                # pixels without an edge take beside pmj02bn's spp
+                e = res.pixel_estimation_samples
+                extra.append(e)
+                search.append(e - np.where(res.pixel_sampler == 5,
+                                           res.settings["blocks"]["prefix_points"], 0))
+        var[m] = np.var(np.stack(values), axis=0, ddof=1)
+    has_set = blocks.pixel_sampler == 2
+    disc = np.asarray(est.discontinuous)
+    var[GATED] = np.where(has_set & disc, var["aligned 3-dir"], var["pmj02bn"])
+    dirs = [[float(d) if ok else None for d, ok in zip(dd, vv, strict=True)]
+            for dd, vv in zip(blocks.directions_deg, blocks.valid, strict=True)]
+    return {"variance": {m: v.tolist() for m, v in var.items()}, "has_set": has_set.tolist(),
+            "discontinuous": disc.tolist(), "directions": dirs,
+            "search": np.mean(search, axis=0).tolist(),
+            "estimation": np.mean(extra, axis=0).tolist()}
+
+
+def _mosaic(parts, k):
+    """The windows' ``(w, w)`` arrays as one ``(k w, k w)`` image, row-major."""
+    rows = [np.concatenate(parts[i * k:(i + 1) * k], axis=1) for i in range(k)]
+    return np.concatenate(rows, axis=0)
+
+
+def run_scene(name, cfg, key, out, fresh, devices=None):
     settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist()),
-                "estimation_layout": "tiles", "gate_probe": 6, "methods": list(METHODS)}
+                "estimation_samples": 96, "gate_probe": 6, "methods": list(METHODS),
+                "engine": "render, windows"}
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
     exrs = [out / f"{name}_{_slug(m)}_variance.exr" for m in METHODS]
     if cached is not None and cached.get("settings") == settings and all(p.exists() for p in exrs):
         return cached
-    size, bp, n, R = cfg["size"], cfg["block_px"], cfg["spp"], cfg["realizations"]
-    scene = W.load_scene(name, size, size)
-    base = W.base_integrand(scene, name)
-    est, _, _ = W.estimate_blocks(scene, base, bp)
-    disc, gate_seconds = W.pixel_gate(scene, base, settings["gate_probe"])
-    nb = size // bp
-    from anisosample.render import pixel_aligned as PA
-
-    var = {m: np.zeros((size, size)) for m in (*W.METHODS, PIXEL)}
-    search = np.zeros((size, size))
-    k_sets, k_pix = jax.random.split(key)
-    block_dirs = {}
-    for a, b in progress([(a, b) for a in range(nb) for b in range(nb)], desc=f"{name} blocks",
-                         leave=False):
-        d = W.strongest(est, (a, b))
-        block_dirs[f"{a},{b}"] = d
-        sets = W.block_sets(d, n, jax.random.fold_in(k_sets, a * nb + b))
-        for i in range(bp):
-            for j in range(bp):
-                row, col = a * bp + i, b * bp + j
-                f = W.pixel_f(base, scene, (col, row))
-                kq = jax.random.fold_in(k_pix, row * size + col)
-                for m in W.METHODS:
-                    if m != "pmj02bn" and d is None:
-                        continue
-                    var[m][row, col] = W.pixel_variance(f, sets[m], n, kq, R)[0]
-                if d is None:  # no extra direction: every method falls back to pmj02bn
-                    for m in W.METHODS[1:]:
-                        var[m][row, col] = var["pmj02bn"][row, col]
-                e = PA.integrand_estimates(f, n, kq, R, table=W.TABLES, build_missing=True)
-                var[PIXEL][row, col] = float(np.var(e.estimates, ddof=1))
-                search[row, col] = float(np.mean(e.search_samples))
-    has_set = np.kron(np.asarray([[block_dirs[f"{a},{b}"] is not None for b in range(nb)]
-                                  for a in range(nb)]), np.ones((bp, bp), bool))
-    keep = has_set & disc  # gated: only these pixels keep the block's aligned set
-    var[GATED] = np.where(keep, var["aligned 3-dir"], var["pmj02bn"])
-    meta = {**asp.io.provenance(), "scene": name, "spp": str(n), "realizations": str(R)}
+    k, n, R, bp = cfg["windows"], cfg["spp"], cfg["realizations"], cfg["block_px"]
+    film = W.load_scene(name, cfg["film"], cfg["film"])
+    offsets = window_offsets(cfg)
+    parts = []
+    for i, xy in enumerate(progress(offsets, desc=f"{name} windows", leave=False)):
+        scene = render.crop(film, xy, (cfg["window"], cfg["window"]))
+        parts.append(common.reuse_or_compute(
+            out / "scenes" / f"{name}_window{i}.json", {**settings, "offset": list(xy)}, fresh,
+            lambda s=scene, i=i: window_variance(s, name, cfg, jax.random.fold_in(key, i),
+                                                 devices, settings["gate_probe"]),
+            field="window"))
+    var = {m: _mosaic([np.asarray(p["variance"][m]) for p in parts], k) for m in METHODS}
+    has_set = _mosaic([np.asarray(p["has_set"]) for p in parts], k)
+    disc = _mosaic([np.asarray(p["discontinuous"]) for p in parts], k)
+    search = _mosaic([np.asarray(p["search"]) for p in parts], k)
+    extra = _mosaic([np.asarray(p["estimation"]) for p in parts], k)
+    dirs = _mosaic([np.asarray(p["directions"], np.float64) for p in parts], k)
+    nb = dirs.shape[0]
+    block_dirs = {f"{a},{b}": (None if np.isnan(dirs[a, b]) else float(dirs[a, b]))
+                  for a in range(nb) for b in range(nb)}
+    meta = {**asp.io.provenance(), "scene": name, "spp": str(n), "realizations": str(R),
+            "windows": str(offsets)}
     for m, p in zip(METHODS, exrs, strict=True):
         asp.io.write_exr(p, var[m].astype(np.float32), {**meta, "method": m}, overwrite=True)
     means = {m: float(v.mean()) for m, v in var.items()}
@@ -117,8 +183,9 @@ def run_scene(name, cfg, key, out, fresh):
         "gated_over_ungated": means[GATED] / means["aligned 3-dir"],
         "pixels_in_blocks_with_direction": int(has_set.sum()),
         "pixels_gated": int((has_set & ~disc).sum()),
-        "gate_seconds": gate_seconds,
+        "window_offsets": [list(o) for o in offsets],
         "pixel_search_samples_mean": float(search.mean()),
+        "pixel_estimation_samples_mean": float(extra.mean()),
         "block_mean_variance": per_block,
         "block_direction_deg": block_dirs,
         "blocks_with_direction": int(sum(d is not None for d in block_dirs.values())),
@@ -149,6 +216,7 @@ def figure(results, out):
 
 def arguments(p):
     W.scene_option(p)
+    common.devices_option(p)
     p.add_argument("--spp", type=int, default=None, help="replace the scale's spp")
 
 
@@ -165,7 +233,9 @@ def compute(settings, args):
     """Every scene's record in ``scenes/`` (resumable: a finished scene, with its variance
     images, is reused), the figure (drawn from those images) and the images' numbers."""
     cfg = {k: settings[k] for k in SCALES[args.scale]}
-    results, missing = W.run_scenes(NAME, args, cfg, run_scene)
+    devices = common.render_devices(args)  # before anything runs on JAX
+    results, missing = W.run_scenes(NAME, args, cfg, functools.partial(run_scene,
+                                                                       devices=devices))
     figure(results, args.out)
     images = {s: {m: np.round(asp.io.read_exr(args.out / f"{s}_{_slug(m)}_variance.exr")
                               .astype(float), 15).tolist() for m in METHODS} for s in results}

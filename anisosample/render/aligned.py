@@ -49,7 +49,7 @@ from .scene import Scene
 
 __all__ = [
     "BLOCK_SAMPLERS", "PIXEL_CODES", "POINT_SETS", "BlockSampler", "block_sampler", "block_sets",
-    "render_chunk_sets", "resolve_sampler", "table_direction",
+    "pad_sets", "render_chunk_sets", "resolve_sampler", "table_direction",
 ]
 # Also importable from here, as before the split (scripts use them): BlockEstimate,
 # estimate_blocks, estimation_grid, block_grid_values, strongest_directions (render.estimation),
@@ -252,7 +252,7 @@ class BlockSampler:
         rows = np.arange(self.height) // self.block_px
         cols = np.arange(self.width) // self.block_px
         pixel_set = np.where(self.pixel_sampler == 2, block_set[rows[:, None], cols[None, :]], 0)
-        return jnp.stack(sets), pixel_set.astype(np.int32).reshape(-1)
+        return pad_sets(jnp.stack(sets)), pixel_set.astype(np.int32).reshape(-1)
 
     def settings(self) -> dict:
         """What a render records about the sampler (EXR metadata)."""
@@ -386,6 +386,17 @@ def resolve_sampler(scene: Scene, sampler, sampler_options: dict | None, *,
                          f"{tuple(getattr(sampler.options, f) for f in fields)}, the render "
                          f"uses {tuple(getattr(mine, f) for f in fields)}")
     return sampler
+
+
+def pad_sets(sets: jax.Array) -> jax.Array:
+    """``sets`` ``(m, n, 2)`` with copies of ``sets[0]`` appended up to a power of two rows:
+    the render kernels that index per-pixel sets then compile for few shapes (no pixel's
+    index reaches the copies, so no bit moves). Without it, each realization of the
+    per-pixel sampler, and each window of a cropped image, asked for its own number of sets
+    and recompiled: W Fig. 8 on 32^2 windows took about 35 s per window."""
+    m = sets.shape[0]
+    rows = 1 << max(0, (m - 1).bit_length())
+    return jnp.concatenate([sets, jnp.broadcast_to(sets[:1], (rows - m, *sets.shape[1:]))])
 
 
 @kernel(static_argnames=("options",))

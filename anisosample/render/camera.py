@@ -25,10 +25,7 @@ from ._vec import matvec, norm
 from .geometry import intersect
 from .scene import THINLENS, Camera, Scene
 
-__all__ = ["FULL_FILM", "PrimaryHit", "crop", "generate_ray", "primary_hits"]
-
-FULL_FILM = (0.0, 0.0, 1.0, 1.0)
-"""``Camera.window`` of an image that is the whole film."""
+__all__ = ["PrimaryHit", "crop", "generate_ray", "primary_hits"]
 
 
 def generate_ray(
@@ -45,9 +42,8 @@ def generate_ray(
     (:func:`crop`).
     """
     tan = camera.tan_half_fov_x
-    if camera.window != FULL_FILM:  # a crop: the image's position on the whole film
-        s0, t0, ds, dt = camera.window
-        film = jnp.stack([s0 + film[0] * ds, t0 + film[1] * dt]).astype(jnp.float32)
+    win = camera.window  # the image's position on the whole film (the full film: exact)
+    film = win[:2] + film * win[2:]
     near = jnp.stack(
         [(1 - 2 * film[0]) * tan, (1 - 2 * film[1]) * tan / camera.aspect, jnp.float32(1.0)]
     )
@@ -89,9 +85,9 @@ def crop(scene: Scene, offset, size) -> Scene:
     if x < 0 or y < 0 or w < 1 or h < 1 or x + w > cam.width or y + h > cam.height:
         raise ValueError(f"the crop (offset {x}, {y}, size {w} x {h}) must lie inside the "
                          f"{cam.width} x {cam.height} image and hold at least one pixel")
-    s0, t0, ds, dt = cam.window
-    window = (s0 + ds * x / cam.width, t0 + dt * y / cam.height, ds * w / cam.width,
-              dt * h / cam.height)
+    s0, t0, ds, dt = np.asarray(cam.window, np.float64)
+    window = jnp.asarray([s0 + ds * x / cam.width, t0 + dt * y / cam.height, ds * w / cam.width,
+                          dt * h / cam.height], jnp.float32)
     camera = dataclasses.replace(cam, width=w, height=h, window=window)
     return dataclasses.replace(scene, camera=camera, culling=None)
 

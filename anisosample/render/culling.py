@@ -202,12 +202,12 @@ def _digest(scene: Scene) -> str:
     for a in (scene.tri_soa, scene.sph_center, scene.sph_radius, scene.patches.corners,
               scene.lights.shape, scene.lights.p0, scene.lights.e1, scene.lights.e2,
               scene.lights.patch, scene.scale, cam.to_world, cam.tan_half_fov_x, cam.aspect,
-              cam.aperture_radius, cam.focus_distance):
+              cam.aperture_radius, cam.focus_distance, cam.window):
         a = np.asarray(a)
         h.update(str((a.dtype, a.shape)).encode())
         h.update(a.tobytes())
     h.update(repr((cam.projection, cam.width, cam.height, cam.rfilter, cam.rfilter_stddev,
-                   cam.window, scene.has_spheres, scene.has_patches)).encode())
+                   scene.has_spheres, scene.has_patches)).encode())
     return h.hexdigest()
 
 
@@ -221,7 +221,7 @@ class _Host:
         self.m = np.asarray(cam.to_world, np.float64)
         self.tan = float(cam.tan_half_fov_x)
         self.aspect = float(cam.aspect)
-        self.window = cam.window
+        self.window = np.asarray(cam.window, np.float64)
         thin = cam.projection == THINLENS
         self.radius = float(cam.aperture_radius) if thin else 0.0
         self.focus = float(cam.focus_distance) if thin else 1.0

@@ -370,6 +370,7 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
     pmj02bn on the others. ``(estimate, record)``."""
     from .. import samplers
     from ..prefix import prefix_points
+    from .aligned import pad_sets
     from .pixel_aligned import (
         FALLBACK,
         choose_sets,
@@ -411,6 +412,7 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
         sets = sampler.sets(requests, spp, progress=progress)
         if not bool(jnp.all(sets[:, :m] == prefix[None])):
             raise ValueError("a prefix set does not start with its prefix (a damaged table)")
+        sets = pad_sets(sets)
         (rest,) = over_pixels(rest_chunk, (scene, sets[:, m:], jnp.asarray(np.maximum(index, 0)),
                                            key), dict(opts, spp=spp), edge)
         est[edge] = (head[edge].astype(np.float64) + rest[edge].astype(np.float64)) / spp

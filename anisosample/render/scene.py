@@ -18,6 +18,7 @@ from their front side only.
 from __future__ import annotations
 
 import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
@@ -57,8 +58,9 @@ class Camera(eqx.Module):
     rfilter_stddev: float = eqx.field(static=True, default=0.5)
     # The image's window of the whole film (Mitsuba's crop): (s0, t0, ds, dt), so that image
     # position (s, t) is film position (s0 + s ds, t0 + t dt); width x height are the window's
-    # pixels (render/camera.py's crop).
-    window: tuple = eqx.field(static=True, default=(0.0, 0.0, 1.0, 1.0))
+    # pixels (render/camera.py's crop). An array, not static: windows of one size share kernels.
+    window: Float[Array, "4"] = eqx.field(
+        default_factory=lambda: jnp.asarray([0.0, 0.0, 1.0, 1.0], jnp.float32))
 
 
 class Materials(eqx.Module):

@@ -180,7 +180,11 @@ def test_point_sets_follow_the_blocks(scene, est):
     pmj = samplers.get("pmj02bn")(key, SPP)
     np.testing.assert_array_equal(np.asarray(sets[0]), np.asarray(pmj))  # the render's pmj02bn
     pix = pix.reshape(SIZE, SIZE)
-    assert sets.shape == (len(al.table_directions) + 1, SPP, 2)
+    distinct = len(al.table_directions) + 1
+    rows = 1 << (distinct - 1).bit_length()  # padded with pmj02bn copies no pixel indexes
+    assert sets.shape == (rows, SPP, 2) and pix.max() < distinct
+    np.testing.assert_array_equal(np.asarray(sets[distinct:]),
+                                  np.broadcast_to(np.asarray(pmj), (rows - distinct, SPP, 2)))
     sh = aligned.block_sampler(scene, "sheared", estimate=est)
     assert not sh.gate  # the gate is on by default for "aligned" only
     sh_sets, sh_pix = sh.point_sets(key, SPP)
