@@ -94,8 +94,11 @@ def test_a_crop_renders_the_whole_images_pixel_values():
         b = R.pixel_integrand(full, (q[0] + 40, q[1] + 8))(x)
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-7)
     key = jax.random.key(0)
-    culled = R.render(part, key, spp=16, progress=False, culling=True)
-    plain = R.render(part, key, spp=16, progress=False, culling=False)
+    box = R.crop(R.load_xml(scenes.FOLDER / "cornell.xml", width=64, height=64), (40, 40),
+                 (24, 24))  # the right box and its shadow: other tiles would cull them
+    culled = R.render(box, key, spp=16, progress=False, culling=True)
+    plain = R.render(box, key, spp=16, progress=False, culling=False)
+    assert box.culling is None and culled.mean.std() > 0
     np.testing.assert_array_equal(culled.mean, plain.mean)
 
 
