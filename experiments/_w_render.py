@@ -213,15 +213,18 @@ def scene_settings(scale: dict, args) -> dict:
     return {**scale, "scale": args.scale, "seed": args.seed, "scenes": args.scenes.split(",")}
 
 
-def run_scenes(name: str, args, cfg: dict, run_scene):
+def run_scenes(name: str, args, cfg: dict, run_scene, *, catalog_keys: bool = False):
     """``run_scene(scene, cfg, key, out, fresh)`` for every shipped scene named in
-    ``args.scenes`` (key ``fold_in(key(seed), i)``), with progress; missing scenes are reported
-    and skipped. Returns ``(results, missing)``."""
+    ``args.scenes`` (key ``fold_in(key(seed), i)``, ``i`` its place in ``args.scenes``, or with
+    ``catalog_keys`` its place in :data:`SCENES`, so that a scene gets the same key in any
+    subset), with progress; missing scenes are reported and skipped. Returns
+    ``(results, missing)``."""
     present, missing = available_scenes(args.scenes.split(","))
     for s in missing:
         print(f"{s}: anisosample/scenes/{SCENES[s]['xml']} is not shipped; skipped")
     (args.out / "scenes").mkdir(parents=True, exist_ok=True)
     key = jax.random.key(args.seed)
-    results = {s: run_scene(s, cfg, jax.random.fold_in(key, i), args.out, args.fresh)
-               for i, s in enumerate(progress(present, desc=name))}
+    index = list(SCENES) if catalog_keys else present
+    results = {s: run_scene(s, cfg, jax.random.fold_in(key, index.index(s)), args.out,
+                            args.fresh) for s in progress(present, desc=name)}
     return results, missing

@@ -147,14 +147,16 @@ def run(name: str, doc: str | None, scales: dict, compute, *, figure=None, repor
     return data
 
 
-def devices_option(p) -> None:
-    """``--cpu-devices N`` (default: one per core): JAX's CPU backend starts with ``N`` devices
-    (``jax_num_cpu_devices``) for the renders to be split over (:func:`render_devices`); 1: one
-    device. On a GPU the option changes nothing: the GPUs are the devices."""
+def devices_option(p, default: int | None = None) -> None:
+    """``--cpu-devices N`` (``default``; None: one per core): JAX's CPU backend starts with
+    ``N`` devices (``jax_num_cpu_devices``) for the renders to be split over
+    (:func:`render_devices`); 1: one device. On a GPU the option changes nothing: the GPUs are
+    the devices."""
     import os
 
-    p.add_argument("--cpu-devices", type=int, default=os.cpu_count() or 1,
-                   help="JAX CPU devices to render over (default: one per core)")
+    n = default or os.cpu_count() or 1
+    p.add_argument("--cpu-devices", type=int, default=n,
+                   help=f"JAX CPU devices to render over (default: {n})")
 
 
 def render_devices(args) -> list | None:

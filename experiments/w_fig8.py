@@ -10,7 +10,7 @@ Per window, the principal directions are estimated per block (W Sec. 5.3,
 ``render.estimation.estimate_blocks`` with the gate's per-pixel probes), and every pixel's
 estimator (fixed primary hit, light or lens sample, luminance; W Sec. 6.2) is rendered with
 ``spp`` points by :func:`anisosample.render.render` -- the renderer's own samplers, split over
-the devices (``--cpu-devices``, default one per core; the same bits as one device) -- once per
+``--cpu-devices`` devices (default 1; the same bits on any number) -- once per
 realization, and its variance is the sample variance of the pixel's luminance over the
 ``realizations`` renders. Every method's render of realization ``r`` uses the key
 ``fold_in(window key, r)``: the same base pmj02bn set (one per realization, shared by the
@@ -31,10 +31,14 @@ pixels) and the same per-pixel toroidal shifts (W Sec. 5.4):
   ``spp`` are recorded (``pixel_search_samples_mean``; ``pixel_estimation_samples_mean`` adds
   the prefix that pixels without an edge take beside pmj02bn's ``spp``).
 
-Blocks without an extra direction use pmj02bn for every block method. W's 4-direction sets are
-not measured for the block method (``k=1``); the per-pixel sampler takes them at corners (built
-on demand into ``results/w_render_tables``). The image number is the mean pixel variance (W:
-"variance calculated over the entire image").
+Blocks without an extra direction use pmj02bn for every block method. Every method takes one
+extra direction (``k=1``: 3-direction sets), so the block and the per-pixel estimates are
+compared on the same family of sets; W's 4-direction sets at corners are W Fig. 9's subject.
+(With the per-pixel sampler's default ``k=2`` the windows of a 1280^2 image ask for hundreds
+of distinct 4-direction prefix sets, each built on demand in about 2 s: runs on cornell,
+blinds and attic built 644 before they were stopped, blinds and attic unfinished.) Sets missing
+from the installed tables are built into ``results/w_render_tables``. The image number is the
+mean pixel variance (W: "variance calculated over the entire image").
 
 Writes per scene and method ``<scene>_<method>_variance.exr`` (one channel: the windows side by
 side, row-major, row 0 on top) and a PNG panel ``w_fig8.png`` (log10 variance, one colour scale
@@ -110,7 +114,7 @@ def window_variance(scene, name, cfg, key, devices, probe):
     lum = np.asarray(LUMINANCE, np.float64)
     var, extra, search = {}, [], []
     for m, sampler in samplers.items():
-        opts = dict(table=W.TABLES, build_missing=True) if m == PIXEL else None
+        opts = dict(table=W.TABLES, build_missing=True, k=1) if m == PIXEL else None
         values = []
         for r in range(R):
             res = render.render(scene, jax.random.fold_in(key, r), spp=n, sampler=sampler,
@@ -144,7 +148,7 @@ def _mosaic(parts, k):
 def run_scene(name, cfg, key, out, fresh, devices=None):
     settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist()),
                 "estimation_samples": 96, "gate_probe": 6, "methods": list(METHODS),
-                "engine": "render, windows"}
+                "engine": "render, windows", "k": 1}
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
     exrs = [out / f"{name}_{_slug(m)}_variance.exr" for m in METHODS]
@@ -216,7 +220,9 @@ def figure(results, out):
 
 def arguments(p):
     W.scene_option(p)
-    common.devices_option(p)
+    # One device by default: over two forced CPU devices a 4096-spp run stopped making
+    # progress in one window (every thread waiting; docs/reproduction.md, W Fig. 8).
+    common.devices_option(p, default=1)
     p.add_argument("--spp", type=int, default=None, help="replace the scale's spp")
 
 
@@ -234,8 +240,8 @@ def compute(settings, args):
     images, is reused), the figure (drawn from those images) and the images' numbers."""
     cfg = {k: settings[k] for k in SCALES[args.scale]}
     devices = common.render_devices(args)  # before anything runs on JAX
-    results, missing = W.run_scenes(NAME, args, cfg, functools.partial(run_scene,
-                                                                       devices=devices))
+    results, missing = W.run_scenes(NAME, args, cfg, functools.partial(run_scene, devices=devices),
+                                    catalog_keys=True)  # a scene's numbers, whatever --scenes
     figure(results, args.out)
     images = {s: {m: np.round(asp.io.read_exr(args.out / f"{s}_{_slug(m)}_variance.exr")
                               .astype(float), 15).tolist() for m in METHODS} for s in results}
