@@ -205,7 +205,10 @@ def figure(results, out):
     for row, s in enumerate(names):
         imgs = [asp.io.read_exr(out / f"{s}_{_slug(m)}_variance.exr") for m in METHODS]
         logs = [np.log10(np.maximum(im, 1e-30)) for im in imgs]
-        pos = np.concatenate([lg[im > 0] for lg, im in zip(logs, imgs, strict=True)])
+        # the colour scale from the pixels that vary: float32 rounding alone (e.g. attic's sky,
+        # the same value in every realization up to its last bit) is not variance
+        floor = 1e-12 * max(float(im.max()) for im in imgs)
+        pos = np.concatenate([lg[im > floor] for lg, im in zip(logs, imgs, strict=True)])
         lo, hi = (np.percentile(pos, 2), np.percentile(pos, 99.5)) if pos.size else (-12, 0)
         for col, (m, lg) in enumerate(zip(METHODS, logs, strict=True)):
             ax = axes[row, col]
