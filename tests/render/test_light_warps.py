@@ -140,7 +140,9 @@ def test_arvo2001_value_is_lamberts_projected_solid_angle():
     assert value == pytest.approx(expected, rel=2e-4)
 
 
-@pytest.mark.parametrize("light_warp", ["arvo2001", "projected-solid-angle"])
+# arvo2001's case behind @slow (the suite's time): the same closed form as Peters' exact one.
+@pytest.mark.parametrize("light_warp", [pytest.param("arvo2001", marks=pytest.mark.slow),
+                                        "projected-solid-angle"])
 def test_exact_cosine_sampling_with_mis_has_the_closed_form_variance_of_the_bsdf_sample(
         light_warp):
     """With MIS (power heuristic, one light + one cosine-weighted BSDF sample) the exact
@@ -290,7 +292,7 @@ def _check_unbiased(scene_name, technique, light_warp, *, size, spp, realization
 
 @pytest.mark.parametrize(("scene_name", "light_warp"), [
     ("triangle_light", "cosine-bilinear"), ("cornell", "projected-solid-angle"),
-    ("glossy", "ltc")])
+    pytest.param("glossy", "ltc", marks=pytest.mark.slow)])  # 13 s; test_ltc covers LTC
 def test_light_warp_is_unbiased(scene_name, light_warp):
     """The cheap default cases; every scene and warp: the slow test below."""
     _check_unbiased(scene_name, "solid_angle", light_warp, size=8, spp=16, realizations=6,

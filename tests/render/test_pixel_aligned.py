@@ -27,7 +27,7 @@ def test_prefix_rule():
         PA.pixel_prefix(32)
 
 
-@pytest.mark.parametrize("normal_deg", [41.5, 131.5])
+@pytest.mark.parametrize("normal_deg", [41.5, pytest.param(131.5, marks=pytest.mark.slow)])
 def test_reuse_is_unbiased_on_a_rounding_boundary(normal_deg):
     """The worst case for a set chosen from the shifted prefix: the true direction halfway
     between two table directions, so the choice flips with the shift (measured: 41/42 about
