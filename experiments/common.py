@@ -161,15 +161,14 @@ def devices_option(p, default: int | None = None) -> None:
 
 def render_devices(args) -> list | None:
     """The ``devices`` argument of ``render(...)`` for the parsed ``--cpu-devices``: every local
-    device when there are several, else None (the default device). The first call configures
-    the CPU backend, so it must come before anything runs on JAX."""
+    device when there are several, else None (the default device). It configures the CPU
+    backend: call it once, before anything runs on JAX."""
     import jax
 
     if args.cpu_devices < 1:
         raise SystemExit(f"--cpu-devices must be at least 1, got {args.cpu_devices}")
-    if args.cpu_devices > 1 and not getattr(args, "_devices_set", False):
+    if args.cpu_devices > 1:
         jax.config.update("jax_num_cpu_devices", args.cpu_devices)
-        args._devices_set = True
     devices = jax.local_devices()
     return devices if len(devices) > 1 else None
 

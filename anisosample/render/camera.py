@@ -72,15 +72,11 @@ def crop(scene: Scene, offset, size) -> Scene:
     keys and blocks count from its own corner. The film's filter keeps its stddev in pixels."""
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
-    try:
-        x, y = (int(v) if float(v) == int(v) else None for v in offset)
-        w, h = (int(v) if float(v) == int(v) else None for v in size)
-    except (TypeError, ValueError):
-        raise TypeError(f"offset and size must be pairs of integers, got {offset!r} and "
-                        f"{size!r}") from None
-    if None in (x, y, w, h) or isinstance(offset, str) or isinstance(size, str):
+    pairs = [_integer_pair(offset), _integer_pair(size)]
+    if None in pairs:
         raise TypeError(f"offset and size must be pairs of integers, got {offset!r} and "
                         f"{size!r}")
+    (x, y), (w, h) = pairs
     cam = scene.camera
     if x < 0 or y < 0 or w < 1 or h < 1 or x + w > cam.width or y + h > cam.height:
         raise ValueError(f"the crop (offset {x}, {y}, size {w} x {h}) must lie inside the "
@@ -90,6 +86,16 @@ def crop(scene: Scene, offset, size) -> Scene:
                           dt * h / cam.height], jnp.float32)
     camera = dataclasses.replace(cam, width=w, height=h, window=window)
     return dataclasses.replace(scene, camera=camera, culling=None)
+
+
+def _integer_pair(v) -> tuple[int, int] | None:
+    """``v`` as two Python ints (integral numbers), or None if it is not such a pair."""
+    if isinstance(v, str) or not isinstance(v, (tuple, list, np.ndarray)) or len(v) != 2:
+        return None
+    try:
+        return tuple(int(a) for a in v) if all(float(a) == int(a) for a in v) else None
+    except (TypeError, ValueError):
+        return None
 
 
 class PrimaryHit(eqx.Module):

@@ -282,7 +282,8 @@ def probe_discontinuous(values, *, jump_ratio: float = JUMP_RATIO,
 PROBE_CALL_SAMPLES = 2**17
 """The most samples one jitted call of :func:`pixel_probes` evaluates. Its calls were one image
 row each (128 pixels x 36 samples at 128^2): on cornell's aligned render (128^2, 64 spp, one
-device) the probes took 98 ms (cProfile); batched, the whole render fell from 228 to 173 ms."""
+device) the probes took 98 ms (cProfile); batched, the whole render fell from 253 to 196 ms
+(best of 5 each, the same machine at load 0-0.4)."""
 
 
 def _probe_batch(pixels: int, m: int) -> int:
