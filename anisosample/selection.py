@@ -15,7 +15,10 @@ sampler (:mod:`anisosample.render.aligned`).
 * **Rounding** (:func:`table_directions`): each estimated direction, strongest first, is rounded
   to the nearest integer degree (halves up) modulo 180; a direction that rounds onto an axis
   (0 or 90, which every set holds) or onto a direction already taken is dropped; at most ``k``
-  (1 or 2) remain.
+  (1 or 2) remain. Beyond W, ``near_axis_deg`` (the per-pixel sampler's policy) lets a
+  direction that close to an axis go after the others: the set's axis line already serves its
+  edge in part, so when more directions are found than ``k`` allows, the set for a direction
+  off the axes gains more (measured in :data:`anisosample.render.pixel_aligned.NEAR_AXIS_DEG`).
 * **The set** (:func:`aligned_set`): one remaining direction takes the 3-direction set, two the
   4-direction set (W's four low-energy directions) -- never the 3-direction set in place of a
   missing 4-direction one. Sets come from :func:`anisosample.tables.lookup` after
@@ -47,22 +50,29 @@ from ._validate import check_choice, check_int
 from .metrics import midpoint_grid
 
 __all__ = ["FALLBACK", "AlignedSampler", "aligned_sampler", "aligned_sequence_sampler",
-           "aligned_set", "aligned_sets", "table_directions", "table_requests"]
+           "aligned_set", "aligned_sets", "check_near_axis", "table_directions",
+           "table_requests"]
 
 FALLBACK = "pmj02bn"
 """The set of an integrand, block or pixel without a direction off the axes (W Sec. 5.4: "an
 existing anisotropic sampling pattern"), and of a gated pixel."""
 
 
-def table_directions(directions_deg, k: int = 2) -> tuple[int, ...]:
+def table_directions(directions_deg, k: int = 2, *, near_axis_deg: float = 0.0
+                     ) -> tuple[int, ...]:
     """W Sec. 5.4's discretization: the integer extra directions a table set is asked for.
 
     ``directions_deg``: estimated spectral directions in degrees, strongest first (``None``
     entries are skipped: no direction). Each is rounded to the nearest integer degree, halves
     up, modulo 180; directions that round onto an axis (0, 90) or onto one already kept are
     dropped; the first ``k`` (1 or 2) are returned -- possibly none.
+
+    ``near_axis_deg`` (0, W's rule, to 45): rounded directions at most this many degrees from
+    an axis move behind the others before the first ``k`` are taken (each group keeps its
+    order); with no other direction they are still used.
     """
     k = check_int("k", k, minimum=1, maximum=2)
+    near_axis_deg = check_near_axis(near_axis_deg)
     if directions_deg is None or isinstance(directions_deg, int | float | np.number):
         directions_deg = (directions_deg,)
     out: list[int] = []
@@ -75,7 +85,20 @@ def table_directions(directions_deg, k: int = 2) -> tuple[int, ...]:
         r = int(math.floor(d + 0.5)) % 180
         if r not in _tables.AXES_DEG and r not in out:
             out.append(r)
+    if near_axis_deg > 0:
+        out.sort(key=lambda r: min(r % 90, 90 - r % 90) <= near_axis_deg)  # stable
     return tuple(out[:k])
+
+
+def check_near_axis(near_axis_deg) -> float:
+    """A validated ``near_axis_deg`` (:func:`table_directions`): a real number in [0, 45]."""
+    if isinstance(near_axis_deg, bool) or not isinstance(near_axis_deg, int | float | np.number):
+        raise TypeError(f"near_axis_deg must be a number of degrees, got "
+                        f"{type(near_axis_deg).__name__}")
+    v = float(near_axis_deg)
+    if not 0.0 <= v <= 45.0:
+        raise ValueError(f"near_axis_deg must be in [0, 45] degrees, got {near_axis_deg!r}")
+    return v
 
 
 def aligned_set(extra_deg, n: int, key=None, *, table=None, build_missing: bool | None = None,
@@ -103,10 +126,11 @@ def aligned_set(extra_deg, n: int, key=None, *, table=None, build_missing: bool 
     return pts if key is None else _samplers.toroidal_shift(key, pts)
 
 
-def table_requests(directions, k: int = 2) -> tuple[list, np.ndarray]:
+def table_requests(directions, k: int = 2, *, near_axis_deg: float = 0.0
+                   ) -> tuple[list, np.ndarray]:
     """The distinct table requests of many items (blocks, pixels): ``directions`` holds each
     item's estimated directions, strongest first (empty: none), rounded by
-    :func:`table_directions`. Returns ``(requests, index)``: the distinct non-empty requests in
+    :func:`table_directions` (with ``near_axis_deg``). Returns ``(requests, index)``: the distinct non-empty requests in
     order of first use and each item's index into them (``-1``: no direction off the axes,
     the item takes :data:`FALLBACK`)."""
     requests: list = []
@@ -115,7 +139,7 @@ def table_requests(directions, k: int = 2) -> tuple[list, np.ndarray]:
     for i, dirs in enumerate(directions):
         if len(dirs) == 0:
             continue
-        extra = table_directions(tuple(dirs), k)
+        extra = table_directions(tuple(dirs), k, near_axis_deg=near_axis_deg)
         if not extra:
             continue
         if extra not in where:

@@ -29,7 +29,9 @@ pixels) and the same per-pixel toroidal shifts (W Sec. 5.4):
   :mod:`anisosample.render.pixel_aligned`): the pixel's own edge search on its fixed prefix,
   its own prefix set (pmj02bn without an edge), the prefix reused; the search's samples beyond
   ``spp`` are recorded (``pixel_search_samples_mean``; ``pixel_estimation_samples_mean`` adds
-  the prefix that pixels without an edge take beside pmj02bn's ``spp``).
+  the prefix that pixels without an edge take beside pmj02bn's ``spp``). With one direction
+  allowed and two edges found, an edge within ``pixel_aligned.NEAR_AXIS_DEG`` of an axis yields
+  to the other (the record's ``near_axis_deg``).
 
 Blocks without an extra direction use pmj02bn for every block method. Every method takes one
 extra direction (``k=1``: 3-direction sets), so the block and the per-pixel estimates are
@@ -70,7 +72,7 @@ import numpy as np
 import anisosample as asp
 from anisosample import plot, render
 from anisosample.progress import progress
-from anisosample.render import aligned, estimation
+from anisosample.render import aligned, estimation, pixel_aligned
 from anisosample.render.scene import LUMINANCE
 
 NAME = "w_fig8"
@@ -114,7 +116,8 @@ def window_variance(scene, name, cfg, key, devices, probe):
     lum = np.asarray(LUMINANCE, np.float64)
     var, extra, search = {}, [], []
     for m, sampler in samplers.items():
-        opts = dict(table=W.TABLES, build_missing=True, k=1) if m == PIXEL else None
+        opts = (dict(table=W.TABLES, build_missing=True, k=1,
+                     near_axis_deg=pixel_aligned.NEAR_AXIS_DEG) if m == PIXEL else None)
         values = []
         for r in range(R):
             res = render.render(scene, jax.random.fold_in(key, r), spp=n, sampler=sampler,
@@ -148,7 +151,8 @@ def _mosaic(parts, k):
 def run_scene(name, cfg, key, out, fresh, devices=None):
     settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist()),
                 "estimation_samples": 96, "gate_probe": 6, "methods": list(METHODS),
-                "engine": "render, windows", "k": 1}
+                "engine": "render, windows", "k": 1,
+                "near_axis_deg": pixel_aligned.NEAR_AXIS_DEG}
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
     exrs = [out / f"{name}_{_slug(m)}_variance.exr" for m in METHODS]

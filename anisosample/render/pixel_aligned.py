@@ -56,7 +56,7 @@ from .integrator import pixel_samples, pixel_shift_key, sample_function
 from .options import IntegratorOptions
 from .scene import LUMINANCE, THINLENS, Scene
 
-__all__ = ["FALLBACK", "PIXEL_SAMPLERS", "PixelEstimates", "PixelSampler", "check_pixel_prefix",
+__all__ = ["FALLBACK", "NEAR_AXIS_DEG", "PIXEL_SAMPLERS", "PixelEstimates", "PixelSampler", "check_pixel_prefix",
            "choose_sets",
            "exact_values", "fallback_chunk", "fallback_shift_key", "integrand_estimates",
            "pixel_prefix", "pixel_sampler", "prefix_chunk", "prefix_sets", "prefix_weight",
@@ -68,6 +68,18 @@ PIXEL_SAMPLERS = ("aligned-pixel",)
 FALLBACK = selection.FALLBACK
 """The sampler of a pixel without an edge (module docstring, step 3):
 :data:`anisosample.selection.FALLBACK`."""
+
+
+NEAR_AXIS_DEG = 12.0
+"""The per-pixel sampler's ``near_axis_deg`` (:func:`anisosample.selection.table_directions`):
+with ``k = 1`` and two edges found, an edge within this many degrees of an axis yields to the
+other. Measured on W Fig. 6's corner integrands (``integrands.edges``, variance over pmj02bn's,
+4096 shifts, n = 256 / 1024), the 3-direction set for the edge near the axis against the set for
+the other edge at 114 degrees: 2 degrees 0.65 / 0.63 against 0.43 / 0.41, 3: 0.60 / 0.57
+against 0.49 / 0.48, 8: 0.65 / 0.56 against 0.55 / 0.48, 12: 0.57 / 0.50 against 0.49 / 0.47,
+but 20: 0.45 / 0.47 against 0.52 / 0.53; (5, 60) 0.72 / 0.56 against 0.57 / 0.46, (92, 60)
+0.72 / 0.54 against 0.37 / 0.38. So up to 12 degrees the set's axis line serves the near edge
+well enough that the other edge's set gains more."""
 
 
 def prefix_weight(m: int, n: int) -> float:
@@ -117,6 +129,7 @@ class PixelSampler:
     table: object = None
     build_missing: bool | None = None
     build_options: dict = dataclasses.field(default_factory=dict)
+    near_axis_deg: float = NEAR_AXIS_DEG
 
     name = "aligned-pixel"
 
@@ -128,7 +141,7 @@ class PixelSampler:
     def settings(self) -> dict:
         """What a render records about the sampler (EXR metadata); the render adds the counts."""
         return dict(point_set="aligned-pixel", k=self.k, fallback=FALLBACK,
-                    search=self.search._asdict())
+                    near_axis_deg=self.near_axis_deg, search=self.search._asdict())
 
 
 def prefix_sets(requests, spp: int, *, table=None, build_missing: bool | None = None,
@@ -157,7 +170,8 @@ class PixelEstimates(eqx.Module):
 
 def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=None,
                         build_missing: bool | None = None, build_options: dict | None = None,
-                        prefix: str | None = None, **search) -> PixelEstimates:
+                        prefix: str | None = None, near_axis_deg: float = NEAR_AXIS_DEG,
+                        **search) -> PixelEstimates:
     """The per-pixel aligned estimator of one 2D integrand ``f`` (the renderer's two passes at
     the level of :func:`anisosample.variance.realization_estimates`): per realization one
     toroidal shift from ``key``, the prefix's values, :func:`anisosample.edges.search`, the set
@@ -170,6 +184,7 @@ def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=
     n = check_int("n", n, minimum=64)
     realizations = check_int("realizations", realizations, minimum=1)
     k = check_int("k", k, minimum=1, maximum=2)
+    near_axis_deg = selection.check_near_axis(near_axis_deg)
     o = edges.search_options(**search)
     name = check_pixel_prefix(prefix, n)
     prefix = jnp.asarray(prefix_points(name), jnp.float32)
@@ -178,7 +193,7 @@ def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=
     x = jax.vmap(toroidal_shift, in_axes=(0, None))(keys, prefix)
     head = f(x)
     r = jax.vmap(lambda xx, vv: edges.search(f, xx, vv, o))(x, head)
-    requests, index, code = choose_sets(r.directions_deg, r.count, k)
+    requests, index, code = choose_sets(r.directions_deg, r.count, k, near_axis_deg)
     head = np.asarray(jnp.sum(head, axis=1), np.float64)
     est = np.empty(realizations, np.float64)
     edge = index >= 0
@@ -200,9 +215,11 @@ def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=
 
 
 def pixel_sampler(scene: Scene, *, k: int = 2, table=None, build_missing: bool | None = None,
-                  build_options: dict | None = None, **search) -> PixelSampler:
-    """The per-pixel aligned sampler for ``scene``: at most ``k`` (1 or 2) directions per pixel;
-    ``search``: :class:`anisosample.edges.SearchOptions` fields; ``table``, ``build_missing``,
+                  build_options: dict | None = None, near_axis_deg: float = NEAR_AXIS_DEG,
+                  **search) -> PixelSampler:
+    """The per-pixel aligned sampler for ``scene``: at most ``k`` (1 or 2) directions per pixel,
+    directions within ``near_axis_deg`` of an axis after the others (:data:`NEAR_AXIS_DEG`;
+    0: W's rule, strongest first); ``search``: :class:`anisosample.edges.SearchOptions` fields; ``table``, ``build_missing``,
     ``build_options``: the prefix sets' lookup (:func:`anisosample.tables.lookup`: missing sets
     are built into the user cache unless ``build_missing=False``)."""
     if not isinstance(scene, Scene):
@@ -213,7 +230,8 @@ def pixel_sampler(scene: Scene, *, k: int = 2, table=None, build_missing: bool |
     if build_options is not None and not isinstance(build_options, dict):
         raise TypeError(f"build_options must be a dict, got {type(build_options).__name__}")
     return PixelSampler(scene.width, scene.height, k, edges.search_options(**search), table,
-                        build_missing, dict(build_options or {}))
+                        build_missing, dict(build_options or {}),
+                        selection.check_near_axis(near_axis_deg))
 
 
 def exact_values(scene: Scene, options: IntegratorOptions) -> bool:
@@ -343,14 +361,16 @@ def fallback_chunk(scene: Scene, base, key, pixels, *, spp, m, options: Integrat
     return _over(one, pixels)
 
 
-def choose_sets(directions_deg, count, k: int) -> tuple[list, np.ndarray, np.ndarray]:
-    """Per pixel, W Sec. 5.4's table request from its directions: ``(requests, index, code)``
+def choose_sets(directions_deg, count, k: int, near_axis_deg: float = 0.0
+                ) -> tuple[list, np.ndarray, np.ndarray]:
+    """Per pixel, W Sec. 5.4's table request from its directions (``near_axis_deg``:
+    :func:`anisosample.selection.table_directions`): ``(requests, index, code)``
     with ``index`` each pixel's request (-1: none) and ``code`` its
     :data:`~anisosample.render.aligned.PIXEL_CODES` (3: a 3-direction set, 4: a 4-direction
     set, 5: no direction off the axes, the fallback)."""
     dirs = np.asarray(directions_deg, np.float64).reshape(-1, 2)
     count = np.asarray(count).reshape(-1)
     requests, index = selection.table_requests(
-        [dirs[q, :max(int(c), 0)] for q, c in enumerate(count)], k)
+        [dirs[q, :max(int(c), 0)] for q, c in enumerate(count)], k, near_axis_deg=near_axis_deg)
     sizes = np.asarray([len(r) + 2 for r in requests] + [5], np.int8)
     return requests, index, sizes[index].astype(np.int8)

@@ -156,3 +156,33 @@ def test_table_requests_are_the_distinct_rounded_requests():
     assert requests == [(30,), (30, 100)]
     assert index.tolist() == [0, -1, -1, 1, 0]
     assert selection.FALLBACK == "pmj02bn"
+
+
+def test_near_axis_directions_yield_to_one_off_the_axes():
+    """``near_axis_deg`` reorders only: a direction within it of an axis goes behind the
+    others, keeps its place among its group, and is still used when it is all there is."""
+    from anisosample import selection
+
+    ts = selection.table_directions
+    assert ts((2.2, 114.6), 1) == (2,)  # W's rule: strongest first
+    assert ts((2.2, 114.6), 1, near_axis_deg=12) == (115,)
+    assert ts((178.4, 60.0), 1, near_axis_deg=12) == (60,)  # 2 degrees from 0 (mod 180)
+    assert ts((92.0, 60.0), 1, near_axis_deg=12) == (60,)
+    assert ts((20.0, 114.0), 1, near_axis_deg=12) == (20,)  # 20 is past the threshold
+    assert ts((12.0, 114.0), 1, near_axis_deg=12) == (114,)  # the threshold is inclusive
+    assert ts((2.0, 114.0), 2, near_axis_deg=12) == (114, 2)
+    assert ts((3.0, 5.0), 1, near_axis_deg=12) == (3,)
+    assert ts((3.0,), 1, near_axis_deg=12) == (3,)
+    assert ts((0.3, 3.0), 1, near_axis_deg=12) == (3,)  # onto the axis: dropped as before
+    requests, index = selection.table_requests([(2.0, 114.0), (114.0, 2.0), (3.0,)], k=1,
+                                               near_axis_deg=12)
+    assert requests == [(114,), (3,)]
+    assert index.tolist() == [0, 0, 1]
+    from anisosample.render import pixel_aligned as PA
+
+    dirs = np.array([[2.0, 114.0], [114.0, 2.0], [3.0, np.nan]])
+    requests, index, code = PA.choose_sets(dirs, [2, 2, 1], 1, PA.NEAR_AXIS_DEG)
+    assert requests == [(114,), (3,)] and index.tolist() == [0, 0, 1]
+    assert PA.choose_sets(dirs, [2, 2, 1], 1)[0] == [(2,), (114,), (3,)]  # W's rule
+    assert PA.pixel_sampler(R.load_xml(SCENES / "cornell.xml", width=8, height=8)
+                            ).near_axis_deg == PA.NEAR_AXIS_DEG
