@@ -360,3 +360,26 @@ def test_sequence_with_prefix_same_key_same_bits_in_another_process():
                                          show_progress=False)
     assert out.stdout.strip().splitlines()[-1] == hashlib.sha256(
         np.asarray(here.points).tobytes()).hexdigest()
+
+
+def test_shipped_per_pixel_prefix_table_is_what_the_library_builds(tmp_path):
+    """``d3_n64_dihedral-16`` (the per-pixel sampler's sets at 64 spp) is complete, serves the
+    prefix bit for bit, and its set for 30 degrees equals one built by the command it was built
+    with (in a process compiling as a user's does: the suite's LLVM level changes float32
+    rounding, tests/conftest.py)."""
+    import subprocess
+    import sys
+
+    from helpers import default_compile_env
+
+    path = tables.shipped_dir() / "d3_n64_dihedral-16"
+    tab = tables.open_table(path)
+    assert tab.complete and tab.n == 64 and tab.settings["synthesis"]["prefix"] == "dihedral-16"
+    assert P.prefix_size("dihedral-16") == 16
+    subprocess.run([sys.executable, "-m", "anisosample.cli", "tables", "build", "--n", "64",
+                    "--prefix", "dihedral-16", "--sets", "30", "--out", str(tmp_path / "t"),
+                    "--no-progress"], env=default_compile_env(), check=True, capture_output=True)
+    np.testing.assert_array_equal(tables.open_table(tmp_path / "t").load((30,)), tab.load((30,)))
+    for extra in (30, 137):
+        pts = np.asarray(tables.lookup([0, 90, extra], 64, prefix="dihedral-16"))
+        np.testing.assert_array_equal(pts[:16], P.dihedral_points(16))
