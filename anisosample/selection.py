@@ -130,9 +130,9 @@ def table_requests(directions, k: int = 2, *, near_axis_deg: float = 0.0
                    ) -> tuple[list, np.ndarray]:
     """The distinct table requests of many items (blocks, pixels): ``directions`` holds each
     item's estimated directions, strongest first (empty: none), rounded by
-    :func:`table_directions` (with ``near_axis_deg``). Returns ``(requests, index)``: the distinct non-empty requests in
-    order of first use and each item's index into them (``-1``: no direction off the axes,
-    the item takes :data:`FALLBACK`)."""
+    :func:`table_directions` (with ``near_axis_deg``). Returns ``(requests, index)``: the
+    distinct non-empty requests in order of first use and each item's index into them
+    (``-1``: no direction off the axes, the item takes :data:`FALLBACK`)."""
     requests: list = []
     where: dict = {}
     index = np.full(len(directions), -1, np.int32)

@@ -10,8 +10,8 @@ a killed-and-resumed one.
 from __future__ import annotations
 
 import json
-import re
 import os
+import re
 import signal
 import subprocess
 import sys

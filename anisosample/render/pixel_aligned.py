@@ -56,8 +56,8 @@ from .integrator import pixel_samples, pixel_shift_key, sample_function
 from .options import IntegratorOptions
 from .scene import LUMINANCE, THINLENS, Scene
 
-__all__ = ["FALLBACK", "NEAR_AXIS_DEG", "PIXEL_SAMPLERS", "PixelEstimates", "PixelSampler", "check_pixel_prefix",
-           "choose_sets",
+__all__ = ["FALLBACK", "NEAR_AXIS_DEG", "PIXEL_SAMPLERS", "PixelEstimates", "PixelSampler",
+           "check_pixel_prefix", "choose_sets",
            "exact_values", "fallback_chunk", "fallback_shift_key", "integrand_estimates",
            "pixel_prefix", "pixel_sampler", "prefix_chunk", "prefix_sets", "prefix_weight",
            "rest_chunk", "search_chunk", "toroidal_shift_key"]
@@ -219,9 +219,10 @@ def pixel_sampler(scene: Scene, *, k: int = 2, table=None, build_missing: bool |
                   **search) -> PixelSampler:
     """The per-pixel aligned sampler for ``scene``: at most ``k`` (1 or 2) directions per pixel,
     directions within ``near_axis_deg`` of an axis after the others (:data:`NEAR_AXIS_DEG`;
-    0: W's rule, strongest first); ``search``: :class:`anisosample.edges.SearchOptions` fields; ``table``, ``build_missing``,
-    ``build_options``: the prefix sets' lookup (:func:`anisosample.tables.lookup`: missing sets
-    are built into the user cache unless ``build_missing=False``)."""
+    0: W's rule, strongest first); ``search``: :class:`anisosample.edges.SearchOptions`
+    fields; ``table``, ``build_missing``, ``build_options``: the prefix sets' lookup
+    (:func:`anisosample.tables.lookup`: missing sets are built into the user cache unless
+    ``build_missing=False``)."""
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
     k = check_int("k", k, minimum=1, maximum=2)
