@@ -168,23 +168,23 @@ def test_prefixed_table_serves_the_prefix_for_every_transform(cache):
     # one request per symmetry transform of the canonical set psi_030
     for dirs in ([0, 90, 30], [0, 90, 150], [0, 90, 60], [0, 90, 120]):
         seen.add(tables.canonicalize(dirs).transform)
-        tables.ensure([dirs], 64, prefix="dihedral-16", show_progress=False, steps=10,
+        tables.ensure([dirs], 128, prefix="dihedral-16", show_progress=False, steps=10,
                       method="direct")
-        pts = np.asarray(tables.lookup(dirs, 64, prefix="dihedral-16"))
+        pts = np.asarray(tables.lookup(dirs, 128, prefix="dihedral-16"))
         assert pts[:16].tobytes() == pre.tobytes()
         # the rest is the canonical set under that transform: the same multiset of points
-        canon = np.asarray(tables.lookup([0, 90, 30], 64, prefix="dihedral-16"))
+        canon = np.asarray(tables.lookup([0, 90, 30], 128, prefix="dihedral-16"))
         t = tables.canonicalize(dirs).transform
         moved = np.mod(tables.transform_points(canon, t) + np.float32(P.TABLE_SHIFTS[t]), 1)
         moved = np.minimum(moved, np.float32(1 - 2**-24)).astype(np.float32)
         assert sorted(map(tuple, moved.tolist())) == sorted(map(tuple, pts.tolist()))
     assert seen == set(tables.TRANSFORMS)
-    assert (cache / "d3_n64_dihedral-16" / "psi_030.npz").exists()
+    assert (cache / "d3_n128_dihedral-16" / "psi_030.npz").exists()
     # the table records its prefix; asking it for another prefix is refused
-    tab = tables.open_table(cache / "d3_n64_dihedral-16")
+    tab = tables.open_table(cache / "d3_n128_dihedral-16")
     assert tables.table_prefix(tab) == "dihedral-16"
     with pytest.raises(ValueError, match="prefix"):
-        tables.lookup([0, 90, 30], 64, table=cache / "d3_n64_dihedral-16",
+        tables.lookup([0, 90, 30], 128, table=cache / "d3_n128_dihedral-16",
                       prefix="dihedral-8")
 
 
