@@ -4,8 +4,8 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 SCALE  ?= small
 # 2 workers by default (the reference machine has 2 cores); override with `make test JOBS=1`.
-# Three workers on the 2 cores were slower (fresh clones, 2026-12-06: pytest 724 s with
-# JOBS=3 against 637 s with 2, all tests passing in the first).
+# Three workers on the 2 cores were slower (fresh clones of 2026-12-06, one right after the
+# other: pytest 724 s with JOBS=3, all passing, against 637 s with 2, one test failing).
 JOBS   ?= 2
 # pytest-xdist's worksteal: each worker starts on half the tests and an idle one takes from the
 # other's queue, so the run does not end waiting on a long test. Measured (2026-12-06, default
