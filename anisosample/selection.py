@@ -47,7 +47,7 @@ import numpy as np
 from . import samplers as _samplers
 from . import tables as _tables
 from ._validate import check_choice, check_int
-from .metrics import midpoint_grid
+from .metrics import midpoint_grid, off_axis_deg
 
 __all__ = ["FALLBACK", "AlignedSampler", "aligned_sampler", "aligned_sequence_sampler",
            "aligned_set", "aligned_sets", "check_near_axis", "table_directions",
@@ -71,8 +71,12 @@ def table_directions(directions_deg, k: int = 2, *, near_axis_deg: float = 0.0
     an axis move behind the others before the first ``k`` are taken (each group keeps its
     order); with no other direction they are still used.
     """
-    k = check_int("k", k, minimum=1, maximum=2)
-    near_axis_deg = check_near_axis(near_axis_deg)
+    return _table_directions(directions_deg, check_int("k", k, minimum=1, maximum=2),
+                             check_near_axis(near_axis_deg))
+
+
+def _table_directions(directions_deg, k: int, near_axis_deg: float) -> tuple[int, ...]:
+    """:func:`table_directions` with ``k`` and ``near_axis_deg`` already validated."""
     if directions_deg is None or isinstance(directions_deg, int | float | np.number):
         directions_deg = (directions_deg,)
     out: list[int] = []
@@ -86,7 +90,7 @@ def table_directions(directions_deg, k: int = 2, *, near_axis_deg: float = 0.0
         if r not in _tables.AXES_DEG and r not in out:
             out.append(r)
     if near_axis_deg > 0:
-        out.sort(key=lambda r: min(r % 90, 90 - r % 90) <= near_axis_deg)  # stable
+        out.sort(key=lambda r: off_axis_deg(r) <= near_axis_deg)  # stable
     return tuple(out[:k])
 
 
@@ -133,13 +137,15 @@ def table_requests(directions, k: int = 2, *, near_axis_deg: float = 0.0
     :func:`table_directions` (with ``near_axis_deg``). Returns ``(requests, index)``: the
     distinct non-empty requests in order of first use and each item's index into them
     (``-1``: no direction off the axes, the item takes :data:`FALLBACK`)."""
+    k = check_int("k", k, minimum=1, maximum=2)
+    near_axis_deg = check_near_axis(near_axis_deg)
     requests: list = []
     where: dict = {}
     index = np.full(len(directions), -1, np.int32)
     for i, dirs in enumerate(directions):
         if len(dirs) == 0:
             continue
-        extra = table_directions(tuple(dirs), k, near_axis_deg=near_axis_deg)
+        extra = _table_directions(tuple(dirs), k, near_axis_deg)
         if not extra:
             continue
         if extra not in where:

@@ -433,9 +433,9 @@ api("selection-table-directions-near-axis-big", lambda d: A().selection.table_di
     [30.0], near_axis_deg=60), ValueError, r"near_axis_deg must be in \[0, 45\]", owner="selection")
 api("selection-table-directions-near-axis-str", lambda d: A().selection.table_directions(
     [30.0], near_axis_deg="5"), TypeError, r"near_axis_deg must be a number", owner="selection")
-api("pixel-sampler-near-axis-nan", lambda d: A().render.pixel_aligned.pixel_sampler(
-    scene(d), near_axis_deg=NAN), ValueError, r"near_axis_deg must be in \[0, 45\]",
-    owner=RENDER_OWNER)
+api("pixel-sampler-near-axis-nan", lambda d: A().render.render(
+    scene(d), key(), sampler="aligned-pixel", sampler_options={"near_axis_deg": NAN},
+    progress=False), ValueError, r"near_axis_deg must be in \[0, 45\]", owner=RENDER_OWNER)
 api("selection-aligned-set-n-zero", lambda d: A().selection.aligned_set((30,), 0), ValueError,
     r"n must be >= ", owner="selection")
 api("selection-aligned-values-nan", lambda d: A().samplers.get("aligned",
