@@ -13,9 +13,10 @@ gathered rows against steps: one device, 64^2 x 16 spp, best of 3 (load 1.0), LE
 8 ms per image: 9,800-triangle mesh 161 / 150-158 / 176-183, 99k-triangle mesh 220 / 218-222 /
 234.
 
-Layout (binary tree, flattened): node ``i`` is a leaf when ``count[i] > 0`` (its primitives are
-``start[i] .. start[i] + count[i] - 1`` of the reordered rows), else an interior node whose
-children ``child[i]`` have their boxes stored in the parent (``box[i]``: one gather gives both).
+Layout (binary tree, flattened): ``node[i] = (child 0, child 1, start, count)``; node ``i`` is a
+leaf when ``count > 0`` (its primitives are ``start .. start + count - 1`` of the reordered
+rows), else an interior node whose children have their boxes stored in the parent (``box[i]``:
+one read gives both).
 Boxes are padded by a small multiple of the scene scale so that the float32 slab test never
 culls a primitive that the primitive test would hit (the traversal's results equal brute force).
 
@@ -34,7 +35,17 @@ vmaps flatten into one) runs :func:`_traverse_queue` instead: :data:`LANES` lane
 and a lane whose ray is done takes the next one from the batch. Each ray takes the same steps,
 so the results are the same bits. One device, light sampling, best of 3: the 9,800-triangle mesh
 at 64^2 x 16 spp 536 -> 184 ms, the 99k-triangle one at 128^2 x 64 spp 9.6 -> 3.6-3.8 s
-(lanes 1024-8192 within noise of each other, 16384 slower).
+(lanes 1024-8192 within noise of each other, 16384 slower). Two steps per refill (finished rays
+masked) were no faster: 164 ms against 146 for the 9,800-triangle image.
+
+A step reads its node and its leaf rows as slices (``lax.dynamic_slice``) and its stack through
+masks: a vmapped index into ``count``, ``start``, ``child``, ``rows[start + lane]`` or
+``stack[sp]`` becomes an XLA gather or scatter of single elements, which XLA:CPU runs as a
+generic loop. On 4096 lanes into the 99k-triangle mesh (no YNNPACK, as the render kernels
+compile), ns per lane-step, best of 15 over 200 steps, load 0.8-1.3: gathers 46-67 (two
+modes), slices and masks 39-40; the render of the mesh at 128^2 x 64 spp over both CPU devices
+0.72 -> 0.92 M samples/s (load 1.4-1.8), the same image bits. Unrolling the leaf's minimum over
+its four slots instead of ``argmin`` was slower (49-50 ns).
 """
 
 from __future__ import annotations
@@ -68,17 +79,16 @@ _PAD = 2.0**-16  # box padding, relative to the largest coordinate magnitude
 class BVH(eqx.Module):
     """A flattened binary BVH over a scene's planar primitives (see the module docstring)."""
 
-    box: Float[Array, "n 2 2 3"]  # interior nodes: [child, min/max, xyz] of both children
-    child: Int[Array, "n 2"]
-    start: Int[Array, " n"]  # leaves: first slot in ``rows``
-    count: Int[Array, " n"]  # leaves: primitive count (> 0); interior nodes: 0
+    box: Float[Array, "n 12"]  # interior nodes: both children's boxes, [child, min/max, xyz]
+    node: Int[Array, "n 4"]  # (child 0, child 1, start, count): leaves have count > 0 and their
+    # primitives in rows start .. start + count - 1; interior nodes count 0
     rows: Float[Array, "p 13"]  # plane-test rows (builder._plane_rows) in leaf order, padded
     prim: Int[Array, " p"]  # the scene's primitive index of each row
     depth: int = eqx.field(static=True, default=1)  # stack size for traversal
 
     @property
     def num_nodes(self) -> int:
-        return int(self.count.shape[0])
+        return int(self.node.shape[0])
 
 
 def _segments(starts: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -206,11 +216,11 @@ def build_bvh(rows: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: float,
     rows = np.asarray(rows, np.float64).T[order]
     dummy = np.zeros((leaf_size, 13))
     dummy[:, 7] = 1.0  # never a hit (as builder._plane_rows' degenerate rows)
+    node = np.concatenate([np.where(leaf[:, None], 0, child),
+                           np.where(leaf, start, 0)[:, None], np.where(leaf, count, 0)[:, None]], 1)
     return BVH(
-        box=jnp.asarray(box, jnp.float32),
-        child=jnp.asarray(np.where(leaf[:, None], 0, child), jnp.int32),
-        start=jnp.asarray(np.where(leaf, start, 0), jnp.int32),
-        count=jnp.asarray(np.where(leaf, count, 0), jnp.int32),
+        box=jnp.asarray(box.reshape(-1, 12), jnp.float32),
+        node=jnp.asarray(node, jnp.int32),
         rows=jnp.asarray(np.concatenate([rows, dummy]), jnp.float32),
         prim=jnp.asarray(np.concatenate([order, np.zeros(leaf_size, np.int64)]), jnp.int32),
         depth=int(depth),
@@ -261,6 +271,11 @@ def _active(state, any_hit: bool):
     return go & ~jnp.isfinite(state[3]) if any_hit else go
 
 
+def _row(a, i, size: int):
+    """Rows ``i .. i + size - 1`` of ``a`` (a slice; ``i`` is clamped into range)."""
+    return jax.lax.dynamic_slice_in_dim(a, i, size)
+
+
 def _step(bvh: BVH, ray, state):
     """One node of one ray's traversal: a leaf's plane tests, or an interior node's slab tests
     and the stack; ``ray`` is ``(o, d, inv_d, tmin, tmax)``."""
@@ -268,13 +283,14 @@ def _step(bvh: BVH, ray, state):
     node, sp, stack, best_t, best_p, b1s, b2s = state
     lane = jnp.arange(LEAF_SIZE, dtype=jnp.int32)
     inf = jnp.float32(jnp.inf)
-    cnt = bvh.count[node]
+    # Slices of contiguous rows, not gathers of single elements: XLA:CPU emits a generic loop
+    # per gathered element (the whole step took 1.2-1.7x as long so; module docstring).
+    ch0, ch1, first, cnt = _row(bvh.node, node, 1)[0]
     leaf = cnt > 0
     # Leaf: the plane test on its LEAF_SIZE slots (the unused ones masked).
-    slot = bvh.start[node] + lane
-    r = bvh.rows[slot].T
+    r = _row(bvh.rows, first, LEAF_SIZE).T
     t, b1, b2 = plane_test(r, o, d)
-    pid = bvh.prim[slot]
+    pid = _row(bvh.prim, first, LEAF_SIZE)
     t = jnp.where(leaf & (lane < cnt) & (t > tmin) & (t < tmax), t, inf)
     j = jnp.argmin(jnp.where(t == jnp.min(t), pid, _NO_PRIM))
     tj, pj = t[j], pid[j]
@@ -284,18 +300,21 @@ def _step(bvh: BVH, ray, state):
     b1s = jnp.where(better, b1[j], b1s)
     b2s = jnp.where(better, b2[j], b2s)
     # Interior: both children's boxes (culled beyond the nearest hit so far).
-    tn, hit = _slab(bvh.box[node], o, inv_d, tmin, jnp.minimum(tmax, best_t))
+    tn, hit = _slab(_row(bvh.box, node, 1).reshape(2, 2, 3), o, inv_d, tmin,
+                    jnp.minimum(tmax, best_t))
     hit = hit & ~leaf
-    ch = bvh.child[node]
+    ch = (ch0, ch1)
     near_first = tn[0] <= tn[1]
     near = jnp.where(near_first, ch[0], ch[1])
     far = jnp.where(near_first, ch[1], ch[0])
     both = hit[0] & hit[1]
     one = jnp.where(hit[0], ch[0], ch[1])
-    top = stack[jnp.maximum(sp - 1, 0)]
+    # The stack's top and push as masks over its slots, not a gather and a scatter.
+    slots = jnp.arange(stack.shape[0], dtype=jnp.int32)
+    top = jnp.sum(jnp.where(slots == sp - 1, stack, 0))
     popped = jnp.where(sp > 0, top, -1)
     nxt = jnp.where(both, near, jnp.where(hit[0] | hit[1], one, popped))
-    stack = jnp.where(both, stack.at[sp].set(far), stack)
+    stack = jnp.where(both & (slots == sp), far, stack)
     sp = jnp.where(both, sp + 1, jnp.where(hit[0] | hit[1], sp, jnp.maximum(sp - 1, 0)))
     return nxt, sp, stack, best_t, best_p, b1s, b2s
 

@@ -169,7 +169,8 @@ def test_intersect_equals_brute_force_with_spheres_and_patches():
 def test_tree_holds_every_primitive_once_inside_its_boxes():
     scene = _soup(500, 7, parallelograms=5, bvh=True)
     bv = scene.bvh
-    count, start, child = (np.asarray(a) for a in (bv.count, bv.start, bv.child))
+    node = np.asarray(bv.node)
+    child, start, count = node[:, :2], node[:, 2], node[:, 3]
     prim = np.asarray(bv.prim)
     leaf = count > 0
     assert np.all(count[leaf] <= B.LEAF_SIZE)
