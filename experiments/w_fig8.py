@@ -32,6 +32,11 @@ pixels) and the same per-pixel toroidal shifts (W Sec. 5.4):
   the prefix that pixels without an edge take beside pmj02bn's ``spp``). With one direction
   allowed and two edges found, an edge within ``pixel_aligned.NEAR_AXIS_DEG`` of an axis yields
   to the other (the record's ``near_axis_deg``).
+* ``aligned (pixel apart)`` (beyond W: the same search and choice, with probes apart,
+  ``sampler_options={"reuse": False}``): the prefix only drives the search, and every pixel's
+  estimate is ``spp`` points of its set without a prefix (pmj02bn without an edge). Its
+  estimation samples are not counted, as W's block probes are not; the difference to
+  ``aligned (pixel)`` is the price of the fixed prefix at this ``spp``.
 
 Blocks without an extra direction use pmj02bn for every block method. Every method takes one
 extra direction (``k=1``: 3-direction sets), so the block and the per-pixel estimates are
@@ -78,7 +83,8 @@ from anisosample.render.scene import LUMINANCE
 NAME = "w_fig8"
 GATED = "aligned 3-dir gated"
 PIXEL = "aligned (pixel)"
-METHODS = (*W.METHODS, GATED, PIXEL)
+APART = "aligned (pixel apart)"
+METHODS = (*W.METHODS, GATED, PIXEL, APART)
 SCALES = {
     "small": dict(film=1280, windows=4, window=32, block_px=16, spp=256, realizations=16),
     "paper": dict(film=1280, windows=8, window=64, block_px=16, spp=4096, realizations=32),
@@ -112,12 +118,13 @@ def window_variance(scene, name, cfg, key, devices, probe):
     samplers = {"pmj02bn": "pmj02bn",
                 "sheared pmj02bn": aligned.block_sampler(scene, "sheared", estimate=est, k=1,
                                                          options=options),
-                "aligned 3-dir": blocks, PIXEL: "aligned-pixel"}
+                "aligned 3-dir": blocks, PIXEL: "aligned-pixel", APART: "aligned-pixel"}
     lum = np.asarray(LUMINANCE, np.float64)
     var, extra, search = {}, [], []
     for m, sampler in samplers.items():
         opts = (dict(table=W.TABLES, build_missing=True, k=1,
-                     near_axis_deg=pixel_aligned.NEAR_AXIS_DEG) if m == PIXEL else None)
+                     near_axis_deg=pixel_aligned.NEAR_AXIS_DEG, reuse=m == PIXEL)
+                if m in (PIXEL, APART) else None)
         values = []
         for r in range(R):
             res = render.render(scene, jax.random.fold_in(key, r), spp=n, sampler=sampler,

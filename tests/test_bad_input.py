@@ -436,6 +436,9 @@ api("selection-table-directions-near-axis-str", lambda d: A().selection.table_di
 api("pixel-sampler-near-axis-nan", lambda d: A().render.render(
     scene(d), key(), sampler="aligned-pixel", sampler_options={"near_axis_deg": NAN},
     progress=False), ValueError, r"near_axis_deg must be in \[0, 45\]", owner=RENDER_OWNER)
+api("pixel-sampler-reuse-str", lambda d: A().render.render(
+    scene(d), key(), sampler="aligned-pixel", sampler_options={"reuse": "no"},
+    progress=False), TypeError, r"reuse must be True or False", owner=RENDER_OWNER)
 api("selection-aligned-set-n-zero", lambda d: A().selection.aligned_set((30,), 0), ValueError,
     r"n must be >= ", owner="selection")
 api("selection-aligned-values-nan", lambda d: A().samplers.get("aligned",

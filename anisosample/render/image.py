@@ -373,9 +373,9 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
     from .aligned import pad_sets
     from .pixel_aligned import (
         FALLBACK,
+        apart_chunk,
         choose_sets,
         exact_values,
-        fallback_chunk,
         pixel_prefix,
         prefix_chunk,
         prefix_weight,
@@ -408,33 +408,42 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
     edge = np.flatnonzero(index >= 0)
     smooth = np.flatnonzero(index < 0)
     est = np.zeros((index.size, 3), np.float64)
+    apart = dict(opts, spp=spp, m=m)
     if edge.size:
         sets = sampler.sets(requests, spp, progress=progress)
-        if not bool(jnp.all(sets[:, :m] == prefix[None])):
+        if sampler.reuse and not bool(jnp.all(sets[:, :m] == prefix[None])):
             raise ValueError("a prefix set does not start with its prefix (a damaged table)")
         sets = pad_sets(sets)
-        (rest,) = over_pixels(rest_chunk, (scene, sets[:, m:], jnp.asarray(np.maximum(index, 0)),
-                                           key), dict(opts, spp=spp), edge)
-        est[edge] = (head[edge].astype(np.float64) + rest[edge].astype(np.float64)) / spp
+        pixel_set = jnp.asarray(np.maximum(index, 0))
+        if sampler.reuse:
+            (rest,) = over_pixels(rest_chunk, (scene, sets[:, m:], pixel_set, key),
+                                  dict(opts, spp=spp), edge)
+            est[edge] = (head[edge].astype(np.float64) + rest[edge].astype(np.float64)) / spp
+        else:
+            (own,) = over_pixels(apart_chunk, (scene, sets, pixel_set, key), apart, edge)
+            est[edge] = own[edge].astype(np.float64)
     if smooth.size:
         base = jnp.asarray(samplers.get(FALLBACK)(k_pts, spp), jnp.float32)
-        (fb,) = over_pixels(fallback_chunk, (scene, base, key), dict(opts, spp=spp, m=m),
-                            smooth)
-        w = prefix_weight(m, spp)
+        (fb,) = over_pixels(apart_chunk, (scene, base[None], jnp.zeros(index.size, jnp.int32),
+                                          key), apart, smooth)
+        w = prefix_weight(m, spp) if sampler.reuse else 0.0
         est[smooth] = (w * head[smooth].astype(np.float64) / m
                        + (1 - w) * fb[smooth].astype(np.float64))
-    # beyond spp: the search's samples (and the prefix re-evaluated, or on smooth pixels taken
-    # beside pmj02bn's spp and weighted in)
-    extra = extra.astype(np.int32) + np.where(index < 0, m, 0).astype(np.int32)
+    # beyond spp: the search's samples (and the prefix re-evaluated, or where it is not reused
+    # in the set -- on smooth pixels, taken beside pmj02bn's spp and weighted in; with probes
+    # apart, every pixel's)
+    extra = extra.astype(np.int32) + np.where((index < 0) | (not sampler.reuse), m, 0
+                                              ).astype(np.int32)
     found = count > 0
     record = dict(code=code, directions=dirs.astype(np.float32), extra=extra, settings=dict(
-        prefix=pixel_prefix(spp), prefix_points=m, reused_samples_per_pixel=m,
+        prefix=pixel_prefix(spp), prefix_points=m, reused_samples_per_pixel=m * sampler.reuse,
         estimation_samples_per_pixel=round(float(extra.mean()), 3),
         estimation_samples_per_edge_pixel=round(float(extra[found].mean()), 3) if found.any()
         else 0.0,
         pixels=int(code.size), pixels_with_3_direction_set=int((code == 3).sum()),
         pixels_with_4_direction_set=int((code == 4).sum()),
-        pixels_fallback=int((code == 5).sum()), fallback_prefix_weight=prefix_weight(m, spp),
+        pixels_fallback=int((code == 5).sum()),
+        fallback_prefix_weight=prefix_weight(m, spp) if sampler.reuse else 0.0,
         sets_3_directions_deg=sorted(e[0] for e in requests[1:] if len(e) == 1),
         sets_4_directions_deg=sorted(list(e) for e in requests[1:] if len(e) == 2)))
     return est, record

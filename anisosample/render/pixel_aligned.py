@@ -32,6 +32,15 @@ one point set of ``spp`` points with one toroidal shift ``s_q`` (the pixel's, W 
 The search's samples (and, on smooth pixels, the prefix beside pmj02bn's ``spp``) are the cost
 beyond ``spp`` (``RenderResult.pixel_estimation_samples``); an edge pixel reuses the prefix's
 ``m`` samples whole.
+
+**Probes apart** (``reuse=False``, W's accounting): the prefix only drives the search; an edge
+pixel renders all ``spp`` points of the table's set *without* a prefix (the plain
+:func:`anisosample.selection.aligned_sets`, so no point of it is constrained to be isotropic),
+a pixel without an edge pmj02bn's ``spp`` points, both under the pixel's fallback shift (step 3)
+on stream counters after the prefix's. The prefix is then estimation cost like W's per-block
+probes. Exactly unbiased: the set's choice depends on the prefix's shift, the estimate's points
+on an independent one. This separates what the pixel's own directions gain from what the fixed
+prefix costs at a given ``spp``.
 Unbiasedness: with a uniform shift every point of every set is uniform; the set's choice
 depends on the shift only through the rounding of a direction estimated to a fraction of a
 degree, and the fallback's shift is independent of the prefix's. The residual bias is tested
@@ -57,8 +66,8 @@ from .options import IntegratorOptions
 from .scene import LUMINANCE, THINLENS, Scene
 
 __all__ = ["FALLBACK", "NEAR_AXIS_DEG", "PIXEL_SAMPLERS", "PixelEstimates", "PixelSampler",
-           "check_pixel_prefix", "choose_sets",
-           "exact_values", "fallback_chunk", "fallback_shift_key", "integrand_estimates",
+           "apart_chunk", "check_pixel_prefix", "check_reuse", "choose_sets",
+           "exact_values", "fallback_shift_key", "integrand_estimates",
            "pixel_prefix", "pixel_sampler", "prefix_chunk", "prefix_sets", "prefix_weight",
            "rest_chunk", "search_chunk", "toroidal_shift_key"]
 
@@ -130,18 +139,25 @@ class PixelSampler:
     build_missing: bool | None = None
     build_options: dict = dataclasses.field(default_factory=dict)
     near_axis_deg: float = NEAR_AXIS_DEG
+    reuse: bool = True
 
     name = "aligned-pixel"
 
     def sets(self, requests, spp: int, *, progress: bool = True) -> jax.Array:
-        """:func:`prefix_sets` with this sampler's table options."""
-        return prefix_sets(requests, spp, table=self.table, build_missing=self.build_missing,
-                           build_options=self.build_options, progress=progress)
+        """The sets for ``requests`` with this sampler's table options: :func:`prefix_sets`
+        (the prefix reused), or without ``reuse`` the plain sets (no prefix)."""
+        if self.reuse:
+            return prefix_sets(requests, spp, table=self.table, build_missing=self.build_missing,
+                               build_options=self.build_options, progress=progress)
+        return selection.aligned_sets(requests, spp, table=self.table,
+                                      build_missing=self.build_missing, progress=progress,
+                                      desc=f"pixel sets n={spp}", **self.build_options)
 
     def settings(self) -> dict:
         """What a render records about the sampler (EXR metadata); the render adds the counts."""
         return dict(point_set="aligned-pixel", k=self.k, fallback=FALLBACK,
-                    near_axis_deg=self.near_axis_deg, search=self.search._asdict())
+                    near_axis_deg=self.near_axis_deg, reuse=self.reuse,
+                    search=self.search._asdict())
 
 
 def prefix_sets(requests, spp: int, *, table=None, build_missing: bool | None = None,
@@ -171,13 +187,14 @@ class PixelEstimates(eqx.Module):
 def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=None,
                         build_missing: bool | None = None, build_options: dict | None = None,
                         prefix: str | None = None, near_axis_deg: float = NEAR_AXIS_DEG,
-                        **search) -> PixelEstimates:
+                        reuse: bool = True, **search) -> PixelEstimates:
     """The per-pixel aligned estimator of one 2D integrand ``f`` (the renderer's two passes at
     the level of :func:`anisosample.variance.realization_estimates`): per realization one
     toroidal shift from ``key``, the prefix's values, :func:`anisosample.edges.search`, the set
     (:func:`choose_sets`, :func:`prefix_sets`) and the mean of ``f`` over all ``n`` points,
     the prefix's included. ``prefix``: :func:`check_pixel_prefix` (the renderer's
-    :func:`pixel_prefix` by default; another size is for studying the choice)."""
+    :func:`pixel_prefix` by default; another size is for studying the choice). ``reuse=False``:
+    probes apart (module docstring), the plain set or pmj02bn under an independent shift."""
     from ..prefix import prefix_points
     from ..samplers import toroidal_shift
 
@@ -185,6 +202,7 @@ def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=
     realizations = check_int("realizations", realizations, minimum=1)
     k = check_int("k", k, minimum=1, maximum=2)
     near_axis_deg = selection.check_near_axis(near_axis_deg)
+    reuse = check_reuse(reuse)
     o = edges.search_options(**search)
     name = check_pixel_prefix(prefix, n)
     prefix = jnp.asarray(prefix_points(name), jnp.float32)
@@ -197,18 +215,23 @@ def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=
     head = np.asarray(jnp.sum(head, axis=1), np.float64)
     est = np.empty(realizations, np.float64)
     edge = index >= 0
-    if edge.any():
+    own = jax.vmap(lambda kk: jax.random.fold_in(kk, 1))(keys)  # the fallback's shifts
+    if edge.any() and reuse:
         sets = prefix_sets(requests, n, table=table, build_missing=build_missing,
                            build_options=build_options, progress=False, prefix=name)
         rest = jax.vmap(toroidal_shift)(keys[edge], sets[jnp.asarray(index[edge]), m:])
         est[edge] = (head[edge] + np.asarray(jnp.sum(f(rest), axis=1), np.float64)) / n
+    elif edge.any():
+        sets = selection.aligned_sets(requests, n, table=table, build_missing=build_missing,
+                                      progress=False, **(build_options or {}))
+        pts = jax.vmap(toroidal_shift)(own[edge], sets[jnp.asarray(index[edge])])
+        est[edge] = np.asarray(jnp.mean(f(pts), axis=1), np.float64)
     if (~edge).any():
         from ..samplers import get
 
         base = jnp.asarray(get(FALLBACK)(jax.random.fold_in(key, 1), n), jnp.float32)
-        own = jax.vmap(lambda kk: jax.random.fold_in(kk, 1))(keys[~edge])
-        pts = jax.vmap(toroidal_shift, in_axes=(0, None))(own, base)
-        w = prefix_weight(m, n)
+        pts = jax.vmap(toroidal_shift, in_axes=(0, None))(own[~edge], base)
+        w = prefix_weight(m, n) if reuse else 0.0
         est[~edge] = (w * head[~edge] / m
                       + (1 - w) * np.asarray(jnp.mean(f(pts), axis=1), np.float64))
     return PixelEstimates(est, np.asarray(r.directions_deg), np.asarray(r.samples), code)
@@ -216,13 +239,14 @@ def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=
 
 def pixel_sampler(scene: Scene, *, k: int = 2, table=None, build_missing: bool | None = None,
                   build_options: dict | None = None, near_axis_deg: float = NEAR_AXIS_DEG,
-                  **search) -> PixelSampler:
+                  reuse: bool = True, **search) -> PixelSampler:
     """The per-pixel aligned sampler for ``scene``: at most ``k`` (1 or 2) directions per pixel,
     directions within ``near_axis_deg`` of an axis after the others (:data:`NEAR_AXIS_DEG`;
     0: W's rule, strongest first); ``search``: :class:`anisosample.edges.SearchOptions`
     fields; ``table``, ``build_missing``, ``build_options``: the prefix sets' lookup
     (:func:`anisosample.tables.lookup`: missing sets are built into the user cache unless
-    ``build_missing=False``)."""
+    ``build_missing=False``); ``reuse``: the prefix's samples in the estimate (True) or probes
+    apart (False, module docstring)."""
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
     k = check_int("k", k, minimum=1, maximum=2)
@@ -232,7 +256,14 @@ def pixel_sampler(scene: Scene, *, k: int = 2, table=None, build_missing: bool |
         raise TypeError(f"build_options must be a dict, got {type(build_options).__name__}")
     return PixelSampler(scene.width, scene.height, k, edges.search_options(**search), table,
                         build_missing, dict(build_options or {}),
-                        selection.check_near_axis(near_axis_deg))
+                        selection.check_near_axis(near_axis_deg), check_reuse(reuse))
+
+
+def check_reuse(reuse) -> bool:
+    """A validated ``reuse`` (:class:`PixelSampler`): True or False."""
+    if not isinstance(reuse, bool | np.bool_):
+        raise TypeError(f"reuse must be True or False, got {reuse!r}")
+    return bool(reuse)
 
 
 def exact_values(scene: Scene, options: IntegratorOptions) -> bool:
@@ -346,16 +377,18 @@ def fallback_shift_key(key, q):
 
 
 @kernel(static_argnames=(*_STATIC[:-1], "m"))
-def fallback_chunk(scene: Scene, base, key, pixels, *, spp, m, options: IntegratorOptions):
-    """Pass 2 for pixels without an edge: the mean ``(..., 3)`` over the ``spp`` points of
-    ``base`` (pmj02bn) under the pixel's own fallback shift, on stream counters
-    ``m .. m + spp - 1`` (after the prefix's)."""
+def apart_chunk(scene: Scene, sets, pixel_set, key, pixels, *, spp, m,
+                options: IntegratorOptions):
+    """Pass 2 apart from the prefix: the mean ``(..., 3)`` over the ``spp`` points of
+    ``sets[pixel_set[q]]`` under pixel ``q``'s own fallback shift, on stream counters
+    ``m .. m + spp - 1`` (after the prefix's): pmj02bn on pixels without an edge (``sets`` its
+    one set), and with probes apart the edge pixels' plain sets."""
     from ..samplers import toroidal_shift
 
     g = sample_function(scene, options)
 
     def one(q):
-        x = toroidal_shift(fallback_shift_key(key, q), base)
+        x = toroidal_shift(fallback_shift_key(key, q), sets[pixel_set[q]])
         rgb = pixel_samples(scene, g, x, key, q, spp + m, m, options)
         return jnp.mean(rgb, axis=0)
 
