@@ -70,7 +70,9 @@ LEAF_SIZE = 4  # primitives per leaf slot block (was 8 before the ray queue)
 # With per-tile culling (render/culling.py), 64^2 x 16 spp, best of 3 (bench_render.py --prims,
 # load about 1): brute force / BVH 1368 tris 1282 / 1858, 1848: 1906 / 1927, 2808: 5205 / 2010
 # (no culling above culling.MAX_PRIMITIVES): the crossover moved from 1200 to about 1850.
-THRESHOLD = 1600
+# With the traversal's slices and masks (2026-12-07, an AMD EPYC, same table, best of 5, load
+# 1.4-1.7): 840 tris 944 / 1064, 1224: 1593 / 1140, 1520: 2503 / 1268, so about 1000 now.
+THRESHOLD = 1000
 LANES = 4096  # traversal lanes fed from the ray queue (_traverse_queue)
 _NO_PRIM = np.int32(np.iinfo(np.int32).max)
 _PAD = 2.0**-16  # box padding, relative to the largest coordinate magnitude
