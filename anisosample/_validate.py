@@ -40,6 +40,13 @@ def check_int(name: str, value, *, minimum: int | None = None, maximum: int | No
     return value
 
 
+def check_bool(name: str, value) -> bool:
+    """``value`` if it is True or False (NumPy's too), else ``TypeError`` naming ``name``."""
+    if not isinstance(value, bool | np.bool_):
+        raise TypeError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
+
+
 def check_positive_float(name: str, value, *, allow_zero: bool = False) -> float:
     """Return ``value`` as a finite float > 0 (or >= 0), or raise naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real | np.floating | np.integer):

@@ -436,6 +436,11 @@ api("selection-table-directions-near-axis-str", lambda d: A().selection.table_di
 api("pixel-sampler-near-axis-nan", lambda d: A().render.render(
     scene(d), key(), sampler="aligned-pixel", sampler_options={"near_axis_deg": NAN},
     progress=False), ValueError, r"near_axis_deg must be in \[0, 45\]", owner=RENDER_OWNER)
+api("selection-table-directions-axis-snap-int", lambda d: A().selection.table_directions(
+    [30.0], axis_snap=1), TypeError, r"axis_snap must be True or False", owner="selection")
+api("pixel-sampler-axis-snap-str", lambda d: A().render.render(
+    scene(d), key(), sampler="aligned-pixel", sampler_options={"axis_snap": "yes"},
+    progress=False), TypeError, r"axis_snap must be True or False", owner=RENDER_OWNER)
 api("pixel-sampler-reuse-str", lambda d: A().render.render(
     scene(d), key(), sampler="aligned-pixel", sampler_options={"reuse": "no"},
     progress=False), TypeError, r"reuse must be True or False", owner=RENDER_OWNER)

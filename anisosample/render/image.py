@@ -404,7 +404,8 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
             out[rough] = res[rough]
     if not exact_values(scene, opts["options"]):
         extra = extra + m  # the prefix's values re-evaluated for the search
-    requests, index, code = choose_sets(dirs, count, sampler.k, sampler.near_axis_deg)
+    requests, index, code = choose_sets(dirs, count, sampler.k, sampler.near_axis_deg,
+                                        sampler.axis_snap)
     edge = np.flatnonzero(index >= 0)
     smooth = np.flatnonzero(index < 0)
     est = np.zeros((index.size, 3), np.float64)

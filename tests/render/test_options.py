@@ -186,3 +186,28 @@ def test_near_axis_directions_yield_to_one_off_the_axes():
     assert PA.choose_sets(dirs, [2, 2, 1], 1)[0] == [(2,), (114,), (3,)]  # W's rule
     assert PA.pixel_sampler(R.load_xml(SCENES / "cornell.xml", width=8, height=8)
                             ).near_axis_deg == PA.NEAR_AXIS_DEG
+
+
+def test_axis_snap_takes_the_set_one_degree_off_the_axis():
+    """``axis_snap``: a direction that rounds onto an axis becomes the integer direction one
+    degree off it, on its side of the axis, behind every other direction; W's rule (the
+    default) drops it. The per-pixel sampler snaps by default."""
+    from anisosample import selection
+    from anisosample.render import pixel_aligned as PA
+
+    ts = selection.table_directions
+    assert ts((0.3,)) == () and ts((0.3,), axis_snap=True) == (1,)
+    assert ts((179.8,), axis_snap=True) == (179,)  # -0.2 degrees: the other side of 0
+    assert ts((90.2,), axis_snap=True) == (91,) and ts((89.6,), axis_snap=True) == (89,)
+    assert ts((-0.4,), axis_snap=True) == (179,)
+    assert ts((0.3, 40.0), 2, axis_snap=True) == (40, 1)  # behind, even when stronger
+    assert ts((0.3, 40.0), 1, axis_snap=True) == (40,)
+    assert ts((0.3, 1.2), 2, axis_snap=True) == (1,)  # no repeat of a kept direction
+    assert ts((0.2, 179.9, 89.8), 2, axis_snap=True) == (1, 179)
+    requests, index = selection.table_requests([(0.3,), (30.0,), (90.4,), ()], k=1,
+                                               axis_snap=True)
+    assert requests == [(1,), (30,), (91,)] and index.tolist() == [0, 1, 2, -1]
+    dirs = np.array([[0.3, np.nan], [89.7, 60.0]])
+    assert PA.choose_sets(dirs, [1, 2], 1, PA.NEAR_AXIS_DEG, True)[0] == [(1,), (60,)]
+    assert PA.choose_sets(dirs, [1, 2], 1, PA.NEAR_AXIS_DEG)[2].tolist() == [5, 3]
+    assert PA.pixel_sampler(R.load_xml(SCENES / "cornell.xml", width=8, height=8)).axis_snap

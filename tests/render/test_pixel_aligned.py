@@ -147,7 +147,7 @@ def test_prefix_and_rest_are_the_whole_set(cornell):
     scene, res = cornell
     requests, index, code = PA.choose_sets(res.pixel_directions.reshape(-1, 2),
                                           np.isfinite(res.pixel_directions).sum(-1)
-                                          .reshape(-1), 2)
+                                          .reshape(-1), 2, axis_snap=True)
     sets = PA.prefix_sets(requests, 64, progress=False)
     k_pix = jax.random.split(jax.random.fold_in(jax.random.key(3), 0))[1]
     for q in np.flatnonzero(code == 3)[:6]:
