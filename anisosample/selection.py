@@ -113,7 +113,6 @@ def _table_directions(directions_deg, k: int, near_axis_deg: float,
     return tuple(out[:k])
 
 
-
 def check_near_axis(near_axis_deg) -> float:
     """A validated ``near_axis_deg`` (:func:`table_directions`): a real number in [0, 45]."""
     if isinstance(near_axis_deg, bool) or not isinstance(near_axis_deg, int | float | np.number):
@@ -155,9 +154,8 @@ def table_requests(directions, k: int = 2, *, near_axis_deg: float = 0.0,
     """The distinct table requests of many items (blocks, pixels): ``directions`` holds each
     item's estimated directions, strongest first (empty: none), rounded by
     :func:`table_directions` (with ``near_axis_deg`` and ``axis_snap``). Returns
-    ``(requests, index)``: the
-    distinct non-empty requests in order of first use and each item's index into them
-    (``-1``: no direction off the axes, the item takes :data:`FALLBACK`)."""
+    ``(requests, index)``: the distinct non-empty requests in order of first use and each item's
+    index into them (``-1``: no direction off the axes, the item takes :data:`FALLBACK`)."""
     k = check_int("k", k, minimum=1, maximum=2)
     near_axis_deg = check_near_axis(near_axis_deg)
     axis_snap = check_bool("axis_snap", axis_snap)

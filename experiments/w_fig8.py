@@ -31,7 +31,9 @@ pixels) and the same per-pixel toroidal shifts (W Sec. 5.4):
   ``spp`` are recorded (``pixel_search_samples_mean``; ``pixel_estimation_samples_mean`` adds
   the prefix that pixels without an edge take beside pmj02bn's ``spp``). With one direction
   allowed and two edges found, an edge within ``pixel_aligned.NEAR_AXIS_DEG`` of an axis yields
-  to the other (the record's ``near_axis_deg``).
+  to the other (the record's ``near_axis_deg``). An edge whose direction rounds onto an axis
+  takes the set one degree off it (the record's ``axis_snap``; records without the key predate
+  it and dropped such edges, W's rule).
 * ``aligned (pixel apart)`` (beyond W: the same search and choice, with probes apart,
   ``sampler_options={"reuse": False}``): the prefix only drives the search, and every pixel's
   estimate is ``spp`` points of its set without a prefix (pmj02bn without an edge). Its
@@ -123,7 +125,8 @@ def window_variance(scene, name, cfg, key, devices, probe):
     var, extra, search = {}, [], []
     for m, sampler in samplers.items():
         opts = (dict(table=W.TABLES, build_missing=True, k=1,
-                     near_axis_deg=pixel_aligned.NEAR_AXIS_DEG, reuse=m == PIXEL)
+                     near_axis_deg=pixel_aligned.NEAR_AXIS_DEG, reuse=m == PIXEL,
+                     axis_snap=pixel_aligned.AXIS_SNAP)
                 if m in (PIXEL, APART) else None)
         values = []
         for r in range(R):
@@ -159,7 +162,8 @@ def run_scene(name, cfg, key, out, fresh, devices=None):
     settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist()),
                 "estimation_samples": 96, "gate_probe": 6, "methods": list(METHODS),
                 "engine": "render, windows", "k": 1,
-                "near_axis_deg": pixel_aligned.NEAR_AXIS_DEG}
+                "near_axis_deg": pixel_aligned.NEAR_AXIS_DEG,
+                "axis_snap": pixel_aligned.AXIS_SNAP}
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
     exrs = [out / f"{name}_{_slug(m)}_variance.exr" for m in METHODS]

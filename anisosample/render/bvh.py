@@ -36,7 +36,7 @@ and a lane whose ray is done takes the next one from the batch. Each ray takes t
 so the results are the same bits. One device, light sampling, best of 3: the 9,800-triangle mesh
 at 64^2 x 16 spp 536 -> 184 ms, the 99k-triangle one at 128^2 x 64 spp 9.6 -> 3.6-3.8 s
 (lanes 1024-8192 within noise of each other, 16384 slower). Two steps per refill (finished rays
-masked) were no faster: 164 ms against 146 for the 9,800-triangle image.
+masked) were no faster: 164 ms against 146 for the 99k-triangle mesh at 64^2 x 16 spp.
 
 A step reads its node and its leaf rows as slices (``lax.dynamic_slice``) and its stack through
 masks: a vmapped index into ``count``, ``start``, ``child``, ``rows[start + lane]`` or
@@ -286,7 +286,7 @@ def _step(bvh: BVH, ray, state):
     lane = jnp.arange(LEAF_SIZE, dtype=jnp.int32)
     inf = jnp.float32(jnp.inf)
     # Slices of contiguous rows, not gathers of single elements: XLA:CPU emits a generic loop
-    # per gathered element (the whole step took 1.2-1.7x as long so; module docstring).
+    # per gathered element (the whole step took 1.15-1.7x as long so; module docstring).
     ch0, ch1, first, cnt = _row(bvh.node, node, 1)[0]
     leaf = cnt > 0
     # Leaf: the plane test on its LEAF_SIZE slots (the unused ones masked).

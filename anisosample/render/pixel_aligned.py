@@ -69,8 +69,8 @@ from .integrator import pixel_samples, pixel_shift_key, sample_function
 from .options import IntegratorOptions
 from .scene import LUMINANCE, THINLENS, Scene
 
-__all__ = ["FALLBACK", "NEAR_AXIS_DEG", "PIXEL_SAMPLERS", "PixelEstimates", "PixelSampler",
-           "apart_chunk", "check_pixel_prefix", "check_reuse", "choose_sets",
+__all__ = ["AXIS_SNAP", "FALLBACK", "NEAR_AXIS_DEG", "PIXEL_SAMPLERS", "PixelEstimates",
+           "PixelSampler", "apart_chunk", "check_pixel_prefix", "choose_sets",
            "exact_values", "fallback_shift_key", "integrand_estimates",
            "pixel_prefix", "pixel_sampler", "prefix_chunk", "prefix_sets", "prefix_weight",
            "rest_chunk", "search_chunk", "toroidal_shift_key"]
@@ -93,6 +93,12 @@ against 0.49 / 0.48, 8: 0.65 / 0.56 against 0.55 / 0.48, 12: 0.57 / 0.50 against
 but 20: 0.45 / 0.47 against 0.52 / 0.53; (5, 60) 0.72 / 0.56 against 0.57 / 0.46, (92, 60)
 0.72 / 0.54 against 0.37 / 0.38. So up to 12 degrees the set's axis line serves the near edge
 well enough that the other edge's set gains more."""
+
+
+AXIS_SNAP = True
+"""The per-pixel sampler's ``axis_snap`` (:func:`anisosample.selection.table_directions`): an
+edge whose direction rounds onto an axis takes the set one degree off it, not pmj02bn (module
+docstring, step 2)."""
 
 
 def prefix_weight(m: int, n: int) -> float:
@@ -144,7 +150,7 @@ class PixelSampler:
     build_options: dict = dataclasses.field(default_factory=dict)
     near_axis_deg: float = NEAR_AXIS_DEG
     reuse: bool = True
-    axis_snap: bool = True
+    axis_snap: bool = AXIS_SNAP
 
     name = "aligned-pixel"
 
@@ -193,7 +199,7 @@ class PixelEstimates(eqx.Module):
 def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=None,
                         build_missing: bool | None = None, build_options: dict | None = None,
                         prefix: str | None = None, near_axis_deg: float = NEAR_AXIS_DEG,
-                        reuse: bool = True, axis_snap: bool = True,
+                        reuse: bool = True, axis_snap: bool = AXIS_SNAP,
                         **search) -> PixelEstimates:
     """The per-pixel aligned estimator of one 2D integrand ``f`` (the renderer's two passes at
     the level of :func:`anisosample.variance.realization_estimates`): per realization one
@@ -209,7 +215,7 @@ def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=
     realizations = check_int("realizations", realizations, minimum=1)
     k = check_int("k", k, minimum=1, maximum=2)
     near_axis_deg = selection.check_near_axis(near_axis_deg)
-    reuse = check_reuse(reuse)
+    reuse = check_bool("reuse", reuse)
     o = edges.search_options(**search)
     name = check_pixel_prefix(prefix, n)
     prefix = jnp.asarray(prefix_points(name), jnp.float32)
@@ -246,7 +252,7 @@ def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=
 
 def pixel_sampler(scene: Scene, *, k: int = 2, table=None, build_missing: bool | None = None,
                   build_options: dict | None = None, near_axis_deg: float = NEAR_AXIS_DEG,
-                  reuse: bool = True, axis_snap: bool = True, **search) -> PixelSampler:
+                  reuse: bool = True, axis_snap: bool = AXIS_SNAP, **search) -> PixelSampler:
     """The per-pixel aligned sampler for ``scene``: at most ``k`` (1 or 2) directions per pixel,
     directions within ``near_axis_deg`` of an axis after the others (:data:`NEAR_AXIS_DEG`;
     0: W's rule, strongest first); ``search``: :class:`anisosample.edges.SearchOptions`
@@ -265,13 +271,8 @@ def pixel_sampler(scene: Scene, *, k: int = 2, table=None, build_missing: bool |
         raise TypeError(f"build_options must be a dict, got {type(build_options).__name__}")
     return PixelSampler(scene.width, scene.height, k, edges.search_options(**search), table,
                         build_missing, dict(build_options or {}),
-                        selection.check_near_axis(near_axis_deg), check_reuse(reuse),
+                        selection.check_near_axis(near_axis_deg), check_bool("reuse", reuse),
                         check_bool("axis_snap", axis_snap))
-
-
-def check_reuse(reuse) -> bool:
-    """A validated ``reuse`` (:class:`PixelSampler`): True or False."""
-    return check_bool("reuse", reuse)
 
 
 def exact_values(scene: Scene, options: IntegratorOptions) -> bool:
