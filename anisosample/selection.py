@@ -182,20 +182,29 @@ def aligned_sets(requests, n: int, *, table=None, build_missing: bool | None = N
     :func:`table_requests`), stacked ``(len(requests), n, 2)`` float32, unshifted: every
     missing one is built first (:func:`anisosample.tables.ensure`, one progress bar over the
     sets unless ``progress=False``; ``table``, ``build_missing``, ``prefix`` and
-    ``build_options`` are its), then all are read by the pure :func:`anisosample.tables.lookup`.
+    ``build_options`` are its), then all are read by the pure
+    :func:`anisosample.tables.lookup_many`.
     """
     from .progress import progress as bar
 
     n = check_int("n", n, minimum=2)
     opts = dict(build_options)
     opts["show_progress"] = False
-    for extra in bar(requests, desc=desc or f"aligned sets n={n}", unit="set",
-                     disable=None if progress and len(requests) > 8 else True):
-        _tables.ensure([extra], n, direction_count=len(extra) + 2, table=table,
-                       build_missing=build_missing, prefix=prefix, **opts)
-    return jnp.stack([_tables.lookup(extra, n, direction_count=len(extra) + 2, table=table,
-                                     prefix=prefix)
-                      for extra in requests])
+    for count in (3, 4):
+        group = [e for e in requests if len(e) + 2 == count]
+        todo = _tables.missing(group, n, direction_count=count, table=table, prefix=prefix)
+        for extra in bar(todo, desc=desc or f"aligned sets n={n}", unit="set",
+                         disable=None if progress and len(todo) > 8 else True):
+            _tables.ensure([extra], n, direction_count=count, table=table,
+                           build_missing=build_missing, prefix=prefix, **opts)
+    sets = jnp.zeros((len(requests), n, 2), jnp.float32)
+    for count in (3, 4):
+        at = [i for i, e in enumerate(requests) if len(e) + 2 == count]
+        if at:
+            group = _tables.lookup_many([requests[i] for i in at], n, direction_count=count,
+                                        table=table, prefix=prefix)
+            sets = sets.at[np.asarray(at)].set(group)
+    return sets
 
 
 @dataclasses.dataclass(frozen=True)

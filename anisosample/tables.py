@@ -125,6 +125,8 @@ __all__ = [
     "Table",
     "open_table",
     "lookup",
+    "lookup_many",
+    "missing",
     "ensure",
     "build",
     "build_command",
@@ -170,6 +172,34 @@ def lookup(directions_deg, n: int, *, direction_count: int | None = None, table=
     sequence_from = check_int("sequence_from", sequence_from, minimum=0)
     path = find_table(canon.direction_count, n, root=table, prefix=prefix,
                       sequence_from=sequence_from)
+    return jnp.asarray(_served(canon, n, path, table, prefix, sequence_from))
+
+
+@renamed_keywords(kind="direction_count")
+def lookup_many(requests, n: int, *, direction_count: int | None = None, table=None,
+                prefix: str | None = None, sequence_from: int = 0) -> jax.Array:
+    """:func:`lookup` of every request in ``requests`` (each a ``directions_deg``), stacked
+    ``(len(requests), n, 2)``: the same sets bit for bit, with each table found once per
+    direction count and one transfer to the device. A per-pixel render reads hundreds of sets
+    per image (dof at 128^2 x 256 spp: 584, with :func:`missing` before): one by one 166 ms,
+    together 65 ms (2026-12-07, load about 1.6)."""
+    n = check_int("n", n, minimum=2)
+    prefix = check_table_prefix(prefix)
+    sequence_from = check_int("sequence_from", sequence_from, minimum=0)
+    paths = {}
+    out = np.empty((len(requests), n, 2), np.float32)
+    for i, request in enumerate(requests):
+        canon = canonicalize(request, direction_count=direction_count)
+        if canon.direction_count not in paths:
+            paths[canon.direction_count] = find_table(canon.direction_count, n, root=table,
+                                                      prefix=prefix, sequence_from=sequence_from)
+        out[i] = _served(canon, n, paths[canon.direction_count], table, prefix, sequence_from)
+    return jnp.asarray(out)
+
+
+def _served(canon: Canonical, n: int, path, table, prefix: str, sequence_from: int) -> np.ndarray:
+    """The set :func:`lookup` serves for ``canon`` from the table at ``path`` (None: none
+    found; ``table``: the caller's root, for the message), as float32 numpy."""
     if path is None or not (path / f"{canon.name}.npz").exists():
         where, command = _where_and_command(canon, n, table, path, prefix, sequence_from)
         raise FileNotFoundError(
@@ -185,8 +215,7 @@ def lookup(directions_deg, n: int, *, direction_count: int | None = None, table=
     if held != (prefix, sequence_from):
         raise ValueError(f"table {path} holds sets with (prefix, sequence_from) {held}, not "
                          f"the requested {(prefix, sequence_from)}")
-    return jnp.asarray(restore_prefix(transform_points(pts, canon.transform), prefix,
-                                      canon.transform))
+    return restore_prefix(transform_points(pts, canon.transform), prefix, canon.transform)
 
 
 def _where_and_command(canon, n, table, path, prefix, sequence_from) -> tuple[str | Path, str]:
@@ -197,6 +226,27 @@ def _where_and_command(canon, n, table, path, prefix, sequence_from) -> tuple[st
         else Path(table) / table_name(canon.direction_count, n, prefix, sequence_from))
     return where, build_command(canon.direction_count, n, [canon.extra], out=into, prefix=prefix,
                                 sequence_from=sequence_from)
+
+
+@renamed_keywords(kind="direction_count")
+def missing(requests, n: int, *, direction_count: int | None = None, table=None,
+            prefix: str | None = None, sequence_from: int = 0) -> list:
+    """The requests (each a ``directions_deg`` of :func:`lookup`) whose sets no table on the
+    search path (or in ``table``) holds for ``n`` points: what :func:`ensure` would build (or
+    refuse), in order. Each table is found once per direction count."""
+    n = check_int("n", n, minimum=2)
+    prefix = check_table_prefix(prefix)
+    sequence_from = check_int("sequence_from", sequence_from, minimum=0)
+    paths, out = {}, []
+    for request in requests:
+        canon = canonicalize(request, direction_count=direction_count)
+        if canon.direction_count not in paths:
+            paths[canon.direction_count] = find_table(canon.direction_count, n, root=table,
+                                                      prefix=prefix, sequence_from=sequence_from)
+        path = paths[canon.direction_count]
+        if path is None or not (path / f"{canon.name}.npz").exists():
+            out.append(request)
+    return out
 
 
 @renamed_keywords(kind="direction_count")
@@ -227,12 +277,13 @@ def ensure(requests, n: int, *, direction_count: int | None = None, table=None,
     prefix = check_table_prefix(prefix)
     sequence_from = check_int("sequence_from", sequence_from, minimum=0)
     built = []
-    for request in requests:
+    for request in missing(requests, n, direction_count=direction_count, table=table,
+                           prefix=prefix, sequence_from=sequence_from):
         canon = canonicalize(request, direction_count=direction_count)
         path = find_table(canon.direction_count, n, root=table, prefix=prefix,
-                          sequence_from=sequence_from)
+                          sequence_from=sequence_from)  # again: a build may have made one
         if path is not None and (path / f"{canon.name}.npz").exists():
-            continue
+            continue  # an earlier request of this call had the same canonical set
         explicit = table is not None and build_missing is None
         if build_missing is False or explicit:
             where, command = _where_and_command(canon, n, table, path, prefix, sequence_from)

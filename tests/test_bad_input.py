@@ -503,6 +503,15 @@ api("synthesize-sequence-weights", lambda d: A().synthesis.synthesize_sequence(k
 api("tables-prefix-asymmetric", lambda d: A().tables.lookup([0, 90, 30], 256,
     prefix="pmj02bn-32"), ValueError, r"prefix 'pmj02bn-32' cannot be held by a table",
     owner="tables")
+api("tables-lookup-many-n-1", lambda d: A().tables.lookup_many([(30,)], 1), ValueError,
+    r"n must be >= 2", owner="tables")
+api("tables-lookup-many-request-180", lambda d: A().tables.lookup_many([(30,), (180,)], 256),
+    ValueError, r"directions_deg must lie in \[0, 180\)", owner="tables")
+api("tables-missing-prefix-asymmetric", lambda d: A().tables.missing([(30,)], 256,
+    prefix="pmj02bn-32"), ValueError, r"prefix 'pmj02bn-32' cannot be held by a table",
+    owner="tables")
+api("tables-missing-sequence-from-negative", lambda d: A().tables.missing([(30,)], 256,
+    sequence_from=-1), ValueError, r"sequence_from must be >= 0", owner="tables")
 api("sampler-aligned-sequence-n-over-length", lambda d: A().samplers.get("aligned-sequence",
     directions_deg=[30], length=64, sequence_from=16)(key(), 65), ValueError,
     r"n must be at most the sequence length 64", owner="selection")

@@ -188,6 +188,27 @@ def test_four_direction_lookup(tmp_path):
     assert tables.set_directions((0, 0)) == (0, 90)
 
 
+def test_lookup_many_and_missing_agree_with_one_by_one(tmp_path):
+    """lookup_many is lookup of each request, stacked, bit for bit (every symmetry, both
+    direction counts in one call of each); missing lists what lookup would not find, in
+    order; a missing set raises lookup's FileNotFoundError."""
+    _fake_table(tmp_path)
+    _fake_table(tmp_path, direction_count=4, sets=[(10, 110), (0, 30)])
+    requests = [(30,), (60,), (120,), (150,), (100, 20), (0, 30), (30,)]
+    got = np.asarray(tables.lookup_many(requests, 32, table=tmp_path))
+    want = np.stack([np.asarray(tables.lookup(r, 32, table=tmp_path)) for r in requests])
+    assert got.dtype == np.float32 and got.shape == (7, 32, 2)
+    np.testing.assert_array_equal(got, want)
+    assert tables.missing(requests, 32, table=tmp_path) == []
+    assert tables.missing([(40,), (30,), (20, 100), (5,)], 32, table=tmp_path) == [(40,), (5,)]
+    assert tables.missing([(30,)], 64, table=tmp_path) == [(30,)]
+    with pytest.raises(FileNotFoundError, match="psi_010"):
+        tables.lookup_many([(30,), (10,)], 32, table=tmp_path)
+    with pytest.raises(ValueError, match="integer degrees"):
+        tables.lookup_many([(30.2,)], 32, table=tmp_path)
+    assert tables.lookup_many([], 32, table=tmp_path).shape == (0, 32, 2)
+
+
 def test_lookup_missing_and_incompatible(tmp_path):
     tab = _fake_table(tmp_path)
     with pytest.raises(FileNotFoundError, match="tables build --n 64 --direction-count 3"):

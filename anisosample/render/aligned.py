@@ -191,12 +191,8 @@ class BlockSampler:
         from ..progress import progress as bar
 
         n = check_int("n (spp)", n, minimum=2)
-        missing = []
-        for extra in self.table_directions:
-            try:
-                tables.lookup(extra, n, direction_count=len(extra) + 2, table=self.table)
-            except FileNotFoundError:
-                missing.append(extra)
+        missing = [e for e in self.table_directions
+                   if tables.missing([e], n, direction_count=len(e) + 2, table=self.table)]
         if missing and (self.build_missing is False
                         or (self.build_missing is None and self.table is not None)):
             cmds = []

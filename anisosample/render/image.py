@@ -445,8 +445,8 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
         pixels_with_4_direction_set=int((code == 4).sum()),
         pixels_fallback=int((code == 5).sum()),
         fallback_prefix_weight=prefix_weight(m, spp) if sampler.reuse else 0.0,
-        sets_3_directions_deg=sorted(e[0] for e in requests[1:] if len(e) == 1),
-        sets_4_directions_deg=sorted(list(e) for e in requests[1:] if len(e) == 2)))
+        sets_3_directions_deg=sorted(e[0] for e in requests if len(e) == 1),
+        sets_4_directions_deg=sorted(list(e) for e in requests if len(e) == 2)))
     return est, record
 
 

@@ -122,6 +122,11 @@ def test_record(cornell):
     assert b["point_set"] == "aligned-pixel" and b["prefix"] == "dihedral-16"
     assert b["reused_samples_per_pixel"] == 16
     assert b["pixels_with_3_direction_set"] == int((code == 3).sum())
+    # every set the render used is listed once (the pixels' own requests, recomputed)
+    requests, _, _ = PA.choose_sets(dirs.reshape(-1, 2), np.isfinite(dirs).sum(-1).reshape(-1),
+                                    2, PA.NEAR_AXIS_DEG, axis_snap=True)
+    assert sorted(b["sets_3_directions_deg"]) == sorted(e[0] for e in requests if len(e) == 1)
+    assert sorted(b["sets_4_directions_deg"]) == sorted(list(e) for e in requests if len(e) == 2)
     assert b["estimation_samples_per_pixel"] == pytest.approx(float(extra.mean()), abs=1e-3)
     # RenderResult: the images are leaves, spp, realizations and the settings record static
     assert_pytree_round_trips(res)
