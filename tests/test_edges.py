@@ -189,3 +189,14 @@ def test_cubic_residual_is_float64_least_squares():
         assert abs(got[t] - want) <= 1e-4 * span, (t, got[t], want)
         if t < 10:
             assert got[t] <= 1e-4 * span
+
+
+def test_nearest_is_top_k_of_the_negated_distances():
+    """edges._nearest (k rounds of a row minimum) gives lax.top_k(-d2, k)'s indices, ties to
+    the lower column included (small integer entries tie often), and inf on the diagonal."""
+    rng = np.random.default_rng(12)
+    for d2 in (rng.random((3, 64, 64)), rng.integers(0, 5, (3, 64, 64)).astype(np.float64)):
+        d2 = jnp.asarray(d2 + np.where(np.eye(64, dtype=bool), np.inf, 0.0), jnp.float32)
+        want = jax.vmap(lambda a: jax.lax.top_k(-a, 4)[1])(d2)
+        np.testing.assert_array_equal(np.asarray(jax.vmap(lambda a: edges._nearest(a, 4))(d2)),
+                                      np.asarray(want))
