@@ -186,15 +186,25 @@ def lookup_many(requests, n: int, *, direction_count: int | None = None, table=N
     n = check_int("n", n, minimum=2)
     prefix = check_table_prefix(prefix)
     sequence_from = check_int("sequence_from", sequence_from, minimum=0)
-    paths = {}
+    path_of = _table_finder(n, table, prefix, sequence_from)
     out = np.empty((len(requests), n, 2), np.float32)
     for i, request in enumerate(requests):
         canon = canonicalize(request, direction_count=direction_count)
-        if canon.direction_count not in paths:
-            paths[canon.direction_count] = find_table(canon.direction_count, n, root=table,
-                                                      prefix=prefix, sequence_from=sequence_from)
-        out[i] = _served(canon, n, paths[canon.direction_count], table, prefix, sequence_from)
+        out[i] = _served(canon, n, path_of(canon.direction_count), table, prefix, sequence_from)
     return jnp.asarray(out)
+
+
+def _table_finder(n: int, table, prefix: str, sequence_from: int):
+    """``direction_count -> find_table(direction_count, n, ...)``, each found once."""
+    paths = {}
+
+    def path_of(direction_count: int):
+        if direction_count not in paths:
+            paths[direction_count] = find_table(direction_count, n, root=table, prefix=prefix,
+                                                sequence_from=sequence_from)
+        return paths[direction_count]
+
+    return path_of
 
 
 def _served(canon: Canonical, n: int, path, table, prefix: str, sequence_from: int) -> np.ndarray:
@@ -237,13 +247,11 @@ def missing(requests, n: int, *, direction_count: int | None = None, table=None,
     n = check_int("n", n, minimum=2)
     prefix = check_table_prefix(prefix)
     sequence_from = check_int("sequence_from", sequence_from, minimum=0)
-    paths, out = {}, []
+    path_of = _table_finder(n, table, prefix, sequence_from)
+    out = []
     for request in requests:
         canon = canonicalize(request, direction_count=direction_count)
-        if canon.direction_count not in paths:
-            paths[canon.direction_count] = find_table(canon.direction_count, n, root=table,
-                                                      prefix=prefix, sequence_from=sequence_from)
-        path = paths[canon.direction_count]
+        path = path_of(canon.direction_count)
         if path is None or not (path / f"{canon.name}.npz").exists():
             out.append(request)
     return out
