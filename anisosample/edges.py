@@ -258,10 +258,9 @@ def candidate(points, values, o: SearchOptions):
     rounding between two compilations of the same fit (a renderer's pass 1 and its search):
     0.05 of the threshold is 0.005 of the values' range at the default ``smooth_residual``, ten
     times the fit's largest error against float64 measured on rendered pixels
-    (:func:`_cubic_residual`).
-    On those pixels 0.8 instead of 0.95 flags 3 % more (cornell 1382 / 1342, dof 1229 / 1223,
-    pillars 4856 / 4850; the search's own test flags 1339 / 1223 / 4850). A bool; vmaps like
-    :func:`search`."""
+    (:func:`_cubic_residual`). On those pixels 0.8 instead of 0.95 flags 3 % more (cornell
+    1382 / 1342, dof 1229 / 1223, pillars 4856 / 4850; the search's own test flags 1339 / 1223
+    / 4850). A bool; vmaps like :func:`search`."""
     return _rough(jnp.asarray(points, jnp.float32), jnp.asarray(values, jnp.float32),
                   CANDIDATE_MARGIN * o.smooth_residual)[1]
 

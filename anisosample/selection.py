@@ -190,7 +190,8 @@ def aligned_sets(requests, n: int, *, table=None, build_missing: bool | None = N
     n = check_int("n", n, minimum=2)
     opts = dict(build_options)
     opts["show_progress"] = False
-    for count in (3, 4):
+    counts = sorted({len(e) + 2 for e in requests})  # 3 or 4: the tables refuse others
+    for count in counts:
         group = [e for e in requests if len(e) + 2 == count]
         todo = _tables.missing(group, n, direction_count=count, table=table, prefix=prefix)
         for extra in bar(todo, desc=desc or f"aligned sets n={n}", unit="set",
@@ -198,12 +199,11 @@ def aligned_sets(requests, n: int, *, table=None, build_missing: bool | None = N
             _tables.ensure([extra], n, direction_count=count, table=table,
                            build_missing=build_missing, prefix=prefix, **opts)
     sets = jnp.zeros((len(requests), n, 2), jnp.float32)
-    for count in (3, 4):
+    for count in counts:
         at = [i for i, e in enumerate(requests) if len(e) + 2 == count]
-        if at:
-            group = _tables.lookup_many([requests[i] for i in at], n, direction_count=count,
-                                        table=table, prefix=prefix)
-            sets = sets.at[np.asarray(at)].set(group)
+        group = _tables.lookup_many([requests[i] for i in at], n, direction_count=count,
+                                    table=table, prefix=prefix)
+        sets = sets.at[np.asarray(at)].set(group)
     return sets
 
 

@@ -503,6 +503,9 @@ api("synthesize-sequence-weights", lambda d: A().synthesis.synthesize_sequence(k
 api("tables-prefix-asymmetric", lambda d: A().tables.lookup([0, 90, 30], 256,
     prefix="pmj02bn-32"), ValueError, r"prefix 'pmj02bn-32' cannot be held by a table",
     owner="tables")
+api("selection-aligned-sets-three-extras", lambda d: A().selection.aligned_sets(
+    [(30,), (10, 20, 40)], 256), ValueError, r"at most two directions besides 0 and 90",
+    owner="selection")
 api("tables-lookup-many-n-1", lambda d: A().tables.lookup_many([(30,)], 1), ValueError,
     r"n must be >= 2", owner="tables")
 api("tables-lookup-many-request-180", lambda d: A().tables.lookup_many([(30,), (180,)], 256),
