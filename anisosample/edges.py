@@ -125,22 +125,25 @@ def neighbour_pairs(points, neighbours: int = 4) -> tuple[Array, Array, Array]:
 
 
 def _nearest(d2, k: int):
-    """Per row of ``d2`` ``(m, m)``, the columns of its ``k`` smallest entries, smallest first,
-    ties to the lower column: ``lax.top_k(-d2, k)``'s indices, the same bits. Taken as ``k``
-    rounds of a row minimum and the first column holding it (two plain reductions each, which
-    XLA:CPU vectorises over rows and pixels), where ``top_k`` is a custom call that sorts one
-    row at a time: the per-pixel sampler's search kernel on 4,096 of pillars' search pixels
-    (128^2, 256 spp), best of 5, three alternating runs each: 117-149 ms against 136-188 ms
-    (2026-12-07, load 1.5-1.9). (A running best-4 insertion over the columns, unrolled, ran in
-    a fifth of the time but compiled in 22 s and did not give top_k's bits on 1,024 pixels.)"""
+    """Per row of the symmetric ``d2`` ``(m, m)``, the columns of its ``k`` smallest entries,
+    smallest first, ties to the lower column: ``lax.top_k(-d2, k)``'s indices, the same bits.
+    Taken as ``k`` rounds of a minimum and the first index holding it, each over the leading
+    axis (``d2`` is symmetric bit for bit: ``(a - b)^2 == (b - a)^2``), so that XLA:CPU
+    vectorises every reduction along the contiguous axis; ``top_k`` is a custom call that sorts
+    one row at a time, and the same rounds over the trailing axis become windowed reductions.
+    The per-pixel sampler's search kernel on 4,096 of pillars' search pixels (128^2, 256 spp),
+    best of 5, three alternating runs each (2026-12-07, load 0.5-1.9): ``top_k`` 136-188 ms,
+    rounds over the trailing axis 117-149, over the leading axis 85-88. (A running best-4
+    insertion over the columns, unrolled, ran in a fifth of the time but compiled in 22 s and
+    did not give top_k's bits on 1,024 pixels.)"""
     m = d2.shape[-1]
-    col = jnp.arange(m, dtype=jnp.int32)[None, :]
+    index = jnp.arange(m, dtype=jnp.int32)[:, None]
     picks = []
     for _ in range(k):
-        low = jnp.min(d2, axis=-1, keepdims=True)
-        first = jnp.min(jnp.where(d2 == low, col, m), axis=-1)
+        low = jnp.min(d2, axis=-2, keepdims=True)
+        first = jnp.min(jnp.where(d2 == low, index, m), axis=-2)
         picks.append(first)
-        d2 = jnp.where(col == first[:, None], jnp.inf, d2)
+        d2 = jnp.where(index == first[None, :], jnp.inf, d2)
     return jnp.stack(picks, axis=-1)
 
 

@@ -162,41 +162,45 @@ def test_bad_options_are_refused():
         edges.edge_search(3.0, PREFIX)
 
 
-def test_cubic_residual_is_float64_least_squares():
-    """Step 1's fit (modified Gram-Schmidt in float32, vmapped) against float64 least squares
-    (numpy's SVD) on shifted prefixes: a cubic is explained exactly, and an edge's, a peak's
-    and noise's largest residuals agree within 1e-4 of the values' range (the float32 fit's
-    error on rendered pixels was at most 5.1e-4 of it, on dof's high-range values)."""
+def test_step_one_fit_is_float64_least_squares():
+    """Step 1's fit (modified Gram-Schmidt in float32) against float64 least squares (numpy's
+    SVD), read through edges.candidate: with the threshold 0.1 % above the float64 residual
+    (relative to the values' range) it flags nothing, 0.1 % below it flags every integrand (an
+    edge, a peak, noise on shifted prefixes); a cubic is never flagged. The float32 fit's error
+    on rendered pixels was at most 5.1e-4 of the range, on dof's high-range values."""
     rng = np.random.default_rng(11)
-    pts = jnp.stack([_shifted(300 + t) for t in range(40)])
-    x, y = pts[..., 0], pts[..., 1]
-    cubic = 0.4 + 0.3 * x - 0.2 * y**2 + 0.5 * x * y**2 - 0.1 * x**3
-    values = jnp.concatenate([
-        cubic[:10],
-        jnp.stack([_cut(rng.uniform(0.2, 0.8, 2), [rng.uniform(0, 180)])(p)
-                   for p in pts[10:20]]),
-        jnp.exp(-30 * ((x[20:30] - 0.5) ** 2 + (y[20:30] - 0.4) ** 2)),
-        jnp.asarray(rng.uniform(0, 1, (10, 64)), jnp.float32),
-    ])
-    got = np.asarray(jax.jit(jax.vmap(edges._cubic_residual))(pts, values), np.float64)
-    p64, v64 = np.asarray(pts, np.float64), np.asarray(values, np.float64)
-    for t in range(40):
-        u, w = p64[t, :, 0] - 0.5, p64[t, :, 1] - 0.5
+    pts = [_shifted(300 + t) for t in range(40)]
+    values = ([0.4 + 0.3 * p[:, 0] - 0.2 * p[:, 1] ** 2 + 0.5 * p[:, 0] * p[:, 1] ** 2
+               - 0.1 * p[:, 0] ** 3 for p in pts[:10]]
+              + [_cut(rng.uniform(0.2, 0.8, 2), [rng.uniform(0, 180)])(p) for p in pts[10:20]]
+              + [jnp.exp(-30 * ((p[:, 0] - 0.5) ** 2 + (p[:, 1] - 0.4) ** 2))
+                 for p in pts[20:30]]
+              + [jnp.asarray(rng.uniform(0, 1, 64), jnp.float32) for _ in range(10)])
+    for t, (p, v) in enumerate(zip(pts, values, strict=True)):
+        p64, v64 = np.asarray(p, np.float64), np.asarray(v, np.float64)
+        u, w = p64[:, 0] - 0.5, p64[:, 1] - 0.5
         basis = np.stack([u**a * w**b for a in range(4) for b in range(4 - a)], axis=1)
-        coef = np.linalg.lstsq(basis, v64[t], rcond=None)[0]
-        want = np.max(np.abs(v64[t] - basis @ coef))
-        span = np.ptp(v64[t])
-        assert abs(got[t] - want) <= 1e-4 * span, (t, got[t], want)
+        coef = np.linalg.lstsq(basis, v64, rcond=None)[0]
+        ratio = np.max(np.abs(v64 - basis @ coef)) / np.ptp(v64)
         if t < 10:
-            assert got[t] <= 1e-4 * span
+            assert ratio < 1e-6
+            assert not bool(edges.candidate(p, v, edges.search_options(smooth_residual=1e-4)))
+            continue
+        for scale, flagged in ((1.001, False), (0.999, True)):
+            o = edges.search_options(smooth_residual=scale * ratio / edges.CANDIDATE_MARGIN)
+            assert bool(edges.candidate(p, v, o)) == flagged, (t, ratio, scale)
 
 
-def test_nearest_is_top_k_of_the_negated_distances():
-    """edges._nearest (k rounds of a row minimum) gives lax.top_k(-d2, k)'s indices, ties to
-    the lower column included (small integer entries tie often), and inf on the diagonal."""
-    rng = np.random.default_rng(12)
-    for d2 in (rng.random((3, 64, 64)), rng.integers(0, 5, (3, 64, 64)).astype(np.float64)):
-        d2 = jnp.asarray(d2 + np.where(np.eye(64, dtype=bool), np.inf, 0.0), jnp.float32)
-        want = jax.vmap(lambda a: jax.lax.top_k(-a, 4)[1])(d2)
-        np.testing.assert_array_equal(np.asarray(jax.vmap(lambda a: edges._nearest(a, 4))(d2)),
-                                      np.asarray(want))
+def test_neighbours_in_order_with_ties_to_the_lower_index():
+    """neighbour_pairs lists each point's neighbours nearest first, ties to the lower index
+    (lax.top_k's order, which the row-minimum rounds reproduce): on a regular grid, where most
+    distances tie, and on shifted prefixes, against a stable argsort in float32."""
+    g = (np.arange(8, dtype=np.float32) + 0.5) / 8
+    grid = np.stack(np.meshgrid(g, g, indexing="xy"), -1).reshape(-1, 2)
+    for p in [grid] + [np.asarray(_shifted(400 + t)) for t in range(3)]:
+        _, j, _ = edges.neighbour_pairs(jnp.asarray(p), 4)
+        x, y = p[:, 0], p[:, 1]
+        d2 = (x[:, None] - x[None, :]) ** 2 + (y[:, None] - y[None, :]) ** 2
+        np.fill_diagonal(d2, np.inf)
+        want = np.argsort(d2, axis=1, kind="stable")[:, :4]
+        np.testing.assert_array_equal(np.asarray(j).reshape(-1, 4), want)
