@@ -190,20 +190,17 @@ def aligned_sets(requests, n: int, *, table=None, build_missing: bool | None = N
     n = check_int("n", n, minimum=2)
     opts = dict(build_options)
     opts["show_progress"] = False
-    counts = sorted({len(e) + 2 for e in requests})  # 3 or 4: the tables refuse others
-    for count in counts:
-        group = [e for e in requests if len(e) + 2 == count]
+    sets = jnp.zeros((len(requests), n, 2), jnp.float32)
+    for count in sorted({len(e) + 2 for e in requests}):  # 3 or 4: the tables refuse others
+        at = [i for i, e in enumerate(requests) if len(e) + 2 == count]
+        group = [requests[i] for i in at]
         todo = _tables.missing(group, n, direction_count=count, table=table, prefix=prefix)
         for extra in bar(todo, desc=desc or f"aligned sets n={n}", unit="set",
                          disable=None if progress and len(todo) > 8 else True):
             _tables.ensure([extra], n, direction_count=count, table=table,
                            build_missing=build_missing, prefix=prefix, **opts)
-    sets = jnp.zeros((len(requests), n, 2), jnp.float32)
-    for count in counts:
-        at = [i for i, e in enumerate(requests) if len(e) + 2 == count]
-        group = _tables.lookup_many([requests[i] for i in at], n, direction_count=count,
-                                    table=table, prefix=prefix)
-        sets = sets.at[np.asarray(at)].set(group)
+        sets = sets.at[np.asarray(at)].set(_tables.lookup_many(
+            group, n, direction_count=count, table=table, prefix=prefix))
     return sets
 
 

@@ -72,7 +72,8 @@ from .scene import LUMINANCE, THINLENS, Scene
 __all__ = ["AXIS_SNAP", "FALLBACK", "NEAR_AXIS_DEG", "PIXEL_SAMPLERS", "PixelEstimates",
            "PixelSampler", "apart_chunk", "check_pixel_prefix", "choose_sets",
            "exact_values", "fallback_shift_key", "integrand_estimates",
-           "pixel_prefix", "pixel_sampler", "prefix_chunk", "prefix_sets", "prefix_weight",
+           "pixel_prefix", "pixel_sampler", "pixel_sets", "prefix_chunk", "prefix_sets",
+           "prefix_weight",
            "rest_chunk", "search_chunk", "toroidal_shift_key"]
 
 PIXEL_SAMPLERS = ("aligned-pixel",)
@@ -155,14 +156,11 @@ class PixelSampler:
     name = "aligned-pixel"
 
     def sets(self, requests, spp: int, *, progress: bool = True) -> jax.Array:
-        """The sets for ``requests`` with this sampler's table options: :func:`prefix_sets`
-        (the prefix reused), or without ``reuse`` the plain sets (no prefix)."""
-        if self.reuse:
-            return prefix_sets(requests, spp, table=self.table, build_missing=self.build_missing,
-                               build_options=self.build_options, progress=progress)
-        return selection.aligned_sets(requests, spp, table=self.table,
-                                      build_missing=self.build_missing, progress=progress,
-                                      desc=f"pixel sets n={spp}", **self.build_options)
+        """The sets for ``requests`` with this sampler's table options
+        (:func:`pixel_sets`)."""
+        return pixel_sets(requests, spp, reuse=self.reuse, table=self.table,
+                          build_missing=self.build_missing, build_options=self.build_options,
+                          progress=progress)
 
     def settings(self) -> dict:
         """What a render records about the sampler (EXR metadata); the render adds the counts."""
@@ -184,6 +182,19 @@ def prefix_sets(requests, spp: int, *, table=None, build_missing: bool | None = 
     return selection.aligned_sets(requests, spp, table=table, build_missing=build_missing,
                                   prefix=check_pixel_prefix(prefix, spp), progress=progress,
                                   desc=f"pixel sets n={spp}", **(build_options or {}))
+
+
+def pixel_sets(requests, spp: int, *, reuse: bool, prefix: str | None = None, table=None,
+               build_missing: bool | None = None, build_options: dict | None = None,
+               progress: bool = True) -> jax.Array:
+    """The edge pixels' sets for ``requests``: with ``reuse`` the sets that start with the
+    prefix (:func:`prefix_sets`), else (probes apart) the plain table sets, no prefix."""
+    if reuse:
+        return prefix_sets(requests, spp, table=table, build_missing=build_missing,
+                           build_options=build_options, progress=progress, prefix=prefix)
+    return selection.aligned_sets(requests, spp, table=table, build_missing=build_missing,
+                                  progress=progress, desc=f"pixel sets n={spp}",
+                                  **(build_options or {}))
 
 
 class PixelEstimates(eqx.Module):
@@ -229,16 +240,16 @@ def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=
     est = np.empty(realizations, np.float64)
     edge = index >= 0
     own = jax.vmap(lambda kk: jax.random.fold_in(kk, 1))(keys)  # the fallback's shifts
-    if edge.any() and reuse:
-        sets = prefix_sets(requests, n, table=table, build_missing=build_missing,
-                           build_options=build_options, progress=False, prefix=name)
-        rest = jax.vmap(toroidal_shift)(keys[edge], sets[jnp.asarray(index[edge]), m:])
-        est[edge] = (head[edge] + np.asarray(jnp.sum(f(rest), axis=1), np.float64)) / n
-    elif edge.any():
-        sets = selection.aligned_sets(requests, n, table=table, build_missing=build_missing,
-                                      progress=False, **(build_options or {}))
-        pts = jax.vmap(toroidal_shift)(own[edge], sets[jnp.asarray(index[edge])])
-        est[edge] = np.asarray(jnp.mean(f(pts), axis=1), np.float64)
+    if edge.any():
+        sets = pixel_sets(requests, n, reuse=reuse, prefix=name, table=table,
+                          build_missing=build_missing, build_options=build_options,
+                          progress=False)[jnp.asarray(index[edge])]
+        if reuse:
+            rest = jax.vmap(toroidal_shift)(keys[edge], sets[:, m:])
+            est[edge] = (head[edge] + np.asarray(jnp.sum(f(rest), axis=1), np.float64)) / n
+        else:
+            pts = jax.vmap(toroidal_shift)(own[edge], sets)
+            est[edge] = np.asarray(jnp.mean(f(pts), axis=1), np.float64)
     if (~edge).any():
         from ..samplers import get
 
