@@ -38,7 +38,7 @@ import numpy as np
 import scipy.stats
 
 from . import samplers as _samplers
-from ._validate import check_choice, check_int, check_key, check_points
+from ._validate import check_choice, check_devices, check_int, check_key, check_points
 from .progress import progress as _progress_bar
 
 __all__ = [
@@ -185,7 +185,30 @@ def _off(progress: bool):
 
 
 def _chunk_size(n: int, realizations: int, chunk_elements: int) -> int:
+    """Realizations per chunk: at most ``chunk_elements`` evaluations. Not a function of the
+    devices: a ray-casting integrand's last bit can follow the chunk's shape (XLA's vector
+    width), so the devices share whole chunks of the one-device size."""
     return max(1, min(realizations, chunk_elements // n))
+
+
+def _local_devices(devices) -> list:
+    """``[None]`` (the default device) or the checked ``devices``, all of this process."""
+    devs = check_devices("devices", devices)
+    if devs is None:
+        return [None]
+    me = jax.process_index()
+    if any(d.process_index != me for d in devs):
+        raise ValueError(f"devices must be this process's devices (process {me}), got {devs}")
+    return devs
+
+
+def _placed(tree, device):
+    """``tree`` with its arrays on ``device`` (``None``: left where they are), so that a jitted
+    call on them runs there."""
+    if device is None:
+        return tree
+    arrays, rest = eqx.partition(tree, eqx.is_array)
+    return eqx.combine(jax.device_put(arrays, device), rest)
 
 
 def _pad_rows(a, rows: int):
@@ -207,6 +230,7 @@ def realization_estimates(
     center: float | None = None,
     chunk_elements: int = DEFAULT_CHUNK_ELEMENTS,
     progress: bool = False,
+    devices=None,
 ) -> np.ndarray:
     """The ``realizations`` estimates ``I_N`` (float64 NumPy array), one per randomization.
 
@@ -214,13 +238,20 @@ def realization_estimates(
     ``(n, 2)`` point set (shift only). ``patterns``: with ``"shift"``, the number of independent
     base patterns, each moved by ``realizations / patterns`` shifts. ``center``: the value the
     float32 deviations are taken from (default: the estimate of the first pattern; the exact
-    integral is best). Results do not depend on ``chunk_elements``.
+    integral is best). ``devices``: local devices (e.g. ``jax.devices()``) that the chunks of
+    ``chunk_elements // n`` realizations are dealt out to, in turn (``render``'s ``devices``
+    for the variance engine; one chunk runs on the first device alone); default: the default
+    device. The estimates are the same bits on any devices: a chunk is the same computation
+    wherever it runs. They do not depend on ``chunk_elements`` beyond float32 rounding (to
+    the bit for analytic integrands; a ray-casting integrand's last bit can follow the chunk's
+    shape).
     """
     n = check_int("n", n, minimum=1)
     realizations = check_int("realizations", realizations, minimum=2, maximum=MAX_REALIZATIONS)
     patterns = check_int("patterns", patterns, minimum=1)
     chunk_elements = check_int("chunk_elements", chunk_elements, minimum=1)
     key = check_key("key", key)
+    devs = _local_devices(devices)
     if not callable(f):
         raise TypeError(f"f must be a callable integrand over (..., 2), got {type(f).__name__}")
     sampler, fixed = _resolve_sampler(sampler, n)
@@ -259,15 +290,21 @@ def realization_estimates(
     c = jnp.float32(center)
     per = realizations // patterns
     chunk = _chunk_size(n, per if mode == "shift" else realizations, chunk_elements)
+    on = [(_placed(f, d), _placed(c, d)) for d in devs]  # the integrand on each device
 
     out = []
     if mode == "shift":
         bar = _progress_bar(total=patterns, desc="patterns", disable=_off(progress))
         for p, base in enumerate(bases):
             t = shifts[p * per : (p + 1) * per]
-            rows = -(-per // chunk) * chunk
-            dev = _shifted_deviations(f, base, _pad_rows(t, rows), c, chunk)
-            out.append(np.asarray(dev, dtype=np.float64)[:per])
+            rows = -(-per // (chunk * len(devs))) * chunk  # per device, whole chunks
+            t = _pad_rows(t, rows * len(devs))
+            parts = [  # dispatched to every device before any result is read
+                _shifted_deviations(fd, _placed(base, d), _placed(t[i * rows : (i + 1) * rows], d),
+                                    cd, chunk)
+                for i, (d, (fd, cd)) in enumerate(zip(devs, on, strict=True))
+            ]
+            out.append(np.concatenate([np.asarray(x, dtype=np.float64) for x in parts])[:per])
             bar.update(1)
         bar.close()
     else:
@@ -278,18 +315,20 @@ def realization_estimates(
         if jittable:
             rows = -(-realizations // chunk) * chunk
             keys, t = _pad_rows(keys, rows), _pad_rows(t, rows)
-            devs = [
-                _stacked_deviations(
-                    f, _fresh_points(sampler, n, keys[i : i + chunk]), t[i : i + chunk], c
-                )
-                for i in range(0, rows, chunk)
-            ]
-            dev = np.concatenate([np.asarray(d, dtype=np.float64) for d in devs])
+            parts = []
+            for j, i in enumerate(range(0, rows, chunk)):
+                d = devs[j % len(devs)]
+                fd, cd = on[j % len(devs)]
+                pts = _fresh_points(sampler, n, _placed(keys[i : i + chunk], d))
+                parts.append(_stacked_deviations(fd, pts, _placed(t[i : i + chunk], d), cd))
+            dev = np.concatenate([np.asarray(x, dtype=np.float64) for x in parts])
             out.append(dev[:realizations])
         else:  # NumPy constructions or unknown callables: make the sets in Python, evaluate stacked
             bar = _progress_bar(total=realizations, desc="patterns", disable=_off(progress))
-            for start in range(0, realizations, chunk):
+            for j, start in enumerate(range(0, realizations, chunk)):
                 stop = min(start + chunk, realizations)
+                d = devs[j % len(devs)]
+                fd, cd = on[j % len(devs)]
                 pts = jnp.stack(
                     [
                         _check_pattern(jnp.asarray(sampler(keys[r], n), dtype=jnp.float32), n)
@@ -297,10 +336,11 @@ def realization_estimates(
                         for r in range(start, stop)
                     ]
                 )
-                dev = _stacked_deviations(f, pts, t[start:stop], c)
-                out.append(np.asarray(dev, dtype=np.float64))
+                out.append(_stacked_deviations(fd, _placed(pts, d), _placed(t[start:stop], d),
+                                               cd))
                 bar.update(stop - start)
             bar.close()
+            out = [np.asarray(x, dtype=np.float64) for x in out]
     return float(center) + np.concatenate(out)
 
 
@@ -389,6 +429,7 @@ def estimate_variance(
     confidence: float = 0.95,
     chunk_elements: int = DEFAULT_CHUNK_ELEMENTS,
     progress: bool = False,
+    devices=None,
 ) -> VarianceEstimate:
     """Like :func:`estimator_variance`, with the standard error and a confidence interval."""
     if exact is not None:
@@ -407,6 +448,7 @@ def estimate_variance(
         center=center,
         chunk_elements=chunk_elements,
         progress=progress,
+        devices=devices,
     )
     sampler_obj, fixed = _resolve_sampler(sampler, n)
     mode = _choose_randomization(randomization, sampler_obj, fixed)
@@ -424,6 +466,7 @@ def estimator_variance(
     randomization: str = "auto",
     patterns: int = 1,
     chunk_elements: int = DEFAULT_CHUNK_ELEMENTS,
+    devices=None,
 ) -> float:
     """``Var(I_N)`` of ``I_N = mean_j f(x_j)`` over ``realizations`` randomizations (W Eq. 5's
     left-hand side), as a float.
@@ -431,8 +474,10 @@ def estimator_variance(
     ``exact``: the true integral, if known (e.g. ``f.integral``); then the mean squared error
     about it is returned (the estimators are unbiased, so it estimates the same variance with one
     more degree of freedom). ``randomization``: ``"auto"``, ``"shift"``, ``"fresh"`` or
-    ``"fresh+shift"`` (see the module docstring). Raises ``ValueError`` for ``realizations < 2``
-    and for ``n`` that is not a power of two with a net sampler (sobol-owen, pmj02, pmj02bn).
+    ``"fresh+shift"`` (see the module docstring). ``devices``: local devices the chunks of
+    realizations are dealt out to (:func:`realization_estimates`; the same result). Raises
+    ``ValueError`` for ``realizations < 2`` and for ``n`` that is not a power of two with a net
+    sampler (sobol-owen, pmj02, pmj02bn).
     """
     return estimate_variance(
         f,
@@ -444,6 +489,7 @@ def estimator_variance(
         randomization=randomization,
         patterns=patterns,
         chunk_elements=chunk_elements,
+        devices=devices,
     ).variance
 
 
@@ -587,6 +633,7 @@ def convergence(
     fit_min_n: int = 1,
     confidence: float = 0.95,
     progress: bool = False,
+    devices=None,
 ) -> ConvergenceResult:
     """Sweep ``n`` over ``ns`` for each sampler and fit ``Var ~ n^slope`` (W Figs. 6, 11).
 
@@ -597,9 +644,11 @@ def convergence(
     ``"auto"``, one pattern). ``randomization`` and ``patterns`` may be
     per-label mappings; ``patterns`` applies to the samplers randomized by ``"shift"``.
     The same key is used for every n and sampler (common random numbers).
-    Only ``n >= fit_min_n`` enter the fit (skip the pre-asymptotic regime).
+    Only ``n >= fit_min_n`` enter the fit (skip the pre-asymptotic regime). ``devices``: local
+    devices each estimate's realizations are dealt out to (:func:`realization_estimates`).
     """
     key = check_key("key", key)
+    _local_devices(devices)
     ns = tuple(check_int("ns", m, minimum=1) for m in ns)
     if len(ns) < 2:
         raise ValueError(f"ns must hold at least 2 sizes for a slope, got {list(ns)}")
@@ -652,6 +701,7 @@ def convergence(
                     randomization=mode,
                     patterns=pats,
                     confidence=confidence,
+                    devices=devices,
                 )
             )
             bar.update(1)

@@ -138,9 +138,14 @@ def block_sets(direction: float | None, n: int, key) -> dict[str, jax.Array]:
             "aligned 3-dir": sets["aligned"]}
 
 
-def pixel_variance(f, points, n: int, key, realizations: int) -> tuple[float, float, float]:
-    """(variance, std error, mean) of pixel ``f``'s estimator over toroidal shifts of ``points``."""
-    est = V.realization_estimates(f, points, n, key, realizations, randomization="shift")
+def pixel_variance(f, points, n: int, key, realizations: int, *, chunks: int = 1,
+                   devices=None) -> tuple[float, float, float]:
+    """(variance, std error, mean) of pixel ``f``'s estimator over toroidal shifts of ``points``:
+    the shifts in ``chunks`` chunks (one jitted call, whose bits can follow the chunk size),
+    dealt out to ``devices`` (the same bits on any number of them)."""
+    est = V.realization_estimates(f, points, n, key, realizations, randomization="shift",
+                                  chunk_elements=n * max(1, realizations // chunks),
+                                  devices=devices)
     r = V.variance_from_estimates(est, n=n, randomization="shift")
     return r.variance, r.std_error, r.mean
 

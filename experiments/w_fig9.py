@@ -42,13 +42,17 @@ installed tables are synthesized on demand into ``results/w_render_tables``.
 Writes ``results/w_fig9/w_fig9.json`` (per scene and class: the image resolution, every pixel
 as ``[column, row]`` as ``render.pixel_integrand`` takes it, row 0 at the top, its class
 direction(s), its block's estimate, and per method its per-pixel variances and slopes) and
-``w_fig9.png``. Finished scenes are reused on rerun (``--fresh`` recomputes).
+``w_fig9.png``. Finished scenes are reused on rerun (``--fresh`` recomputes). Each pixel
+variance's shifts run in :data:`CHUNKS` chunks, dealt out to ``--cpu-devices`` devices (default
+1; ``variance.realization_estimates(..., devices=...)``): the same numbers on any number.
 
     python experiments/w_fig9.py --scale small|paper [--scenes cornell,dof,pillars]
+        [--cpu-devices N]
 """
 
 from __future__ import annotations
 
+import functools
 import time
 
 import _w_render as W
@@ -162,7 +166,7 @@ def method_sets(cname, true_dirs, block_dirs, n, pmj):
     return {m: pmj if s is None else s for m, s in sets.items()}
 
 
-def measure_class(full, base, cname, pixels, dirs, num, cfg, key, cache):
+def measure_class(full, base, cname, pixels, dirs, num, cfg, key, cache, devices=None):
     ns = [2**k for k in (cfg["corner_log2_ns"] if cname == "corner" else cfg["log2_ns"])]
     rows = []
     for q, pix in enumerate(progress(pixels, desc=cname, leave=False)):
@@ -175,7 +179,7 @@ def measure_class(full, base, cname, pixels, dirs, num, cfg, key, cache):
             sets = method_sets(cname, true_dirs, list(block_dirs), n, pmj)
             kq = jax.random.fold_in(jax.random.fold_in(key, 10_000 + q), n)
             for m, pts in sets.items():
-                v, se, _ = W.pixel_variance(f, pts, n, kq, cfg["realizations"])
+                v, se, _ = _variance(f, pts, n, kq, cfg, devices)
                 per.setdefault(m, {"variance": [], "std_error": []})
                 per[m]["variance"].append(v)
                 per[m]["std_error"].append(se)
@@ -185,8 +189,17 @@ def measure_class(full, base, cname, pixels, dirs, num, cfg, key, cache):
                      "block": list(block), "block_directions_deg": [float(x) for x in block_dirs],
                      "methods": per})
     add_gate(full, base, rows)
-    add_beyond(full, base, cname, rows, ns, cfg, key)
+    add_beyond(full, base, cname, rows, ns, cfg, key, devices)
     return {"ns": ns, "pixels": rows, "summary": summarize(rows, ns)}
+
+
+CHUNKS = 4
+"""Chunks of shifts per pixel variance, dealt out to ``--cpu-devices`` devices: fixed, so that
+the numbers are the same bits on any number of devices."""
+
+
+def _variance(f, pts, n, key, cfg, devices):
+    return W.pixel_variance(f, pts, n, key, cfg["realizations"], chunks=CHUNKS, devices=devices)
 
 
 def add_gate(full, base, rows):
@@ -211,7 +224,7 @@ BEYOND_LOG2_NS = (8, 10, 12)
 summary (``slope3_median``) so the columns compare on the same sizes."""
 
 
-def add_beyond(full, base, cname, rows, ns, cfg, key):
+def add_beyond(full, base, cname, rows, ns, cfg, key, devices=None):
     """Beyond W (issue: per-pixel directions), on the same pixels and shifts' keys:
 
     * ``aligned (window)``: W's estimator (Sobel histogram + vMF, ``directions.estimate``) on a
@@ -242,8 +255,7 @@ def add_beyond(full, base, cname, rows, ns, cfg, key):
                 sets["aligned 4-dir (window)"] = _lookup(wd[:2], n) if len(wd) == 2 else None
             pmj = samplers.get("pmj02bn")(jax.random.fold_in(key, n), n)
             for m, pts in sets.items():
-                v, se, _ = W.pixel_variance(f, pmj if pts is None else pts, n, kq,
-                                            cfg["realizations"])
+                v, se, _ = _variance(f, pmj if pts is None else pts, n, kq, cfg, devices)
                 c = r["methods"].setdefault(m, {"variance": [], "std_error": [], "ns": todo})
                 c["variance"].append(v)
                 c["std_error"].append(se)
@@ -367,8 +379,9 @@ def by_block_error(rows) -> list[dict]:
     return out
 
 
-def run_scene(name, cfg, key, out, fresh):
-    settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist())}
+def run_scene(name, cfg, key, out, fresh, devices=None):
+    settings = {"scene": name, **cfg, "seed_key": str(jax.random.key_data(key).tolist()),
+                "variance_chunks": CHUNKS}
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
     if cached is not None and cached.get("settings") == settings:
@@ -383,11 +396,12 @@ def run_scene(name, cfg, key, out, fresh):
             for c in stale:
                 add_gate(full, base, c["pixels"])
             for cname in absent:
-                cached["classes"][cname] = measure_extra_class(name, cname, cfg, key, full, base)
+                cached["classes"][cname] = measure_extra_class(name, cname, cfg, key, full, base,
+                                                               devices=devices)
             for cname in beyond:
                 c = cached["classes"][cname]
                 add_beyond(full, base, cname, c["pixels"], c["ns"], cfg,
-                           jax.random.fold_in(key, CLASS_NAMES.index(cname)))
+                           jax.random.fold_in(key, CLASS_NAMES.index(cname)), devices)
                 asp.io.save_json(path, cached, overwrite=True)  # resumable class by class
             asp.io.save_json(path, cached, overwrite=True)
         for c in cached["classes"].values():  # derived: follows this script's summary
@@ -404,15 +418,16 @@ def run_scene(name, cfg, key, out, fresh):
         pixels, dirs, num = picked[cname]
         print(f"{name}: {cname}: {len(pixels)} pixels")
         rec["classes"][cname] = measure_class(full, base, cname, pixels, dirs, num, cfg,
-                                              jax.random.fold_in(key, i), cache)
+                                              jax.random.fold_in(key, i), cache, devices)
     for cname in CLASS_NAMES[3:]:
-        rec["classes"][cname] = measure_extra_class(name, cname, cfg, key, full, base, cache)
+        rec["classes"][cname] = measure_extra_class(name, cname, cfg, key, full, base, cache,
+                                                    devices)
     rec["seconds"] = time.time() - started
     asp.io.save_json(path, rec, overwrite=True)
     return rec
 
 
-def measure_extra_class(name, cname, cfg, key, full, base, cache=None):
+def measure_extra_class(name, cname, cfg, key, full, base, cache=None, devices=None):
     """The classes after the first three (their own keys, so adding one leaves the others)."""
     cache = {} if cache is None else cache
     i = CLASS_NAMES.index(cname)
@@ -420,7 +435,7 @@ def measure_extra_class(name, cname, cfg, key, full, base, cache=None):
                                               full, base, cache)
     print(f"{name}: {cname}: {len(pixels)} pixels")
     return measure_class(full, base, cname, pixels, dirs, num, cfg, jax.random.fold_in(key, i),
-                         cache)
+                         cache, devices)
 
 
 def figure(results, out):
@@ -446,7 +461,9 @@ def figure(results, out):
 
 def compute(settings, args):
     """Every scene's record in ``scenes/`` (resumable: a finished scene is reused)."""
-    results, missing = W.run_scenes(NAME, args, SCALES[args.scale], run_scene)
+    devices = common.render_devices(args)  # before anything runs on JAX
+    results, missing = W.run_scenes(NAME, args, SCALES[args.scale],
+                                    functools.partial(run_scene, devices=devices))
     return {"scenes": results, "missing_scenes": missing}
 
 
@@ -486,10 +503,15 @@ def report(data, args):
                       f" +- {sm.get('ratio_geomean_se', float('nan')):.2f})")
 
 
+def arguments(p):
+    W.scene_option(p, SCENES)
+    common.devices_option(p, default=1)  # the pixel variances' shifts (the same bits on any)
+
+
 def main(argv=None):
     return common.run(NAME, __doc__.splitlines()[0], SCALES, compute,
                       figure=lambda data, args: figure(data["scenes"], args.out), report=report,
-                      arguments=lambda p: W.scene_option(p, SCENES), settings=W.scene_settings,
+                      arguments=arguments, settings=W.scene_settings,
                       argv=argv)
 
 

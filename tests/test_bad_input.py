@@ -247,6 +247,12 @@ def key():
     return jax.random.key(0)
 
 
+def a_device():
+    import jax
+
+    return jax.devices()[0]
+
+
 def A():  # the package, imported when a case runs
     import anisosample
 
@@ -795,6 +801,15 @@ api("variance-user-sampler-shape", lambda d: A().variance.estimator_variance(
 api("variance-user-sampler-wrong-n", lambda d: A().variance.estimator_variance(
     f_edge(), lambda k, n: np.zeros((n + 1, 2), np.float32), 64, key(), 16), ValueError,
     r"the sampler must return \(n, 2\) = \(64, 2\) points, got shape \(65, 2\)", owner=R)
+api("variance-devices-one-device", lambda d: A().variance.estimator_variance(
+    f_edge(), "random", 64, key(), 16, devices=a_device()), TypeError,
+    r"devices must be a sequence of jax.Device .*pass \[", owner=R)
+api("variance-devices-empty", lambda d: A().variance.estimate_variance(
+    f_edge(), "random", 64, key(), 16, devices=[]), ValueError,
+    r"devices must hold at least one device", owner=R)
+api("variance-devices-not-devices", lambda d: A().variance.convergence(
+    f_edge(), ["random"], [16, 64], key(), 16, devices=["cpu"]), TypeError,
+    r"devices\[0\] must be a jax.Device", owner=R)
 api("variance-realizations-huge", lambda d: A().variance.estimator_variance(
     f_edge(), "random", 64, key(), 10**12), ValueError, r"realizations must be <= 1073741824",
     owner=R)

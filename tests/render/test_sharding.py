@@ -35,7 +35,26 @@ _SCRIPT = textwrap.dedent("""
         "aligned-pixel": ("cornell", 12, 12, dict(spp=64, sampler="aligned-pixel",
                                                   pixel_center=True)),
     }
+    def variance_case():  # the variance engine's chunks of realizations over the two devices
+        from anisosample import samplers, variance as V
+        pixel = R.pixel_integrand(R.load_xml(scenes.path("cornell"), width=64, height=64),
+                                  (30, 40))
+        fixed = np.asarray(samplers.get("pmj02bn")(jax.random.key(1), 256))
+        for sampler, kw in (("pmj02bn", dict(randomization="shift", patterns=2)),
+                            ("sobol-owen", {}), ("pmj02", {}), (fixed, {})):
+            for reals in (40, 6):  # 3 chunks of 3 per pattern (padded), 2 chunks of 3
+                one = V.realization_estimates(pixel, sampler, 256, jax.random.key(3), reals,
+                                              chunk_elements=256 * 3, **kw)
+                two = V.realization_estimates(pixel, sampler, 256, jax.random.key(3), reals,
+                                              chunk_elements=256 * 3, devices=jax.devices(),
+                                              **kw)
+                assert np.array_equal(one, two), (sampler, reals)
+        print("same variance", float(one.mean()))
+
     for name in sys.argv[1].split(","):
+        if name == "variance":
+            variance_case()
+            continue
         sc, w, h, opts = cases[name]
         scene = R.load_xml(scenes.path(sc), width=w, height=h)
         chunks = [None, 3] if name == "pmj02bn" else [None]  # 3: an odd number of blocks
@@ -64,8 +83,10 @@ def _two_devices(cases: str):
 def test_two_devices_give_the_same_bits():
     """Two forced host devices: pmj02bn (with realizations, and with 3-pixel chunks), the
     per-block aligned sampler and a light warp, each equal to the one-device render bit for
-    bit."""
-    _two_devices("pmj02bn,aligned,light warp")
+    bit; and the variance engine's estimates of a pixel integrand (``variance.
+    realization_estimates(..., devices=...)``: shifted patterns, fresh jittable and NumPy
+    samplers, a fixed set), its chunks of realizations dealt out to both devices."""
+    _two_devices("pmj02bn,aligned,light warp,variance")
 
 
 @pytest.mark.slow
