@@ -290,6 +290,7 @@ def realization_estimates(
     c = jnp.float32(center)
     per = realizations // patterns
     chunk = _chunk_size(n, per if mode == "shift" else realizations, chunk_elements)
+    devs = devs[: -(-(per if mode == "shift" else realizations) // chunk)]  # one chunk or more
     on = [(_placed(f, d), _placed(c, d)) for d in devs]  # the integrand on each device
 
     out = []
