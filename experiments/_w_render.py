@@ -138,14 +138,14 @@ def block_sets(direction: float | None, n: int, key) -> dict[str, jax.Array]:
             "aligned 3-dir": sets["aligned"]}
 
 
-def pixel_variance(f, points, n: int, key, realizations: int, *, chunks: int = 1,
+def pixel_variance(f, points, n: int, key, realizations: int, *, chunks: int | None = None,
                    devices=None) -> tuple[float, float, float]:
     """(variance, std error, mean) of pixel ``f``'s estimator over toroidal shifts of ``points``:
-    the shifts in ``chunks`` chunks (one jitted call, whose bits can follow the chunk size),
-    dealt out to ``devices`` (the same bits on any number of them)."""
+    the shifts in ``chunks`` chunks (default: the variance engine's chunk size; a ray-casting
+    integrand's bits can follow it), dealt out to ``devices`` (the same bits on any number)."""
+    size = V.DEFAULT_CHUNK_ELEMENTS if chunks is None else n * max(1, realizations // chunks)
     est = V.realization_estimates(f, points, n, key, realizations, randomization="shift",
-                                  chunk_elements=n * max(1, realizations // chunks),
-                                  devices=devices)
+                                  chunk_elements=size, devices=devices)
     r = V.variance_from_estimates(est, n=n, randomization="shift")
     return r.variance, r.std_error, r.mean
 

@@ -42,7 +42,7 @@ _SCRIPT = textwrap.dedent("""
         fixed = np.asarray(samplers.get("pmj02bn")(jax.random.key(1), 256))
         for sampler, kw in (("pmj02bn", dict(randomization="shift", patterns=2)),
                             ("sobol-owen", {}), ("pmj02", {}), (fixed, {})):
-            for reals in (40, 6):  # 3 chunks of 3 per pattern (padded), 2 chunks of 3
+            for reals in (40, 6):  # 7 or 14 chunks of 3 (the last padded); one or two
                 one = V.realization_estimates(pixel, sampler, 256, jax.random.key(3), reals,
                                               chunk_elements=256 * 3, **kw)
                 two = V.realization_estimates(pixel, sampler, 256, jax.random.key(3), reals,
