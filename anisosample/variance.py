@@ -291,7 +291,7 @@ def realization_estimates(
     per = realizations // patterns
     chunk = _chunk_size(n, per if mode == "shift" else realizations, chunk_elements)
     devs = devs[: -(-(per if mode == "shift" else realizations) // chunk)]  # one chunk or more
-    on = [(_placed(f, d), _placed(c, d)) for d in devs]  # the integrand on each device
+    on = [(d, _placed(f, d), _placed(c, d)) for d in devs]  # the integrand on each device
 
     out = []
     if mode == "shift":
@@ -303,7 +303,7 @@ def realization_estimates(
             parts = [  # dispatched to every device before any result is read
                 _shifted_deviations(fd, _placed(base, d), _placed(t[i * rows : (i + 1) * rows], d),
                                     cd, chunk)
-                for i, (d, (fd, cd)) in enumerate(zip(devs, on, strict=True))
+                for i, (d, fd, cd) in enumerate(on)
             ]
             out.append(np.concatenate([np.asarray(x, dtype=np.float64) for x in parts])[:per])
             bar.update(1)
@@ -318,8 +318,7 @@ def realization_estimates(
             keys, t = _pad_rows(keys, rows), _pad_rows(t, rows)
             parts = []
             for j, i in enumerate(range(0, rows, chunk)):
-                d = devs[j % len(devs)]
-                fd, cd = on[j % len(devs)]
+                d, fd, cd = on[j % len(on)]
                 pts = _fresh_points(sampler, n, _placed(keys[i : i + chunk], d))
                 parts.append(_stacked_deviations(fd, pts, _placed(t[i : i + chunk], d), cd))
             dev = np.concatenate([np.asarray(x, dtype=np.float64) for x in parts])
@@ -328,8 +327,7 @@ def realization_estimates(
             bar = _progress_bar(total=realizations, desc="patterns", disable=_off(progress))
             for j, start in enumerate(range(0, realizations, chunk)):
                 stop = min(start + chunk, realizations)
-                d = devs[j % len(devs)]
-                fd, cd = on[j % len(devs)]
+                d, fd, cd = on[j % len(on)]
                 pts = jnp.stack(
                     [
                         _check_pattern(jnp.asarray(sampler(keys[r], n), dtype=jnp.float32), n)
