@@ -912,6 +912,15 @@ api("warps-sample-batch-not-a-warp", lambda d: A().warps.sample_batch(
 # --- render ------------------------------------------------------------------------------------
 
 G = RENDER_OWNER
+api("render-tile-classes-granule",
+    lambda d: A().render.culling.tile_classes(scene(d), 0), ValueError, "granule",
+    owner=RENDER_OWNER)
+api("render-tile-classes-max-classes",
+    lambda d: A().render.culling.tile_classes(scene(d), 64, max_classes=0), ValueError,
+    "max_classes", owner=RENDER_OWNER)
+api("render-tile-classes-curved-everywhere",
+    lambda d: A().render.culling.tile_classes(scene(d), 64, curved_everywhere="yes"), TypeError,
+    "curved_everywhere", owner=RENDER_OWNER)
 api("render-load-missing", lambda d: A().render.load_xml(d / "nosuch.xml"), FileNotFoundError,
     r"nosuch\.xml", owner=G)
 api("render-load-not-xml", lambda d: A().render.load_xml(d / "notxml.xml"), ValueError,

@@ -1,4 +1,5 @@
-"""Per-tile culling for brute force: which planar primitives a tile's rays can meet.
+"""Per-tile culling for brute force: which planar primitives, and whether curved surfaces, a
+tile's rays can meet.
 
 A scene without a BVH tests every planar primitive with every ray (:mod:`.geometry`); its cost
 grows by about 3 ms per primitive per million samples (cornell, one device). The rays of one
@@ -26,6 +27,18 @@ where XLA fuses the smaller loop differently).
   coordinate axes, the light's normal, and cross products of the primitive's edges, the
   light's edges, the coordinate axes and the direction from the tile's hits to the light.
 
+* **Curved surfaces** (spheres, bilinear patches: :func:`curved_tiles`). Primary rays meet one
+  only where its bounding blob (a sphere, the hull of a patch's corners) is not wholly outside
+  one plane of a region; a shadow ray of a tile whose primary rays meet none leaves a piece of
+  a planar candidate, so it lies in the hull of that piece and the light, and a separating axis
+  parts the blob from each such hull. A render then gives the tiles whose rays meet no curved
+  surface a kernel without their tests, and each class of tiles candidate lists as long as its
+  own tiles need (:func:`tile_classes`). One-device renders at 128^2 x 64 spp (pmj02bn; the
+  smallest of 24 renders in each of three processes per version, median over the processes,
+  2026-12-07, load 1.8-1.9; this machine's timings switch between a fast and a slow mode, so
+  fewer renders mislead): dof 86 -> 64 ms, glossy 100 -> 76, pillars 46 -> 42, attic 84 ->
+  85, cornell 44 -> 41 (cornell and blinds keep one class), every image the same bits.
+
 Every test keeps a margin of ``MARGIN * scene.scale`` (world units), twice the surface offset,
 which also covers the float32 rounding of the rays and of the primitives' corners (recovered
 here from the intersection rows).
@@ -39,6 +52,7 @@ power of two, would not be shorter than it. XLA:CPU vectorizes those sizes: on c
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 from typing import NamedTuple
 
@@ -129,10 +143,16 @@ def tile_culling(scene: Scene, tile: int | None = None) -> TileCulling | None:
     return _cached(_LISTS, (_digest(scene), tile), lambda: _tile_culling(scene, tile))
 
 
-def _tile_culling(scene: Scene, tile: int) -> TileCulling | None:
+def _tile_culling(scene: Scene, tile: int, lengths=None) -> TileCulling | None:
+    """The lists of every tile, as long as the longest needs, or ``lengths = (primary,
+    shadow)`` long (a tile with more candidates keeps the first: :func:`tile_classes` renders
+    only the tiles they hold with them)."""
     primary, shadow = tile_candidates(scene, tile)
     t = primary.shape[1]
-    lists = _pad_lists(primary, t), _pad_lists(shadow, t)
+    if lengths is None:
+        lengths = _list_length(primary.sum(1).max(initial=0), t), \
+            _list_length(shadow.sum(1).max(initial=0), t)
+    lists = _pad_lists(primary, t, lengths[0]), _pad_lists(shadow, t, lengths[1])
     if lists[0] is None and lists[1] is None:
         return None
     soa = np.concatenate([np.asarray(scene.tri_soa), np.zeros((13, 1), np.float32)], 1)
@@ -154,17 +174,142 @@ def tile_candidates(scene: Scene, tile: int | None = None) -> tuple[np.ndarray, 
     tile side (default :data:`TILE_PX`, doubled while the tiles times the primitives exceed
     :data:`MAX_PAIRS`). Computed on the host in float64; the last few scenes' are cached by
     their contents."""
+    return _masks(scene, _tile_or_raise(scene, tile))[:2]
+
+
+def curved_tiles(scene: Scene, tile: int | None = None) -> np.ndarray:
+    """``(tiles,)`` boolean: whether a tile's primary or shadow rays may meet a sphere or a
+    bilinear patch (conservatively, as :func:`tile_candidates`; all false in a scene without
+    them). The other tiles' pixels render with a kernel that tests planar primitives only
+    (:func:`planar_split`)."""
+    return _masks(scene, _tile_or_raise(scene, tile))[2]
+
+
+class TileClass(NamedTuple):
+    """Pixels whose tiles render with one kernel: ``scene`` with candidate lists as long as
+    those tiles need (and without spheres and patches where they meet none)."""
+
+    scene: Scene
+    pixels: np.ndarray  # flat indices, ascending
+
+
+# Relative cost per sample of a kernel (tile_classes' model): 1 + COST_ROW x (primary and shadow
+# rows tested) + COST_CURVED where it tests the scene's spheres and patches. Fitted to one-device
+# renders of every pixel at 128^2 x 64 spp with forced list lengths (2026-12-07, interleaved,
+# min of 9, load 2.4 before): blinds 27.3 ms at lists of 2 and 2, 32.3 at 4 and 4, 37.2 at 8
+# and 8, 44.9 at 2 and 32; dof without its sphere 44.1 / 45.1 / 51.5 at 2 / 4 / 8 each, with it
+# 83.5 at 8 and 8.
+COST_ROW = 0.02
+COST_CURVED = 0.7
+MAX_CLASSES = 3  # kernels per render: each compiles once per image size (about 1.5 s)
+# A split of two classes stays only where merging them would cost this part of the image's
+# modelled total or more: every class is one more pass (its padding, its dispatches, a sync).
+MIN_GAIN = 0.1
+
+
+def tile_classes(scene: Scene, granule: int, *, curved_everywhere: bool = False,
+                 max_classes: int = MAX_CLASSES) -> list[TileClass] | None:
+    """The pixels of ``scene`` (which carries its culling) in up to ``max_classes`` classes of
+    tiles, each rendered by a kernel whose candidate lists are as long as its own tiles need,
+    and without the sphere and patch tests where its tiles meet none (:func:`curved_tiles`).
+    One list length for the whole image makes every tile pay for its worst one (attic: one
+    tile of 16 primary candidates, most of 1-2); the same samples, fewer rows tested.
+
+    The classes are the tiles' ``(primary length, shadow length, curved)``, merged greedily
+    (the pair whose merger costs least, the merged class taking the larger lengths) while
+    there are more than ``max_classes`` or a merger costs less than :data:`MIN_GAIN` of the
+    image, at the cost ``padded pixels x (1 + COST_ROW rows + COST_CURVED curved)`` where each
+    class's pixels are rounded up to ``granule`` (a render's chunk of pixels).
+    ``curved_everywhere``: every tile tests the curved surfaces (MIS: its BSDF rays may meet
+    anything). None: one class, the scene as it is."""
+    from .._validate import check_bool, check_int
+
+    granule = check_int("granule", granule, minimum=1)
+    max_classes = check_int("max_classes", max_classes, minimum=1)
+    curved_everywhere = check_bool("curved_everywhere", curved_everywhere)
+    c = scene.culling
+    if c is None:
+        return None
+    digest = _digest(scene)
+    plan = _cached(_CLASSES, (digest, c.tile, granule, bool(curved_everywhere), max_classes),
+                   lambda: _class_plan(scene, granule, curved_everywhere, max_classes))
+    if plan is None:
+        return None
+    return [TileClass(dataclasses.replace(
+        scene, culling=_cached(_LISTS, (digest, c.tile, key[:2]),
+                               lambda key=key: _tile_culling(scene, c.tile, key[:2])),
+        has_spheres=scene.has_spheres and bool(key[2]),
+        has_patches=scene.has_patches and bool(key[2])), pixels) for key, pixels in plan]
+
+
+def _class_plan(scene: Scene, granule: int, curved_everywhere: bool, max_classes: int):
+    """:func:`tile_classes`' classes: ``[(primary length, shadow length, curved), pixels]``,
+    or None for one class."""
+    c = scene.culling
+    t = scene.tri_soa.shape[1]
+    primary, shadow = tile_candidates(scene, c.tile)
+    curved = curved_tiles(scene, c.tile) | curved_everywhere
+    if not (scene.has_spheres or scene.has_patches):
+        curved = np.zeros_like(curved)
+    lengths = lambda m: np.array([_list_length(n, t) for n in m.sum(1)])  # noqa: E731
+    keys = np.stack([lengths(primary), lengths(shadow), curved], 1)
+    q = np.arange(scene.width * scene.height)
+    tile_of = (q // scene.width) // c.tile * c.tiles_x + (q % scene.width) // c.tile
+    uniq, inverse = np.unique(keys[tile_of], axis=0, return_inverse=True)
+    inverse = inverse.ravel()
+    groups = [(tuple(int(v) for v in k), [i]) for i, k in enumerate(uniq)]
+    counts = np.bincount(inverse, minlength=len(uniq))
+
+    def cost(key, n):
+        padded = -(-n // granule) * granule
+        rows = sum(t if k >= t else k for k in key[:2])
+        return padded * (1 + COST_ROW * rows + COST_CURVED * key[2])
+
+    def size(g):
+        return int(counts[g[1]].sum())
+
+    total = cost(tuple(int(v) for v in keys.max(0)), q.size)  # one class: the lists of today
+
+    while len(groups) > 1:
+        best = None
+        for a in range(len(groups)):
+            for b in range(a + 1, len(groups)):
+                ka, kb = groups[a][0], groups[b][0]
+                key = tuple(max(x, y) for x, y in zip(ka, kb, strict=True))
+                n = size(groups[a]) + size(groups[b])
+                extra = cost(key, n) - cost(ka, size(groups[a])) - cost(kb, size(groups[b]))
+                if best is None or extra < best[0]:
+                    best = (extra, a, b, key)
+        extra, a, b, key = best
+        if extra > MIN_GAIN * total and len(groups) <= max_classes:
+            break
+        merged = (key, groups[a][1] + groups[b][1])
+        groups = [g for i, g in enumerate(groups) if i not in (a, b)] + [merged]
+    if len(groups) == 1:
+        return None
+    plan = [(key, q[np.isin(inverse, members)]) for key, members in sorted(groups)]
+    for _, pixels in plan:
+        pixels.flags.writeable = False
+    return plan
+
+
+def _tile_or_raise(scene: Scene, tile) -> int:
     tile = _tile_px(scene, tile)
     if tile is None:
         raise ValueError(f"{scene.tri_soa.shape[1]} planar primitives at "
                          f"{scene.width}x{scene.height}: more than MAX_PAIRS even with tiles of "
                          f"{MAX_TILE_PX} pixels; pass tile")
-    return _cached(_MASKS, (_digest(scene), tile), lambda: _read_only(_compute(_Host(scene),
-                                                                                tile)))
+    return tile
+
+
+def _masks(scene: Scene, tile: int):
+    return _cached(_MASKS, (_digest(scene), tile),
+                   lambda: _read_only(_compute(_Host(scene), tile)))
 
 
 _MASKS: dict = {}  # (digest, tile) -> tile_candidates' masks, the last few scenes'
-_LISTS: dict = {}  # (digest, tile) -> tile_culling's result
+_LISTS: dict = {}  # (digest, tile[, lengths]) -> tile_culling's result
+_CLASSES: dict = {}  # (digest, tile, granule, curved_everywhere, max_classes) -> _class_plan
 
 
 def _cached(store: dict, key, make):
@@ -245,6 +390,17 @@ class _Host:
         if scene.has_patches:
             extra += [corners.reshape(-1, 3)]
         self.extra = np.concatenate(extra) if extra else np.zeros((0, 3))
+        # The same surfaces as blobs: 4 points and a radius each, the surface inside the
+        # points' hull widened by the radius (a sphere: its centre; a patch: its corners).
+        blobs, radii = [], []
+        if scene.has_spheres:
+            blobs += [np.repeat(c[live][:, None], 4, 1)]
+            radii += [r[live, 0]]
+        if scene.has_patches:
+            blobs += [corners]
+            radii += [np.zeros(corners.shape[0])]
+        self.blobs = np.concatenate(blobs) if blobs else np.zeros((0, 4, 3))
+        self.blob_radius = np.concatenate(radii) if radii else np.zeros(0)
 
 
 # --- geometry ---------------------------------------------------------------------------------
@@ -394,11 +550,16 @@ def _light_points(h: _Host):
     return np.stack(out)
 
 
-def _pad_lists(mask: np.ndarray, t: int):
-    """Ascending candidate indices per row of ``mask`` ``(n, t)``, padded with ``t`` to a
-    power of two (None where that is over half of ``t``)."""
-    most = int(mask.sum(1).max()) if mask.size else 0
-    k = max(2, 1 << max(0, most - 1).bit_length())
+def _list_length(most, t: int) -> int:
+    """The list length for at most ``most`` candidates of ``t``: a power of two from 2, or
+    ``t`` (no list: every primitive) where that power is not below ``t``."""
+    k = max(2, 1 << max(0, int(most) - 1).bit_length())
+    return t if k >= t else k
+
+
+def _pad_lists(mask: np.ndarray, t: int, k: int):
+    """Ascending candidate indices per row of ``mask`` ``(n, t)``, the first ``k``, padded with
+    ``t`` (None where ``k`` is ``t``: every primitive)."""
     if k >= t:
         return None
     order = np.argsort(~mask, axis=1, kind="stable")[:, :k]
@@ -433,17 +594,20 @@ def _geometry(h: _Host) -> _Geometry:
 
 
 def _compute(h: _Host, tile: int):
+    """``(primary, shadow, curved)``: the masks of :func:`tile_candidates` and of
+    :func:`curved_tiles`."""
     t = h.soa.shape[1]
     g = _geometry(h)
     rects = _tile_rects(h, tile)
     nt = rects.shape[0]
     primary = np.zeros((nt, t), bool)
     shadow = np.zeros((nt, t), bool)
+    curved = np.zeros(nt, bool)
     step = max(1, 500 // t)  # bounds the shadow test's (tiles, t, axes, points) arrays
     for a in range(0, nt, step):
         b = min(nt, a + step)
-        primary[a:b], shadow[a:b] = _tiles(h, g, rects[a:b])
-    return primary, shadow
+        primary[a:b], shadow[a:b], curved[a:b] = _tiles(h, g, rects[a:b])
+    return primary, shadow, curved
 
 
 def _unit(v):
@@ -467,7 +631,56 @@ def _tiles(h: _Host, g: _Geometry, rects):
     pieces = flat_p.reshape(nt, t, 2, _SLOTS, 3)
     piece_n = flat_c.reshape(nt, t, 2)
     primary = (piece_n > 0).any(2)
-    return primary, _shadow(h, g, primary, pieces, piece_n, lens)
+    return (primary, _shadow(h, g, primary, pieces, piece_n, lens),
+            _curved(h, g, n, d, pieces, piece_n))
+
+
+def _curved(h: _Host, g: _Geometry, n, d, pieces, piece_n):
+    """``(tiles,)``: whether a tile's primary or shadow rays may meet a sphere or a bilinear
+    patch (:func:`curved_tiles`). Primary rays: the surface's blob (``_Host.blobs``) is not
+    wholly outside one plane of a region. Shadow rays of a tile whose primary rays meet no
+    curved surface: each leaves a piece of a planar candidate for a light, so it lies in the
+    hull of that piece and the light; a separating axis parts the blob from every such hull:
+    the coordinate axes, the piece's normal, the planes through the light's centre and the
+    piece's edges (exact for a point light), and the direction across from the light to the
+    piece, square to the light's direction to the blob."""
+    nt = n.shape[0]
+    nb = h.blobs.shape[0]
+    if nb == 0:
+        return np.zeros(nt, bool)
+    m = MARGIN * h.scale
+    # Primary: n . x >= d for every plane of a region; the blob leaves it where
+    # max(n . points) + radius < d for one plane.
+    reach = np.einsum("trpk,bjk->trpbj", n, h.blobs).max(-1) + h.blob_radius  # (nt, 2, 6, b)
+    curved = (reach >= d[..., None]).all(2).any(1).any(-1)
+    # Shadow: the pieces (nt, P, S, 3) with counts (nt, P).
+    poly = pieces.reshape(nt, -1, _SLOTS, 3)
+    count = piece_n.reshape(nt, -1)
+    slot = np.arange(_SLOTS)
+    real = slot < count[..., None]  # (nt, P, S)
+    nxt = (slot + 1) % np.maximum(count[..., None], 1)
+    edge = np.take_along_axis(poly, nxt[..., None], 2) - poly
+    centre = np.where(real[..., None], poly, 0.0).sum(2) / np.maximum(count, 1)[..., None]
+    normal = _unit(np.cross(edge[:, :, 0], edge[:, :, 1]))
+    fixed = np.broadcast_to(np.eye(3), (*count.shape, 3, 3))
+    for light in g.lights:  # (8, 3)
+        lc = light.mean(0)
+        side = np.where(real[..., None], _unit(np.cross(edge, poly - lc)), 0.0)
+        hull = np.concatenate([poly, np.broadcast_to(light, (*count.shape, 8, 3))], 2)
+        inner = np.concatenate([real, np.ones((*count.shape, 8), bool)], 2)
+        for pts, rad in zip(h.blobs, h.blob_radius, strict=True):
+            u = _unit(pts.mean(0) - lc)
+            w = centre - lc
+            across = _unit(w - (w @ u)[..., None] * u)
+            axes = np.concatenate([fixed, normal[..., None, :], across[..., None, :], side], 2)
+            proj = np.einsum("tpak,tpxk->tpax", axes, hull)
+            p_hi = np.where(inner[:, :, None], proj, -np.inf).max(-1)
+            p_lo = np.where(inner[:, :, None], proj, np.inf).min(-1)
+            own = np.einsum("tpak,jk->tpaj", axes, pts)
+            used = np.linalg.norm(axes, axis=-1) > 0
+            apart = used & ((p_hi + m < own.min(-1) - rad) | (p_lo - m > own.max(-1) + rad))
+            curved |= ((count > 0) & ~apart.any(-1)).any(1)
+    return curved
 
 
 def _one_side(a, b, delta):

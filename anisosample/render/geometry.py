@@ -8,16 +8,18 @@ primitives, for which testing every primitive is faster under XLA than walking a
 a scene with many planar primitives (meshes) carries a BVH (:mod:`anisosample.render.bvh`,
 ``Scene.bvh``), which :func:`intersect` and :func:`occluded` then walk instead. Without one,
 a render tests only the candidates of each pixel's tile (``subset=``,
-:mod:`anisosample.render.culling`).
+:mod:`anisosample.render.culling`), and the tiles whose rays meet no sphere or patch render
+with ``has_spheres`` / ``has_patches`` off (:func:`~anisosample.render.culling.tile_classes`).
 
-Where dof's time goes (2026-12-07, 128^2 x 64 spp, pmj02bn, one device, best of 7, load 1.5-2,
-ad-hoc scripts): 63.9 ms; without its one sphere (not culled: every primary and shadow ray
-tests it) 42.5 ms; with a pinhole instead of the thin lens 58.7 ms (39.2 without the sphere);
-cornell 35.3 ms. Tried and not kept: the hit's single-row gathers (a vmapped ``rows[k]``)
-written as chains of selects over the rows, which :mod:`.bvh`'s traversal gained from. For the
-sphere's centre, material and light dof went 59.9 -> 80.7 ms; for the planar rows as well
-(attributes, ids, barycentrics, candidate index) cornell went 30 -> 169-181 ms, dof 60 ->
-152-157 ms, attic 66 -> 168-173 ms (the same images but for float32 rounding on patch_light).
+Where dof's time went (2026-12-07, 128^2 x 64 spp, pmj02bn, one device, best of 7, load 1.5-2,
+ad-hoc scripts; before the tiles without the sphere dropped its tests): 63.9 ms; without its one
+sphere (then not culled: every primary and shadow ray tested it) 42.5 ms; with a pinhole instead
+of the thin lens 58.7 ms (39.2 without the sphere); cornell 35.3 ms. Tried and not kept: the
+hit's single-row gathers (a vmapped ``rows[k]``) written as chains of selects over the rows,
+which :mod:`.bvh`'s traversal gained from. For the sphere's centre, material and light dof went
+59.9 -> 80.7 ms; for the planar rows as well (attributes, ids, barycentrics, candidate index)
+cornell went 30 -> 169-181 ms, dof 60 -> 152-157 ms, attic 66 -> 168-173 ms (the same images but
+for float32 rounding on patch_light).
 """
 
 from __future__ import annotations

@@ -120,16 +120,19 @@ def render(
 
     ``culling``: a scene without a BVH tests, per tile of pixels, only the planar primitives
     the tile's primary and shadow rays can meet (:mod:`anisosample.render.culling`, computed
-    here on the host and cached); off, every ray tests every primitive. The same nearest hits
-    either way (the image may move by float32 rounding). ``None`` (default): on from
-    :data:`~anisosample.render.culling.AUTO_SAMPLES` samples per realization, where it saves
-    more than the kernel it compiles for the image's tiles costs.
+    here on the host and cached), and the tiles whose rays meet no sphere or bilinear patch
+    skip those tests (up to three classes of tiles, each its own kernel:
+    :func:`~anisosample.render.culling.tile_classes`); off, every ray tests every primitive.
+    The same nearest hits either way (the image may move by float32 rounding). ``None``
+    (default): on from :data:`~anisosample.render.culling.AUTO_SAMPLES` samples per
+    realization, where it saves more than the kernels it compiles for the image's tiles
+    cost.
     """
     key = check_key("key", key)
     spp = check_int("spp", spp, minimum=1)
     if culling is not None and not isinstance(culling, (bool, np.bool_)):
         raise TypeError(f"culling must be True, False or None, got {culling!r}")
-    from .culling import AUTO_SAMPLES, with_culling
+    from .culling import AUTO_SAMPLES, tile_classes, with_culling
 
     if culling is None:
         culling = scene.width * scene.height * spp >= AUTO_SAMPLES
@@ -177,7 +180,30 @@ def render(
         chunk = max(1, min(npix, chunk_samples // spp))
     chunk = check_int("chunk", chunk, minimum=1)
     per_call = max(1, min(-(-npix // chunk), 2**18 // (chunk * spp)))
-    n_chunks = -(-npix // (chunk * per_call))
+    # Classes of tiles, each its own kernel: candidate lists as long as its tiles need, and no
+    # sphere or patch tests where they meet none (MIS's BSDF rays may meet anything).
+    classes = tile_classes(scene, chunk, curved_everywhere=options.mis)
+    pixel_class = np.zeros(npix, np.int32)
+    for i, c in enumerate(classes or ()):
+        pixel_class[c.pixels] = i
+
+    def blocking(size: int, whole: bool) -> list[tuple[int, int]]:
+        """The blocks of a pass over ``size`` pixels: ``(first position, chunks per jit
+        call)`` each, ``per_call`` chunks but where that pads more than a tenth: a pass over
+        some pixels (the per-pixel sampler's search and its edge pixels' rest, a class of
+        tiles) then runs its whole blocks and the rest one chunk per call (cornell's 1,329
+        search pixels at 128^2 x 256 spp had been padded to 2,048). A pass over the whole image
+        keeps its blocks: one chunk per call made the smooth pixels' pass slower (109 ->
+        122-129 ms, more dispatches)."""
+        big = chunk * per_call
+        if whole or -size % big <= size // 10:
+            return [(c, per_call) for c in range(0, max(size, 1), big)]
+        full = size // big * big
+        return [(c, per_call) for c in range(0, full, big)] + \
+            [(c, 1) for c in range(full, max(size, 1), chunk)]
+
+    n_chunks = sum(len(blocking(n, classes is None)) for n in
+                   ((npix,) if classes is None else (c.pixels.size for c in classes)))
     from ..progress import progress as bar
 
     total = np.zeros((npix, 3), np.float64)
@@ -192,21 +218,36 @@ def render(
 
         def over_pixels(kernel, args, static, pixels=None):
             """``kernel(*args, idx, **static)`` (a jitted chunk kernel: ``idx`` a
-            ``(per_call, chunk)`` block of flat pixel indices) over every pixel (or the flat
-            indices ``pixels``): its outputs, each ``(npix, ...)`` (zero outside ``pixels``).
-            Block ``c`` runs on process ``c % P`` of the ``P`` sharing ``devices``, on its
-            local devices in turn; the next block is dispatched before one is read."""
-            todo = np.arange(npix) if pixels is None else np.asarray(pixels, np.int64)
-            # A pass over some pixels whose blocks of per_call chunks would be more than a
-            # tenth padding runs one chunk per call instead (the per-pixel sampler's search and
-            # its edge pixels' rest: cornell's 1,329 search pixels at 128^2 x 256 spp were
-            # padded to 2,048). A large pass keeps its blocks: one chunk per call made the
-            # smooth pixels' pass slower (109 -> 122-129 ms, more dispatches).
-            calls = per_call
-            if pixels is not None and -todo.size % (chunk * per_call) > todo.size // 10:
-                calls = 1
-            per_step = chunk * calls
-            steps = max(1, -(-todo.size // per_step))
+            ``(per_call, chunk)`` block of flat pixel indices, ``args[0]`` the scene) over
+            every pixel (or the flat indices ``pixels``): its outputs, each ``(npix, ...)``
+            (zero outside ``pixels``). Each class of tiles (``classes``) runs with its own
+            scene."""
+            whole = pixels is None
+            todo = np.arange(npix) if whole else np.asarray(pixels, np.int64)
+            parts = [(todo, args)]
+            if classes is not None and args[0] is scene:
+                mine = pixel_class[todo]
+                parts = [(todo[mine == i], (c.scene, *args[1:]))
+                         for i, c in enumerate(classes)]
+                parts = [p for p in parts if p[0].size] or parts[:1]
+            outs = None
+            for part, run in parts:
+                res = one_pass(kernel, run, static, part, whole, whole and len(parts) == 1)
+                if outs is None:
+                    outs = res
+                else:
+                    for o, r in zip(outs, res, strict=True):
+                        o[part] = r[part]
+            if not whole:
+                pb.update(1)
+            return outs
+
+        def one_pass(kernel, args, static, todo, counted, whole):
+            """:func:`over_pixels` over ``todo`` with ``args``' scene. Block ``c`` runs on
+            process ``c % P`` of the ``P`` sharing ``devices``, on its local devices in turn;
+            the next block is dispatched before one is read. ``counted``: a part of the pass
+            over every pixel (progress per block); ``whole``: that whole pass."""
+            blocks = blocking(todo.size, whole)
             outs = []  # allocated from the first block's outputs (no trace of the kernel)
 
             def allocate(results):
@@ -218,13 +259,12 @@ def render(
                     allocate(res)
                 for o, r in zip(outs, res, strict=True):
                     o[idx[valid]] = np.asarray(r).reshape(-1, *r.shape[2:])[valid]
-                if pixels is None:
+                if counted:
                     pb.update(split.processes)
 
             pending = collections.deque()
-            mine = range(split.rank, steps, split.processes)
-            for turn, c in enumerate(mine):
-                pos = np.arange(c * per_step, (c + 1) * per_step)
+            for turn, (start, calls) in enumerate(blocks[split.rank::split.processes]):
+                pos = np.arange(start, start + calls * chunk)
                 valid = pos < todo.size
                 idx = todo[np.where(valid, pos, max(todo.size - 1, 0))] if todo.size else pos
                 idx = idx.astype(np.int32)
@@ -238,12 +278,10 @@ def render(
                 collect(*pending.popleft())
             if not outs:  # this process rendered no block: the shapes from a trace
                 shapes = jax.eval_shape(lambda i: kernel(*args, i, **static),
-                                        jax.ShapeDtypeStruct((calls, chunk), jnp.int32))
+                                        jax.ShapeDtypeStruct((1, chunk), jnp.int32))
                 allocate(shapes if isinstance(shapes, tuple) else (shapes,))
             if split.processes > 1:  # every process gets the blocks the others rendered
-                outs = split.gather(outs, todo, per_step)
-            if pixels is not None:
-                pb.update(1)
+                outs = split.gather(outs, todo, [b[0] for b in blocks])
             return outs
 
         for r in range(realizations):
@@ -355,13 +393,15 @@ class _PixelSplit(NamedTuple):
                              f"{me}), got only those of process(es) {list(owners)}")
         return cls([d for d in devices if d.process_index == me], owners)
 
-    def gather(self, outs: list, todo: np.ndarray, per_step: int) -> list:
+    def gather(self, outs: list, todo: np.ndarray, starts: list[int]) -> list:
         """Each pixel's values from the process that rendered its block (block ``c`` of the
-        ``todo`` pixels: process ``owners[c % processes]``), on every process."""
+        ``todo`` pixels, from position ``starts[c]``: process ``owners[c % processes]``), on
+        every process."""
         from jax.experimental import multihost_utils
 
         every = multihost_utils.process_allgather(outs)  # [(process_count, npix, ...)]
-        owner = np.asarray(self.owners)[(np.arange(todo.size) // per_step) % self.processes]
+        block = np.searchsorted(np.asarray(starts), np.arange(todo.size), side="right") - 1
+        owner = np.asarray(self.owners)[block % self.processes]
         merged = []
         for o, e in zip(outs, every, strict=True):
             o = o.copy()

@@ -8,6 +8,8 @@ every primitive that cuts a shadow segment (within occluded's trimmed ends) amon
 candidates. Renders with and without culling must give the same image.
 """
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -22,7 +24,9 @@ from anisosample.render.geometry import closest_planar, offset_origin
 from anisosample.render.scene import LIGHT_POINT, LIGHT_SPHERE
 
 
-def _soup_scene(seed, *, thin=False, rfilter="box", light="area", size=16):
+def _soup_scene(seed, *, thin=False, rfilter="box", light="area", size=16, curved=False):
+    """Random triangles and rectangles between a floor and a back wall; ``curved``: three
+    spheres and a bilinear patch among them."""
     rng = np.random.default_rng(seed)
     b = R.SceneBuilder()
     m = b.diffuse(0.5)
@@ -51,6 +55,12 @@ def _soup_scene(seed, *, thin=False, rfilter="box", light="area", size=16):
         b.point_light((0.5, 2.5, -0.5), 3.0)
     else:
         b.sphere((-0.4, 2.4, 0.3), 0.3, m, radiance=4.0)
+    if curved:
+        for c, r in zip(rng.uniform(-1, 1, (3, 3)) * [1.2, 1.0, 0.6],
+                        rng.uniform(0.1, 0.3, 3), strict=True):
+            b.sphere(c, r, m)
+        b.bilinear_patch(np.array([[[-0.9, 0.6, 0.3], [-0.3, 0.7, 0.2]],
+                                   [[-0.8, 1.1, 0.0], [-0.2, 1.2, 0.4]]]), m)
     cam = np.eye(4)
     cam[:3, 3] = (0.2, 0.3, -4.5)
     b.camera(cam, width=size, height=size, fov=50, thinlens=thin, aperture_radius=0.15,
@@ -207,3 +217,94 @@ def test_bad_culling_argument():
         R.pixel_integrand(scene, (0, 0), culling=1)
     with pytest.raises(ValueError, match="tile"):
         C.tile_candidates(scene, 0)
+
+
+@pytest.mark.parametrize("seed,thin,light", [(0, False, "area"), (1, True, "point")])
+def test_curved_tiles_hold_every_curved_hit_and_blocker(seed, thin, light):
+    from anisosample.render.geometry import intersect, occluded
+
+    scene = _soup_scene(seed, thin=thin, light=light, curved=True)
+    planar = dataclasses.replace(scene, has_spheres=False, has_patches=False)
+    tile = 4
+    curved = C.curved_tiles(scene, tile)
+    rng = np.random.default_rng(200 + seed)
+    ids, o, d = _tile_rays(scene, tile, rng, 400, square=False)
+    targets = _light_targets(scene, rng, m=8)
+
+    @jax.jit
+    def meets(o, d):
+        """Whether a curved surface is the nearest hit, or blocks a shadow segment of a planar
+        hit, of each ray."""
+        def one(o, d):
+            h, hp = intersect(scene, o, d), intersect(planar, o, d)
+            seen = h.valid & ~(hp.valid & (hp.t == h.t))
+            origin = offset_origin(scene, hp.p, hp.n, -d)
+            blocks = jax.vmap(lambda y: occluded(scene, origin, y) != occluded(planar, origin, y))
+            return seen, hp.valid & ~seen & blocks(targets).any()
+        return jax.vmap(one)(o, d)
+
+    seen, blocks = (np.asarray(a) for a in meets(o, d))
+    assert seen.any() and blocks.any()  # the rays meet the curved surfaces both ways
+    assert curved[ids[seen | blocks]].all()
+    assert not curved.all()  # and some tiles go without them
+
+
+def test_tile_classes_partition_the_pixels_and_hold_their_candidates():
+    scene = R.load_xml(scenes.path("dof"), width=64, height=48)
+    scene = C.with_culling(scene)
+    classes = C.tile_classes(scene, 64)
+    assert classes is not None and len(classes) >= 2
+    every = np.concatenate([c.pixels for c in classes])
+    assert np.array_equal(np.sort(every), np.arange(64 * 48))
+    primary, shadow = C.tile_candidates(scene, scene.culling.tile)
+    curved = C.curved_tiles(scene, scene.culling.tile)
+    tile, tiles_x = scene.culling.tile, scene.culling.tiles_x
+    for c in classes:
+        q = c.pixels
+        tiles = np.unique((q // 64) // tile * tiles_x + (q % 64) // tile)
+        assert c.scene.has_spheres or not curved[tiles].any()
+        for mask, lists in ((primary, c.scene.culling.primary), (shadow, c.scene.culling.shadow)):
+            if lists is None:  # every primitive
+                continue
+            index = np.asarray(lists.index)[tiles]
+            for tile, row in zip(tiles, index, strict=True):
+                assert set(np.nonzero(mask[tile])[0]) <= set(row[row >= 0])
+    # MIS: every class tests the sphere (its BSDF rays may meet it anywhere).
+    mis = C.tile_classes(scene, 64, curved_everywhere=True)
+    assert mis is None or all(c.scene.has_spheres for c in mis)
+
+
+def test_render_by_tile_classes_agrees_with_brute_force():
+    scene = R.load_xml(scenes.path("dof"), width=64, height=48)
+    assert C.tile_classes(C.with_culling(scene), 64) is not None
+    key = jax.random.key(4)
+    a, b = (R.render(scene, key, spp=8, sampler="pmj02bn", progress=False, culling=c, chunk=64)
+            .mean for c in (True, False))
+    np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-7)
+
+
+def test_curved_tiles_see_a_sphere_against_the_sky():
+    """Nothing planar lies behind the sphere and no shadow ray passes it (the light is under
+    the floor): only the primary rays can flag its tiles."""
+    from anisosample.render.geometry import intersect
+
+    b = R.SceneBuilder()
+    m = b.diffuse(0.5)
+    floor = np.diag([3.0, 3.0, 1.0, 1.0])
+    floor[:3, :3] = floor[:3, :3] @ np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]])
+    floor[:3, 3] = (0, -1.0, 0)
+    b.rectangle(floor, m)
+    b.sphere((0.3, 0.4, 0.5), 0.4, m)
+    b.point_light((0.0, -3.0, 0.0), 1.0)
+    cam = np.eye(4)
+    cam[:3, 3] = (0.0, 0.0, -4.0)
+    b.camera(cam, width=16, height=16, fov=50)
+    scene = b.build(bvh=False)
+    planar = dataclasses.replace(scene, has_spheres=False)
+    curved = C.curved_tiles(scene, 4)
+    ids, o, d = _tile_rays(scene, 4, np.random.default_rng(3), 400, square=False)
+    hit = np.asarray(jax.vmap(lambda o, d: intersect(scene, o, d).valid)(o, d))
+    hit_planar = np.asarray(jax.vmap(lambda o, d: intersect(planar, o, d).valid)(o, d))
+    seen = hit & ~hit_planar  # the sphere, with the sky behind it
+    assert seen.any() and curved[ids[seen]].all()
+    assert not curved.all()

@@ -34,6 +34,8 @@ _SCRIPT = textwrap.dedent("""
                                                       light_warp="cosine-bilinear")),
         "aligned-pixel": ("cornell", 12, 12, dict(spp=64, sampler="aligned-pixel",
                                                   pixel_center=True)),
+        # two classes of tiles (with and without the sphere), blocks of 4 and of 1 chunk
+        "tile classes": ("dof", 64, 48, dict(spp=256, sampler="pmj02bn", culling=True)),
     }
     def variance_case():  # the variance engine's chunks of realizations over the two devices
         from anisosample import samplers, variance as V
@@ -57,7 +59,8 @@ _SCRIPT = textwrap.dedent("""
             continue
         sc, w, h, opts = cases[name]
         scene = R.load_xml(scenes.path(sc), width=w, height=h)
-        chunks = [None, 3] if name == "pmj02bn" else [None]  # 3: an odd number of blocks
+        # 3: an odd number of blocks; 64: dof's classes (see test_culling)
+        chunks = {"pmj02bn": [None, 3], "tile classes": [64]}.get(name, [None])
         for chunk in chunks:
             one = R.render(scene, jax.random.key(5), progress=False, chunk=chunk, **opts)
             two = R.render(scene, jax.random.key(5), progress=False, chunk=chunk,
@@ -82,11 +85,11 @@ def _two_devices(cases: str):
 
 def test_two_devices_give_the_same_bits():
     """Two forced host devices: pmj02bn (with realizations, and with 3-pixel chunks), the
-    per-block aligned sampler and a light warp, each equal to the one-device render bit for
-    bit; and the variance engine's estimates of a pixel integrand (``variance.
-    realization_estimates(..., devices=...)``: shifted patterns, fresh jittable and NumPy
-    samplers, a fixed set), its chunks of realizations dealt out to both devices."""
-    _two_devices("pmj02bn,aligned,light warp,variance")
+    per-block aligned sampler, a light warp and dof's classes of tiles, each equal to the
+    one-device render bit for bit; and the variance engine's estimates of a pixel integrand
+    (``variance.realization_estimates(..., devices=...)``: shifted patterns, fresh jittable
+    and NumPy samplers, a fixed set), its chunks of realizations dealt out to both devices."""
+    _two_devices("pmj02bn,aligned,light warp,variance,tile classes")
 
 
 @pytest.mark.slow
