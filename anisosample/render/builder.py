@@ -509,7 +509,7 @@ class SceneBuilder:
             size = [(t.shape[1], t.shape[0]) for t in self._textures]
         else:
             data, size = np.zeros((1, 1, 1, 3), np.float32), [(1, 1)]
-        textures = Textures(data=jnp.asarray(data), size=i32(size))
+        textures = Textures(quad=jnp.asarray(_texel_quads(data, size)), size=i32(size))
 
         c = self._camera
         camera = Camera(
@@ -595,6 +595,18 @@ def _rgb(v) -> np.ndarray:
     if a.size != 3 or not np.all(np.isfinite(a)):
         raise ValueError(f"expected one or three finite numbers (RGB), got {v!r}")
     return a
+
+
+def _texel_quads(data: np.ndarray, size) -> np.ndarray:
+    """``(t, h, w, 12)``: each texel with its right, lower and lower-right neighbours, wrapping
+    around each texture's own ``(w, h)`` (:class:`~anisosample.render.scene.Textures`)."""
+    quad = np.zeros((*data.shape[:3], 12), np.float32)
+    for k, (w, h) in enumerate(size):
+        img = data[k, :h, :w]
+        right, down = (np.arange(w) + 1) % w, (np.arange(h) + 1) % h
+        quad[k, :h, :w] = np.concatenate([img, img[:, right], img[down], img[down][:, right]],
+                                         -1)
+    return quad
 
 
 def _light_block(shape, p0, e1, e2, n, area, radiance, texture, uv=None, patch=-1) -> dict:

@@ -21,12 +21,11 @@ where XLA fuses the smaller loop differently).
 * **Shadow rays.** Their origins lie in the clipped pieces of the primary candidates (moved off
   the surface by :func:`~anisosample.render.geometry.offset_origin`), their ends on a light, so
   each lies in the convex hull ``H`` of those pieces (and the bounding boxes of spheres and
-  bilinear patches, which are not culled) and the light. A primitive is culled when
+  bilinear patches, whose hits shade too) and the light. A primitive is culled when
   a separating axis (Gottschalk et al. 1996) parts it from ``H``: its normal (where the hull
   lies on the camera's side, the offset points of its own plane counted on that side), the
   coordinate axes, the light's normal, and cross products of the primitive's edges, the
   light's edges, the coordinate axes and the direction from the tile's hits to the light.
-
 * **Curved surfaces** (spheres, bilinear patches: :func:`curved_tiles`). Primary rays meet one
   only where its bounding blob (a sphere, the hull of a patch's corners) is not wholly outside
   one plane of a region; a shadow ray of a tile whose primary rays meet none leaves a piece of
@@ -35,9 +34,9 @@ where XLA fuses the smaller loop differently).
   surface a kernel without their tests, and each class of tiles candidate lists as long as its
   own tiles need (:func:`tile_classes`). One-device renders at 128^2 x 64 spp (pmj02bn; the
   smallest of 24 renders in each of three processes per version, median over the processes,
-  2026-12-07, load 1.8-1.9; this machine's timings switch between a fast and a slow mode, so
+  2026-12-07, load 1.9; this machine's timings switch between a fast and a slow mode, so
   fewer renders mislead): dof 86 -> 64 ms, glossy 100 -> 76, pillars 46 -> 42, attic 84 ->
-  85, cornell 44 -> 41 (cornell and blinds keep one class), every image the same bits.
+  85 (cornell and blinds keep one class), every shipped scene's image the same bits.
 
 Every test keeps a margin of ``MARGIN * scene.scale`` (world units), twice the surface offset,
 which also covers the float32 rounding of the rays and of the primitives' corners (recovered

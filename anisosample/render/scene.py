@@ -86,9 +86,14 @@ class Materials(eqx.Module):
 
 
 class Textures(eqx.Module):
-    """Bitmaps used as emitted radiance, stacked and padded to one size (RGB, linear)."""
+    """Bitmaps used as emitted radiance, stacked and padded to one size (RGB, linear).
 
-    data: Float[Array, "t h w 3"]
+    Texel ``(y, x)`` of ``quad`` holds the four texels a bilinear lookup reads from it: its own,
+    its right neighbour, the one below and the one below-right (wrapping around the texture's
+    own size), so that a lookup is one gather (:func:`~anisosample.render.lights.
+    texture_lookup`)."""
+
+    quad: Float[Array, "t h w 12"]
     size: Int[Array, "t 2"]  # (w, h) of each texture's valid region
 
 
