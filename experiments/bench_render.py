@@ -11,14 +11,16 @@ or Debian's libllvm19 (``apt-get install libllvm19``; found automatically) -- an
 with ``--scalar`` (or when no LLVM is found). Scenes with our own XML extension (bilinear
 patches) go to Mitsuba through :func:`anisosample.render.mitsuba_compat.mitsuba_compatible_copy`.
 
-``--cpu-devices N`` (default: one per core) starts JAX's CPU backend with N devices
-(``jax_num_cpu_devices``) and renders over all of them (``render(..., devices=jax.devices())``,
-the same bits as one device); ``--cpu-devices 1``: one device. The ``cores`` column is the
-process's CPU time over wall time. On the 2-core reference machine (2026-12-06, load 0.6) one
-device already kept 1.6-1.7 cores busy on cornell (XLA:CPU splits large loops over its
-threads), and two devices gave 7.3-9.3 M samples/s against one device's 7.3-7.5: the devices
-are not where the gap to Mitsuba's llvm variant lies. ``--costs``: also the per-block aligned
-sampler and the light warps on the first scene, against its plain pmj02bn render.
+``--cpu-devices N`` (default 1, as ``render``'s own default) starts JAX's CPU backend with N
+devices (``jax_num_cpu_devices``) and renders over all of them (``render(...,
+devices=jax.devices())``, the same bits as one device). The ``cores`` column is the process's
+CPU time over wall time. On the 2-core reference machine one device already keeps 1.8 cores busy
+(XLA:CPU splits large loops over its threads), and two devices do not pay: 2026-12-06 (load 0.6)
+cornell 7.3-9.3 M samples/s on two against 7.3-7.5 on one; 2026-12-07 (two runs of ``--repeats
+5``, loads 1.8 and 2.7, not interleaved) two / one device: cornell 25.94 / 25.21, blinds 20.23 /
+20.81, attic 14.02 / 15.27, dof 12.19 / 16.20 (dof's loss not traced). ``--costs``: also the
+per-block aligned sampler and the light warps on the first scene, against its plain pmj02bn
+render.
 
 Then the primitive-count table (ns per sample of a light-sampling render, ``--prims-size``
 squared pixels, ``--prims-spp``, of a tessellated sphere (:func:`render.builder.sphere_mesh`)
@@ -58,7 +60,7 @@ def main(argv=None):
                    help="accepted for uniformity; the benchmark size is fixed by --size/--spp")
     p.add_argument("--scenes", default=DEFAULT_SCENES,
                    help="comma-separated shipped scene names and meshNk ('' skips)")
-    common.devices_option(p)
+    common.devices_option(p, default=1)
     p.add_argument("--scalar", action="store_true", help="also time Mitsuba's scalar_rgb")
     p.add_argument("--costs", action="store_true",
                    help="also the aligned sampler's and the light warps' cost on the first scene")
