@@ -100,9 +100,10 @@ def test_two_devices_give_the_same_bits_per_pixel_aligned():
     _two_devices("aligned-pixel")
 
 
-def _render_cli(out, *extra):
-    return [sys.executable, "-m", "anisosample", "render", "cornell", "--set", "width=18",
-            "--set", "height=14", "--spp", "16", "--sampler", "pmj02bn", "-o", str(out), *extra]
+def _render_cli(out, *extra, scene="cornell", size=(18, 14), spp=16):
+    return [sys.executable, "-m", "anisosample", "render", scene, "--set", f"width={size[0]}",
+            "--set", f"height={size[1]}", "--spp", str(spp), "--sampler", "pmj02bn", "-o",
+            str(out), *extra]
 
 
 def test_two_processes_give_the_same_image(tmp_path):
@@ -127,16 +128,24 @@ def test_two_processes_give_the_same_image(tmp_path):
 
 
 @pytest.mark.slow
-def test_local_processes_give_the_same_image(tmp_path):
+@pytest.mark.parametrize("scene,size,spp", [("cornell", (18, 14), 16), ("dof", (128, 128), 64)])
+def test_local_processes_give_the_same_image(tmp_path, scene, size, spp):
     """``--processes 2``: two local workers, each pinned to a core, started and joined by the
-    command itself; one ``wrote`` line and the one-process image, bit for bit."""
+    command itself; one ``wrote`` line and the one-process image, bit for bit. dof at 128^2 x
+    64 spp renders in two classes of tiles whose passes mix blocks of four chunks and of one
+    (the gather must find each block's process)."""
     if len(synthesis.usable_cpus()) < 2:
         pytest.skip("--processes 2 needs two usable cores")
+    if scene == "dof":
+        from anisosample.render import culling
+
+        dof = culling.with_culling(R.load_xml(scenes.path("dof"), width=128, height=128))
+        assert [c.pixels.size % 4096 for c in culling.tile_classes(dof, 1024)] != [0, 0]
     env = dict(os.environ, ANISOSAMPLE_PROGRESS="0")
     one, local = tmp_path / "one.exr", tmp_path / "local.exr"
     for out, extra in ((one, ()), (local, ("--processes", "2"))):
-        done = subprocess.run(_render_cli(out, *extra), env=env, capture_output=True, text=True,
-                              timeout=300)
+        done = subprocess.run(_render_cli(out, *extra, scene=scene, size=size, spp=spp),
+                              env=env, capture_output=True, text=True, timeout=300)
         assert done.returncode == 0, done.stderr[-3000:]
         assert done.stdout.count("wrote") == 1, done.stdout
     np.testing.assert_array_equal(io.read_exr(one), io.read_exr(local))
