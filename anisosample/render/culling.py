@@ -254,8 +254,8 @@ def _class_plan(scene: Scene, granule: int, curved_everywhere: bool, max_classes
     keys = np.stack([lengths(primary), lengths(shadow), curved], 1)
     q = np.arange(scene.width * scene.height)
     tile_of = (q // scene.width) // c.tile * c.tiles_x + (q % scene.width) // c.tile
-    uniq, inverse = np.unique(keys[tile_of], axis=0, return_inverse=True)
-    inverse = inverse.ravel()
+    uniq, of_tile = np.unique(keys, axis=0, return_inverse=True)
+    inverse = of_tile.ravel()[tile_of]  # each pixel's key
     groups = [(tuple(int(v) for v in k), [i]) for i, k in enumerate(uniq)]
     counts = np.bincount(inverse, minlength=len(uniq))
 
