@@ -230,7 +230,7 @@ def tile_classes(scene: Scene, granule: int, *, curved_everywhere: bool = False,
     if c is None:
         return None
     digest = _digest(scene)
-    plan = _cached(_CLASSES, (digest, c.tile, granule, bool(curved_everywhere), max_classes),
+    plan = _cached(_CLASSES, (digest, c.tile, granule, curved_everywhere, max_classes),
                    lambda: _class_plan(scene, granule, curved_everywhere, max_classes))
     if plan is None:
         return None
