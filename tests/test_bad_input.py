@@ -450,6 +450,21 @@ api("pixel-sampler-axis-snap-str", lambda d: A().render.render(
 api("pixel-sampler-reuse-str", lambda d: A().render.render(
     scene(d), key(), sampler="aligned-pixel", sampler_options={"reuse": "no"},
     progress=False), TypeError, r"reuse must be True or False", owner=RENDER_OWNER)
+api("pixel-sampler-neighbours-negative", lambda d: A().render.render(
+    scene(d), key(), sampler="aligned-pixel", sampler_options={"neighbours": -1},
+    progress=False), ValueError, r"neighbours must be >= 0", owner=RENDER_OWNER)
+api("neighbour-consensus-shape", lambda d: A().render.pixel_aligned.neighbour_consensus(
+    np.zeros((4, 4)), np.zeros((4, 4), int)), ValueError, r"directions_deg must have shape "
+    r"\(h, w, 2\)", owner=RENDER_OWNER)
+api("neighbour-consensus-count-float", lambda d: A().render.pixel_aligned.neighbour_consensus(
+    np.zeros((4, 4, 2)), np.zeros((4, 4))), ValueError, r"count must be integers of shape",
+    owner=RENDER_OWNER)
+api("neighbour-consensus-tolerance-90", lambda d: A().render.pixel_aligned.neighbour_consensus(
+    np.zeros((4, 4, 2)), np.zeros((4, 4), int), tolerance_deg=90), ValueError,
+    r"tolerance_deg must be below 90", owner=RENDER_OWNER)
+api("neighbour-consensus-relative-big", lambda d: A().render.pixel_aligned.neighbour_consensus(
+    np.zeros((4, 4, 2)), np.zeros((4, 4), int), relative_support=2), ValueError,
+    r"relative_support must be in \[0, 1\]", owner=RENDER_OWNER)
 api("selection-aligned-set-n-zero", lambda d: A().selection.aligned_set((30,), 0), ValueError,
     r"n must be >= ", owner="selection")
 api("selection-aligned-values-nan", lambda d: A().samplers.get("aligned",

@@ -424,6 +424,7 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
         apart_chunk,
         choose_sets,
         exact_values,
+        neighbour_consensus,
         pixel_prefix,
         prefix_chunk,
         prefix_weight,
@@ -452,6 +453,12 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
             out[rough] = res[rough]
     if not exact_values(scene, opts["options"]):
         extra = extra + m  # the prefix's values re-evaluated for the search
+    own = dirs
+    if sampler.neighbours:
+        shape = (sampler.height, sampler.width)
+        dirs, count = neighbour_consensus(dirs.reshape(*shape, 2), count.reshape(shape),
+                                          radius=sampler.neighbours)
+        dirs, count = dirs.reshape(-1, 2), count.reshape(-1)
     requests, index, code = choose_sets(dirs, count, sampler.k, sampler.near_axis_deg,
                                         sampler.axis_snap)
     edge = np.flatnonzero(index >= 0)
@@ -492,6 +499,10 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
         pixels=int(code.size), pixels_with_3_direction_set=int((code == 3).sum()),
         pixels_with_4_direction_set=int((code == 4).sum()),
         pixels_fallback=int((code == 5).sum()),
+        pixels_first_direction_from_neighbours=int(np.sum(
+            np.isfinite(own[:, 0]) & ~np.isnan(dirs[:, 0]) & (own[:, 0] != dirs[:, 0]))),
+        pixels_second_direction_dropped=int(np.sum(np.isfinite(own[:, 1]) & np.isnan(dirs[:, 1])
+                                                   )),
         fallback_prefix_weight=prefix_weight(m, spp) if sampler.reuse else 0.0,
         sets_3_directions_deg=sorted(e[0] for e in requests if len(e) == 1),
         sets_4_directions_deg=sorted(list(e) for e in requests if len(e) == 2)))

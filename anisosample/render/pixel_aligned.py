@@ -15,7 +15,11 @@ one point set of ``spp`` points with one toroidal shift ``s_q`` (the pixel's, W 
    (``pixel_center=True``, no MIS, no random lens), the prefix values are read, not
    re-evaluated. Pass 1 keeps, per pixel, the prefix's sum and whether the search has a
    candidate there; the search (on candidates only) evaluates their prefix values again, to
-   the same bits, rather than any pass holding every pixel's ``m`` values.
+   the same bits, rather than any pass holding every pixel's ``m`` values. Each pixel's
+   directions are then checked against its neighbours' (:func:`neighbour_consensus`, radius
+   ``neighbours``, :data:`NEIGHBOURS`): a first direction its window does not confirm takes the
+   window's consensus, an unconfirmed second one is dropped (the search's misses on integrands
+   with several parallel edges; 0 keeps each pixel's own).
 2. **The rest of the pixel's set**: the directions, rounded by
    :func:`anisosample.selection.table_directions`, pick the table set with the fixed prefix
    (one direction: the 3-direction set, two, a corner: the 4-direction set;
@@ -47,8 +51,10 @@ on an independent one. This separates what the pixel's own directions gain from 
 prefix costs at a given ``spp``.
 Unbiasedness: with a uniform shift every point of every set is uniform; the set's choice
 depends on the shift only through the rounding of a direction estimated to a fraction of a
-degree, and the fallback's shift is independent of the prefix's. The residual bias is tested
-against the closed form on a rounding boundary (``tests/render/test_pixel_aligned.py``).
+degree (and, through the consensus, on whether the pixel's own search agrees with its
+neighbours, whose shifts are independent of its own), and the fallback's shift is independent
+of the prefix's. The residual bias is tested against the closed form on a rounding boundary
+(``tests/render/test_pixel_aligned.py``).
 ``RenderResult.pixel_directions`` holds each pixel's directions (NaN where none),
 ``pixel_sampler`` its choice (:data:`PIXEL_CODES` 3-5).
 """
@@ -63,15 +69,16 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import edges, selection
-from .._validate import check_bool, check_int
+from .._validate import check_bool, check_int, check_positive_float
 from ._kernel import kernel
 from .integrator import pixel_samples, pixel_shift_key, sample_function
 from .options import IntegratorOptions
 from .scene import LUMINANCE, THINLENS, Scene
 
-__all__ = ["AXIS_SNAP", "FALLBACK", "NEAR_AXIS_DEG", "PIXEL_SAMPLERS", "PixelEstimates",
-           "PixelSampler", "apart_chunk", "check_pixel_prefix", "choose_sets",
-           "exact_values", "fallback_shift_key", "integrand_estimates",
+__all__ = ["AXIS_SNAP", "CONSENSUS_TOLERANCE_DEG", "FALLBACK", "NEAR_AXIS_DEG", "NEIGHBOURS",
+           "PIXEL_SAMPLERS", "PixelEstimates", "PixelSampler", "apart_chunk",
+           "check_pixel_prefix", "choose_sets", "exact_values", "fallback_shift_key",
+           "integrand_estimates", "neighbour_consensus",
            "pixel_prefix", "pixel_sampler", "pixel_sets", "prefix_chunk", "prefix_sets",
            "prefix_weight",
            "rest_chunk", "search_chunk", "toroidal_shift_key"]
@@ -100,6 +107,120 @@ AXIS_SNAP = True
 """The per-pixel sampler's ``axis_snap`` (:func:`anisosample.selection.table_directions`): an
 edge whose direction rounds onto an axis takes the set one degree off it, not pmj02bn (module
 docstring, step 2)."""
+
+
+NEIGHBOURS = 2
+"""The per-pixel sampler's ``neighbours``: the radius in pixels of the window over which
+:func:`neighbour_consensus` checks each pixel's directions (0: each pixel keeps its own
+search's). Measured on W Fig. 8's blinds windows (module docstring of
+:func:`neighbour_consensus`)."""
+
+CONSENSUS_TOLERANCE_DEG = 2.0
+"""Two directions agree in :func:`neighbour_consensus` when they are at most this many degrees
+apart (axially): several times the search's median error on one-edge pixels (0.07-0.09 degrees
+on W Fig. 9's), less than the 3-4 degrees that a set keeps only part of its gain over."""
+
+
+def neighbour_consensus(directions_deg, count, *, radius: int = NEIGHBOURS,
+                        tolerance_deg: float = CONSENSUS_TOLERANCE_DEG,
+                        min_support: int = 2, relative_support: float = 0.5):
+    """Each pixel's directions checked against its neighbours' (beyond W; W Sec. 7: directions
+    shared by "merging blocks with similar integrands", here per pixel).
+
+    ``directions_deg`` ``(h, w, 2)`` (strongest first, NaN: none) and ``count`` ``(h, w)`` (how
+    many of them the search found) are every pixel's own search result
+    (:func:`anisosample.edges.search`). A direction's *support* in a pixel's
+    ``(2 radius + 1)^2`` window is the number of the other pixels' directions there that agree
+    with it within ``tolerance_deg``. Every pixel's window has a *consensus*: of the directions
+    in it (the pixel's own included), the one with the most support in its own pixel's window.
+    A pixel's direction is *confirmed* when its support is at least ``min_support`` and at
+    least ``relative_support`` times the consensus' support in the same window (the same
+    neighbours counted, so that a pixel at the border of an edge's band is judged like one
+    inside it). Then, on every pixel with a direction:
+
+    * a first direction that is not confirmed becomes the consensus (the axial mean of the
+      window's directions that agree with it), where the consensus' support is more than
+      ``min_support``; else it stays;
+    * a second direction that is not confirmed, or that agrees with the (new) first, is dropped.
+
+    Pixels without a direction keep none: a window's consensus adds no edge to a pixel whose
+    own samples showed none. Why: an edge is a line across the image, so the pixels along it
+    share its direction, while the search's misses are the pixel's own. On integrands with
+    several parallel edges (blinds' slats) the search fits a line through points of two
+    edges now and then: on one 32^2 window of W Fig. 8's blinds at 4096 spp, 16 shifts, 21 % of
+    the pixels' first directions were more than 3 degrees from the slats' 135; after the
+    consensus (radius 2) none were (radius 1: 0.7 %; radius 2 with an absolute
+    ``min_support`` of 2 alone, 9 %: spurious directions support each other in a larger
+    window, hence the relative test).
+    Returns ``(directions_deg, count)`` as float32 ``(h, w, 2)`` and int32 ``(h, w)``."""
+    radius = check_int("radius", radius, minimum=0)
+    tol = check_positive_float("tolerance_deg", tolerance_deg)
+    if tol >= 90.0:
+        raise ValueError(f"tolerance_deg must be below 90 degrees, got {tolerance_deg!r}")
+    min_support = check_int("min_support", min_support, minimum=1)
+    rel = check_positive_float("relative_support", relative_support, allow_zero=True)
+    if rel > 1.0:
+        raise ValueError(f"relative_support must be in [0, 1], got {relative_support!r}")
+    dirs = np.asarray(directions_deg, np.float64)
+    count = np.asarray(count)
+    if dirs.ndim != 3 or dirs.shape[-1] != 2:
+        raise ValueError(f"directions_deg must have shape (h, w, 2), got {dirs.shape}")
+    if count.shape != dirs.shape[:2] or not np.issubdtype(count.dtype, np.integer):
+        raise ValueError(f"count must be integers of shape {dirs.shape[:2]}, got "
+                         f"{count.dtype} {count.shape}")
+    d = np.where(np.arange(2) < np.clip(count, 0, 2)[..., None], dirs, np.nan)
+    if radius == 0 or not np.isfinite(d).any():
+        return d.astype(np.float32), np.isfinite(d).sum(-1).astype(np.int32)
+    h, w, _ = d.shape
+    # Axial directions as doubled-angle unit vectors (none: the zero vector): two agree within
+    # tol exactly when their dot product is at least cos(2 tol); their mean is the axial mean.
+    phi = np.radians(2.0 * np.nan_to_num(d))
+    vec = np.where(np.isfinite(d)[..., None], np.stack([np.cos(phi), np.sin(phi)], -1),
+                   0.0).astype(np.float32)
+    cos2 = np.float32(np.cos(np.radians(2.0 * tol)))
+    pad = np.pad(vec, ((radius, radius), (radius, radius), (0, 0), (0, 0)))
+    offsets = [(dy, dx) for dy in range(-radius, radius + 1) for dx in range(-radius, radius + 1)
+               if dy or dx]
+
+    def window(a, dy, dx):
+        return a[radius + dy:radius + dy + h, radius + dx:radius + dx + w]
+
+    def agree(a, b):  # (..., 2) vectors; a zero vector agrees with nothing
+        return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] >= cos2
+
+    support = np.zeros((h, w, 2), np.int32)
+    for dy, dx in offsets:  # a loop over the window's offsets; each step is whole-image
+        nb = window(pad, dy, dx)
+        support += agree(vec[..., :, None, :], nb[..., None, :, :]).sum(-1)
+    support = np.where(np.isfinite(d), support, -1)
+    # the consensus: the window's best-supported direction (ties: the first in offset order)
+    sup_pad = np.pad(support, ((radius, radius), (radius, radius), (0, 0)), constant_values=-1)
+    best, best_vec = support[..., 0].copy(), vec[..., 0, :].copy()
+    for dy, dx in offsets:
+        s, nb = window(sup_pad, dy, dx), window(pad, dy, dx)
+        for j in range(2):
+            better = s[..., j] > best
+            best = np.where(better, s[..., j], best)
+            best_vec = np.where(better[..., None], nb[..., j, :], best_vec)
+    # the consensus direction: the axial mean of the window's directions that agree with it;
+    # its support in this pixel's window: the neighbours' directions that agree with it
+    total = np.zeros((h, w, 2), np.float32)
+    backing = np.zeros((h, w), np.int32)
+    for dy, dx in [(0, 0), *offsets]:
+        nb = window(pad, dy, dx)
+        ok = agree(nb, best_vec[..., None, :])
+        total += np.sum(np.where(ok[..., None], nb, 0.0), -2)
+        if dy or dx:
+            backing += ok.sum(-1)
+    mean = np.degrees(np.arctan2(total[..., 1], total[..., 0])) / 2.0 % 180.0
+    confirmed = (support >= min_support) & (support >= rel * backing[..., None])
+    out = d.copy()
+    swap = np.isfinite(d[..., 0]) & ~confirmed[..., 0] & (backing > min_support)
+    out[..., 0] = np.where(swap, mean, d[..., 0])
+    first = np.where(swap[..., None], best_vec, vec[..., 0, :])
+    drop = ~confirmed[..., 1] | agree(vec[..., 1, :], first)
+    out[..., 1] = np.where(drop, np.nan, d[..., 1])
+    return out.astype(np.float32), np.isfinite(out).sum(-1).astype(np.int32)
 
 
 def prefix_weight(m: int, n: int) -> float:
@@ -152,6 +273,7 @@ class PixelSampler:
     near_axis_deg: float = NEAR_AXIS_DEG
     reuse: bool = True
     axis_snap: bool = AXIS_SNAP
+    neighbours: int = NEIGHBOURS
 
     name = "aligned-pixel"
 
@@ -166,7 +288,7 @@ class PixelSampler:
         """What a render records about the sampler (EXR metadata); the render adds the counts."""
         return dict(point_set="aligned-pixel", k=self.k, fallback=FALLBACK,
                     near_axis_deg=self.near_axis_deg, reuse=self.reuse,
-                    axis_snap=self.axis_snap,
+                    axis_snap=self.axis_snap, neighbours=self.neighbours,
                     search=self.search._asdict())
 
 
@@ -263,7 +385,8 @@ def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=
 
 def pixel_sampler(scene: Scene, *, k: int = 2, table=None, build_missing: bool | None = None,
                   build_options: dict | None = None, near_axis_deg: float = NEAR_AXIS_DEG,
-                  reuse: bool = True, axis_snap: bool = AXIS_SNAP, **search) -> PixelSampler:
+                  reuse: bool = True, axis_snap: bool = AXIS_SNAP, neighbours: int = NEIGHBOURS,
+                  **search) -> PixelSampler:
     """The per-pixel aligned sampler for ``scene``: at most ``k`` (1 or 2) directions per pixel,
     directions within ``near_axis_deg`` of an axis after the others (:data:`NEAR_AXIS_DEG`;
     0: W's rule, strongest first); ``search``: :class:`anisosample.edges.SearchOptions`
@@ -272,7 +395,8 @@ def pixel_sampler(scene: Scene, *, k: int = 2, table=None, build_missing: bool |
     ``build_missing=False``); ``reuse``: the prefix's samples in the estimate (True) or probes
     apart (False, module docstring); ``axis_snap``: an edge whose direction rounds onto an axis
     takes the set one degree off it on its side (:func:`anisosample.selection.table_directions`)
-    instead of pmj02bn."""
+    instead of pmj02bn; ``neighbours``: the radius of :func:`neighbour_consensus`'s window
+    (:data:`NEIGHBOURS`; 0: every pixel keeps its own search's directions)."""
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
     k = check_int("k", k, minimum=1, maximum=2)
@@ -283,7 +407,8 @@ def pixel_sampler(scene: Scene, *, k: int = 2, table=None, build_missing: bool |
     return PixelSampler(scene.width, scene.height, k, edges.search_options(**search), table,
                         build_missing, dict(build_options or {}),
                         selection.check_near_axis(near_axis_deg), check_bool("reuse", reuse),
-                        check_bool("axis_snap", axis_snap))
+                        check_bool("axis_snap", axis_snap),
+                        check_int("neighbours", neighbours, minimum=0, maximum=16))
 
 
 def exact_values(scene: Scene, options: IntegratorOptions) -> bool:

@@ -108,6 +108,13 @@ def cornell():
     return scene, res
 
 
+@pytest.fixture(scope="module")
+def own(cornell):
+    """The same render with every pixel's own search's directions (``neighbours=0``)."""
+    return R.render(cornell[0], jax.random.key(3), spp=64, sampler="aligned-pixel",
+                    pixel_center=True, progress=False, sampler_options={"neighbours": 0})
+
+
 def test_record(cornell):
     scene, res = cornell
     code, dirs, extra = res.pixel_sampler, res.pixel_directions, res.pixel_estimation_samples
@@ -165,13 +172,14 @@ def test_prefix_and_rest_are_the_whole_set(cornell):
                                    atol=1e-9)
 
 
-def test_search_on_candidates_equals_search_everywhere(cornell):
+def test_search_on_candidates_equals_search_everywhere(cornell, own):
     """The render runs the edge search only on pixels with a candidate (pass 1 compacted); the
     search vmapped over every pixel gives the same counts and samples, and the directions to
     float32 rounding (on W Fig. 9's scenes at 128^2 x 256 spp the images were bit for bit the
     same as before the compaction)."""
     scene, res = cornell
     o = R.IntegratorOptions(pixel_center=True).for_scene(scene)
+    res = own  # every pixel's own search, before the neighbour consensus
     s = res.settings["blocks"]
     prefix = jnp.asarray(prefix_points(s["prefix"]), jnp.float32)
     k_pix = jax.random.split(jax.random.fold_in(jax.random.key(3), 0))[1]
@@ -210,6 +218,81 @@ def test_probes_apart_record_and_directions(cornell):
     edge = apart.pixel_sampler != 5
     assert not np.array_equal(apart.mean[edge], res.mean[edge])
     assert abs(apart.mean.mean() / res.mean.mean() - 1) < 0.02
+
+
+def test_render_takes_the_neighbour_consensus(cornell, own):
+    """The render's directions are :func:`neighbour_consensus` of the pixels' own searches
+    (``neighbours=0``), and its record counts what the consensus changed; on cornell's 24^2
+    penumbrae it changes a few pixels (not a vacuous check)."""
+    res = cornell[1]
+    dirs, count = PA.neighbour_consensus(own.pixel_directions,
+                                         np.isfinite(own.pixel_directions).sum(-1))
+    np.testing.assert_array_equal(res.pixel_directions, dirs)
+    b = res.settings["blocks"]
+    assert b["neighbours"] == PA.NEIGHBOURS == 2 and own.settings["blocks"]["neighbours"] == 0
+    first = np.isfinite(own.pixel_directions[..., 0])
+    changed = first & (own.pixel_directions[..., 0] != dirs[..., 0])
+    dropped = np.isfinite(own.pixel_directions[..., 1]) & np.isnan(dirs[..., 1])
+    assert b["pixels_first_direction_from_neighbours"] == int(changed.sum()) > 0
+    assert b["pixels_second_direction_dropped"] == int(dropped.sum()) > 0
+    # no edge is added where the pixel's own search found none
+    np.testing.assert_array_equal(np.isfinite(dirs[..., 0]), first)
+    np.testing.assert_array_equal(res.pixel_sampler == 5, own.pixel_sampler == 5)
+
+
+def _field(h, w):
+    """A direction field turning across the image (0.4 and 0.2 degrees per pixel), as the
+    penumbra edges of an occluder whose shadow turns: no pixel's true direction is more than
+    2.4 degrees from another's within a 5^2 window."""
+    y, x = np.mgrid[0:h, 0:w]
+    return (30.0 + 0.4 * x + 0.2 * y) % 180.0
+
+
+def test_neighbour_consensus_replaces_the_searchs_misses():
+    """A known field on a band of edge pixels, a fifth of them given a uniformly random first
+    direction (the search's misses) and a third a random second one: every true direction is
+    kept bit for bit, every miss goes back to within the tolerance of the field, every random
+    second direction is dropped, and pixels without an edge stay without."""
+    h, w = 40, 48
+    rng = np.random.default_rng(7)
+    true = _field(h, w)
+    band = (np.arange(h)[:, None] >= 8) & (np.arange(h)[:, None] < 30) & np.ones((1, w), bool)
+    miss = band & (rng.random((h, w)) < 0.2)
+    second = band & (rng.random((h, w)) < 0.33)
+    dirs = np.full((h, w, 2), np.nan, np.float32)
+    dirs[..., 0] = np.where(band, np.where(miss, rng.uniform(0, 180, (h, w)), true), np.nan)
+    dirs[..., 1] = np.where(second, rng.uniform(0, 180, (h, w)), np.nan)
+    count = np.isfinite(dirs).sum(-1)
+    out, n = PA.neighbour_consensus(dirs, count)
+    err = axial_distance_deg(out[..., 0], true, xp=np)
+    kept = band & ~miss
+    np.testing.assert_array_equal(out[..., 0][kept], dirs[..., 0][kept])
+    assert np.all(err[miss] <= PA.CONSENSUS_TOLERANCE_DEG)
+    assert np.median(err[miss]) < 0.5
+    assert axial_distance_deg(dirs[..., 0][miss], true[miss], xp=np).mean() > 30  # misses
+    assert np.all(np.isnan(out[..., 1])) and np.array_equal(n, band.astype(np.int32))
+    assert np.all(np.isnan(out[~band]))
+    # radius 0: the search's own directions
+    same, c0 = PA.neighbour_consensus(dirs, count, radius=0)
+    np.testing.assert_array_equal(same, dirs)
+    np.testing.assert_array_equal(c0, count)
+
+
+def test_neighbour_consensus_keeps_a_corner():
+    """Two one-pixel-wide edges across the image, at 10 (row 20) and 100 degrees (column 24),
+    meet at a corner pixel that has both: every pixel keeps its directions, the corner both;
+    a miss on the row edge takes the row's direction."""
+    h, w = 40, 48
+    dirs = np.full((h, w, 2), np.nan, np.float32)
+    dirs[20, :, 0] = 10.0
+    dirs[:, 24, 0] = 100.0
+    dirs[20, 24] = (10.0, 100.0)
+    dirs[20, 30, 0] = 61.0  # the search's miss on the row edge
+    out, n = PA.neighbour_consensus(dirs, np.isfinite(dirs).sum(-1))
+    expect = dirs.copy()
+    expect[20, 30, 0] = 10.0
+    np.testing.assert_allclose(out, expect, atol=1e-4)
+    assert n[20, 24] == 2 and n.sum() == w + h
 
 
 def test_same_key_same_bits(cornell):
