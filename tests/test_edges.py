@@ -31,6 +31,22 @@ def _cut(centre, normals_deg):
     return _Cut(jnp.asarray(n, jnp.float32), jnp.asarray(n @ np.asarray(centre), jnp.float32))
 
 
+class _Smooth(eqx.Module):
+    """``c0 + c1 sin(3 x) + c2 y^2 + c3 exp(-4 |p - 0.4|^2)``: the smooth integrands below (a
+    gently varying one, a peaked bump, zero and a constant) as one module; arrays as fields:
+    one compilation for all four."""
+
+    c: jax.Array
+
+    def __call__(self, x):
+        c = self.c
+        return (c[0] + c[1] * jnp.sin(3 * x[..., 0]) + c[2] * x[..., 1] ** 2
+                + c[3] * jnp.exp(-4 * jnp.sum((x - 0.4) ** 2, axis=-1)))
+
+
+SMOOTH = [_Smooth(jnp.asarray(c, jnp.float32))
+          for c in ([0.3, 0.2, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0], [0.0] * 4, [2.0, 0.0, 0.0, 0.0])]
+
 PREFIX = jnp.asarray(prefix.prefix_points(prefix.DEFAULT_PREFIX))
 
 
@@ -77,11 +93,7 @@ def test_corner_gives_both_directions():
 def test_smooth_and_constant_integrands_cost_at_most_one_bisection():
     """Gently varying and constant integrands cost nothing; a peaked one (the cubic leaves a
     residual) costs the one bisection that shows its largest jump is a slope."""
-    fs = [lambda x: 0.3 + 0.2 * jnp.sin(3 * x[..., 0]) + x[..., 1] ** 2,
-          lambda x: jnp.exp(-4 * jnp.sum((x - 0.4) ** 2, axis=-1)),
-          lambda x: jnp.zeros(x.shape[:-1], jnp.float32),
-          lambda x: jnp.full(x.shape[:-1], 2.0, jnp.float32)]
-    for k, f in enumerate(fs):
+    for k, f in enumerate(SMOOTH):
         r = edges.edge_search(f, _shifted(k))
         assert int(r.count) == 0
         assert int(r.samples) == (4 if k == 1 else 0)
@@ -109,16 +121,12 @@ def test_no_candidate_means_nothing_found_and_nothing_sampled():
     """Where :func:`edges.candidate` is false, the full search finds no edge and takes no
     sample (what lets a renderer run it only on candidates); every edge integrand is one."""
     rng = np.random.default_rng(8)
-    smooth = [lambda x: 0.3 + 0.2 * jnp.sin(3 * x[..., 0]) + x[..., 1] ** 2,
-              lambda x: jnp.exp(-4 * jnp.sum((x - 0.4) ** 2, axis=-1)),
-              lambda x: jnp.zeros(x.shape[:-1], jnp.float32),
-              lambda x: jnp.full(x.shape[:-1], 2.0, jnp.float32)]
     # edges that leave the square (or barely enter it) give integrands on either side
     cuts = [_cut(rng.uniform(-0.2, 1.2, 2), list(rng.uniform(0, 360, rng.integers(1, 3))))
             for _ in range(30)]
     o = edges.search_options()
     seen = set()
-    for t, f in enumerate(smooth + cuts):
+    for t, f in enumerate(SMOOTH + cuts):
         x = _shifted(200 + t)
         v = f(x)
         r = edges.search(f, x, v, o)
