@@ -105,6 +105,7 @@ def test_penumbra_directions_match_exact_geometry():
     """Area sampling maps a parallelogram light affinely, so each occluder edge's shadow on it
     is the straight line where the plane through the shading point and the edge meets it;
     its normal in (x0, x1) is (m.e1, m.e2) with m the plane's normal (independent truth)."""
+    import jax
     import jax.numpy as jnp
 
     from anisosample.render.camera import generate_ray
@@ -119,11 +120,17 @@ def test_penumbra_directions_match_exact_geometry():
     corners = [occ @ np.array([x, y, 0, 1.0]) for x, y in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
     edges = [(corners[i][:3], corners[(i + 1) % 4][:3]) for i in range(4)]
     errs, corner_errs = [], []
-    for col, row in np.concatenate([classes.pixels("one-edge"), classes.pixels("corner")]):
-        film = jnp.asarray([(col + 0.5) / scene.width, (row + 0.5) / scene.height], jnp.float32)
+    pixels = np.concatenate([classes.pixels("one-edge"), classes.pixels("corner")])
+
+    def primary(film):  # the pixel centre's camera ray and its hit distance
         o, d = generate_ray(scene.camera, film, jnp.full(2, 0.5, jnp.float32))
-        hit = intersect(scene, o, d)
-        s = np.asarray(o, np.float64) + float(hit.t) * np.asarray(d, np.float64)
+        return o, d, intersect(scene, o, d).t
+
+    films = (pixels + 0.5) / np.array([scene.width, scene.height])
+    rays = jax.jit(jax.vmap(primary))(jnp.asarray(films, jnp.float32))  # all pixels at once
+    o_all, d_all, t_all = (np.asarray(a, np.float64) for a in rays)
+    for (col, row), o, d, t in zip(pixels, o_all, d_all, t_all, strict=True):
+        s = o + t * d
         truth = []
         for a, b in edges:
             m = np.cross(a - s, b - s)
