@@ -33,7 +33,11 @@ pixels) and the same per-pixel toroidal shifts (W Sec. 5.4):
   allowed and two edges found, an edge within ``pixel_aligned.NEAR_AXIS_DEG`` of an axis yields
   to the other (the record's ``near_axis_deg``). An edge whose direction rounds onto an axis
   takes the set one degree off it (the record's ``axis_snap``; records without the key predate
-  it and dropped such edges, W's rule).
+  it and dropped such edges, W's rule). Each pixel's directions are checked against its
+  neighbours' (``pixel_aligned.neighbour_consensus``, the record's ``neighbours``: the window's
+  radius; records without the key predate it).
+* ``aligned (pixel own)`` (beyond W: the same with ``neighbours=0``: every pixel keeps its own
+  search's directions, the default before the consensus).
 * ``aligned (pixel apart)`` (beyond W: the same search and choice, with probes apart,
   ``sampler_options={"reuse": False}``): the prefix only drives the search, and every pixel's
   estimate is ``spp`` points of its set without a prefix (pmj02bn without an edge). Its
@@ -86,7 +90,8 @@ NAME = "w_fig8"
 GATED = "aligned 3-dir gated"
 PIXEL = "aligned (pixel)"
 APART = "aligned (pixel apart)"
-METHODS = (*W.METHODS, GATED, PIXEL, APART)
+OWN = "aligned (pixel own)"
+METHODS = (*W.METHODS, GATED, PIXEL, APART, OWN)
 SCALES = {
     "small": dict(film=1280, windows=4, window=32, block_px=16, spp=256, realizations=16),
     "paper": dict(film=1280, windows=8, window=64, block_px=16, spp=4096, realizations=32),
@@ -120,14 +125,16 @@ def window_variance(scene, name, cfg, key, devices, probe):
     samplers = {"pmj02bn": "pmj02bn",
                 "sheared pmj02bn": aligned.block_sampler(scene, "sheared", estimate=est, k=1,
                                                          options=options),
-                "aligned 3-dir": blocks, PIXEL: "aligned-pixel", APART: "aligned-pixel"}
+                "aligned 3-dir": blocks, PIXEL: "aligned-pixel", APART: "aligned-pixel",
+                OWN: "aligned-pixel"}
     lum = np.asarray(LUMINANCE, np.float64)
     var, extra, search = {}, [], []
     for m, sampler in samplers.items():
         opts = (dict(table=W.TABLES, build_missing=True, k=1,
-                     near_axis_deg=pixel_aligned.NEAR_AXIS_DEG, reuse=m == PIXEL,
-                     axis_snap=pixel_aligned.AXIS_SNAP)
-                if m in (PIXEL, APART) else None)
+                     near_axis_deg=pixel_aligned.NEAR_AXIS_DEG, reuse=m != APART,
+                     axis_snap=pixel_aligned.AXIS_SNAP,
+                     neighbours=0 if m == OWN else pixel_aligned.NEIGHBOURS)
+                if m in (PIXEL, APART, OWN) else None)
         values = []
         for r in range(R):
             res = render.render(scene, jax.random.fold_in(key, r), spp=n, sampler=sampler,
@@ -163,7 +170,7 @@ def run_scene(name, cfg, key, out, fresh, devices=None):
                 "estimation_samples": 96, "gate_probe": 6, "methods": list(METHODS),
                 "engine": "render, windows", "k": 1,
                 "near_axis_deg": pixel_aligned.NEAR_AXIS_DEG,
-                "axis_snap": pixel_aligned.AXIS_SNAP}
+                "axis_snap": pixel_aligned.AXIS_SNAP, "neighbours": pixel_aligned.NEIGHBOURS}
     path = out / "scenes" / f"{name}.json"
     cached = common.cached_json(path, fresh)
     exrs = [out / f"{name}_{_slug(m)}_variance.exr" for m in METHODS]
