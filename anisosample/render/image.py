@@ -163,6 +163,7 @@ def render(
         if spp < 64:
             raise ValueError(f"sampler 'aligned-pixel' needs spp >= 64 (a 16-point prefix and "
                              f"its set), got {spp}")
+        per_pixel.prefix_for(spp)
     elif blocks is None:
         sample_points, sampler_name = _get_sampler(sampler)
     else:
@@ -425,14 +426,13 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
         choose_sets,
         exact_values,
         neighbour_consensus,
-        pixel_prefix,
         prefix_chunk,
         prefix_weight,
         rest_chunk,
         search_chunk,
     )
 
-    prefix = jnp.asarray(prefix_points(pixel_prefix(spp)), jnp.float32)
+    prefix = jnp.asarray(prefix_points(sampler.prefix_for(spp)), jnp.float32)
     m = prefix.shape[0]
     head, rough = over_pixels(prefix_chunk, (scene, prefix, key),
                               dict(opts, spp=spp, search=sampler.search))
@@ -492,7 +492,7 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
                                               ).astype(np.int32)
     found = count > 0
     record = dict(code=code, directions=dirs.astype(np.float32), extra=extra, settings=dict(
-        prefix=pixel_prefix(spp), prefix_points=m, reused_samples_per_pixel=m * sampler.reuse,
+        prefix=sampler.prefix_for(spp), prefix_points=m, reused_samples_per_pixel=m * sampler.reuse,
         estimation_samples_per_pixel=round(float(extra.mean()), 3),
         estimation_samples_per_edge_pixel=round(float(extra[found].mean()), 3) if found.any()
         else 0.0,

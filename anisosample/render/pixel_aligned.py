@@ -257,6 +257,19 @@ def check_pixel_prefix(prefix, spp: int) -> str:
     return prefix
 
 
+def _check_prefix_name(prefix) -> str | None:
+    """``prefix`` before the render's ``spp`` is known: ``None`` or a ``"dihedral-<m>"`` name
+    (its size is checked against ``spp`` by :func:`check_pixel_prefix` when the render starts)."""
+    if prefix is None:
+        return None
+    from ..prefix import check_prefix
+
+    prefix = check_prefix("prefix", prefix)
+    if not prefix.startswith("dihedral-"):
+        raise ValueError(f"prefix must be None or 'dihedral-<m>', got {prefix!r}")
+    return prefix
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class PixelSampler:
     """The per-pixel aligned sampler (module docstring), made by :func:`pixel_sampler` and
@@ -274,21 +287,27 @@ class PixelSampler:
     reuse: bool = True
     axis_snap: bool = AXIS_SNAP
     neighbours: int = NEIGHBOURS
+    prefix: str | None = None
 
     name = "aligned-pixel"
+
+    def prefix_for(self, spp: int) -> str:
+        """The prefix of this sampler's ``spp``-point sets (:func:`check_pixel_prefix`:
+        :func:`pixel_prefix` unless the sampler names one)."""
+        return check_pixel_prefix(self.prefix, spp)
 
     def sets(self, requests, spp: int, *, progress: bool = True) -> jax.Array:
         """The sets for ``requests`` with this sampler's table options
         (:func:`pixel_sets`)."""
-        return pixel_sets(requests, spp, reuse=self.reuse, table=self.table,
-                          build_missing=self.build_missing, build_options=self.build_options,
-                          progress=progress)
+        return pixel_sets(requests, spp, reuse=self.reuse, prefix=self.prefix_for(spp),
+                          table=self.table, build_missing=self.build_missing,
+                          build_options=self.build_options, progress=progress)
 
     def settings(self) -> dict:
         """What a render records about the sampler (EXR metadata); the render adds the counts."""
         return dict(point_set="aligned-pixel", k=self.k, fallback=FALLBACK,
                     near_axis_deg=self.near_axis_deg, reuse=self.reuse,
-                    axis_snap=self.axis_snap, neighbours=self.neighbours,
+                    axis_snap=self.axis_snap, neighbours=self.neighbours, prefix=self.prefix,
                     search=self.search._asdict())
 
 
@@ -386,7 +405,7 @@ def integrand_estimates(f, n: int, key, realizations: int, *, k: int = 2, table=
 def pixel_sampler(scene: Scene, *, k: int = 2, table=None, build_missing: bool | None = None,
                   build_options: dict | None = None, near_axis_deg: float = NEAR_AXIS_DEG,
                   reuse: bool = True, axis_snap: bool = AXIS_SNAP, neighbours: int = NEIGHBOURS,
-                  **search) -> PixelSampler:
+                  prefix: str | None = None, **search) -> PixelSampler:
     """The per-pixel aligned sampler for ``scene``: at most ``k`` (1 or 2) directions per pixel,
     directions within ``near_axis_deg`` of an axis after the others (:data:`NEAR_AXIS_DEG`;
     0: W's rule, strongest first); ``search``: :class:`anisosample.edges.SearchOptions`
@@ -396,7 +415,9 @@ def pixel_sampler(scene: Scene, *, k: int = 2, table=None, build_missing: bool |
     apart (False, module docstring); ``axis_snap``: an edge whose direction rounds onto an axis
     takes the set one degree off it on its side (:func:`anisosample.selection.table_directions`)
     instead of pmj02bn; ``neighbours``: the radius of :func:`neighbour_consensus`'s window
-    (:data:`NEIGHBOURS`; 0: every pixel keeps its own search's directions)."""
+    (:data:`NEIGHBOURS`; 0: every pixel keeps its own search's directions); ``prefix``: the
+    sets' fixed prefix, ``"dihedral-<m>"`` (:func:`check_pixel_prefix`, checked against the
+    render's ``spp``; ``None``: :func:`pixel_prefix`'s rule)."""
     if not isinstance(scene, Scene):
         raise TypeError(f"scene must be an anisosample.render.Scene, got {type(scene).__name__}")
     k = check_int("k", k, minimum=1, maximum=2)
@@ -408,7 +429,8 @@ def pixel_sampler(scene: Scene, *, k: int = 2, table=None, build_missing: bool |
                         build_missing, dict(build_options or {}),
                         selection.check_near_axis(near_axis_deg), check_bool("reuse", reuse),
                         check_bool("axis_snap", axis_snap),
-                        check_int("neighbours", neighbours, minimum=0, maximum=16))
+                        check_int("neighbours", neighbours, minimum=0, maximum=16),
+                        _check_prefix_name(prefix))
 
 
 def exact_values(scene: Scene, options: IntegratorOptions) -> bool:

@@ -295,6 +295,26 @@ def test_neighbour_consensus_keeps_a_corner():
     assert n[20, 24] == 2 and n.sum() == w + h
 
 
+def test_render_takes_the_prefix_option(cornell):
+    """``sampler_options={"prefix": ...}``: the rule's prefix named explicitly renders the same
+    bits and records it; a prefix larger than spp / 4 is refused when the render starts, one
+    of another kind when the sampler is made, each naming ``prefix``."""
+    scene, res = cornell
+    same = R.render(scene, jax.random.key(3), spp=64, sampler="aligned-pixel",
+                    pixel_center=True, progress=False, sampler_options={"prefix": "dihedral-16"})
+    np.testing.assert_array_equal(same.mean, res.mean)
+    np.testing.assert_array_equal(same.pixel_directions, res.pixel_directions)
+    assert same.settings["blocks"]["prefix"] == "dihedral-16"
+    assert same.settings["blocks"]["prefix_points"] == 16
+    with pytest.raises(ValueError, match="prefix must be None or 'dihedral-<m>' with m"):
+        R.render(scene, jax.random.key(3), spp=64, sampler="aligned-pixel", progress=False,
+                 sampler_options={"prefix": "dihedral-32"})
+    with pytest.raises(ValueError, match="prefix must be None or 'dihedral-<m>'"):
+        PA.pixel_sampler(scene, prefix="pmj02bn-16")
+    assert PA.pixel_sampler(scene, prefix="dihedral-32").prefix_for(128) == "dihedral-32"
+    assert PA.pixel_sampler(scene).prefix_for(256) == PA.pixel_prefix(256) == "dihedral-64"
+
+
 def test_same_key_same_bits(cornell):
     scene, res = cornell
     again = R.render(scene, jax.random.key(3), spp=64, sampler="aligned-pixel",
