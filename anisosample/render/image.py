@@ -432,7 +432,8 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
         search_chunk,
     )
 
-    prefix = jnp.asarray(prefix_points(sampler.prefix_for(spp)), jnp.float32)
+    prefix_name = sampler.prefix_for(spp)
+    prefix = jnp.asarray(prefix_points(prefix_name), jnp.float32)
     m = prefix.shape[0]
     head, rough = over_pixels(prefix_chunk, (scene, prefix, key),
                               dict(opts, spp=spp, search=sampler.search))
@@ -492,7 +493,7 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
                                               ).astype(np.int32)
     found = count > 0
     record = dict(code=code, directions=dirs.astype(np.float32), extra=extra, settings=dict(
-        prefix=sampler.prefix_for(spp), prefix_points=m, reused_samples_per_pixel=m * sampler.reuse,
+        prefix=prefix_name, prefix_points=m, reused_samples_per_pixel=m * sampler.reuse,
         estimation_samples_per_pixel=round(float(extra.mean()), 3),
         estimation_samples_per_edge_pixel=round(float(extra[found].mean()), 3) if found.any()
         else 0.0,

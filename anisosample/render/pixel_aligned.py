@@ -273,10 +273,10 @@ def check_pixel_prefix(prefix, spp: int) -> str:
     itself) with ``16 <= m <= spp / 4`` (the edge search's least, the prefix sets' most)."""
     if prefix is None:
         return pixel_prefix(spp)
-    from ..prefix import check_prefix, prefix_size
+    from ..prefix import prefix_size
 
-    prefix = check_prefix("prefix", prefix)
-    if not prefix.startswith("dihedral-") or not 16 <= prefix_size(prefix) <= spp // 4:
+    prefix = _check_prefix_name(prefix)
+    if not 16 <= prefix_size(prefix) <= spp // 4:
         raise ValueError(f"prefix must be None or 'dihedral-<m>' with m a multiple of 8 from 16 "
                          f"to spp / 4 = {spp // 4}; got {prefix!r}")
     return prefix
