@@ -269,10 +269,12 @@ def create_table(out, n: int, direction_count: int, *, seed: int = 0,
     if (out / "table.json").exists():
         table = _t.open_table(out)
         if table.settings["fingerprint"] != settings["fingerprint"]:
-            old = {k: table.settings.get(k) for k in ("n", "kind", "seed", "synthesis")}
+            keys = ("n", "kind", "seed", "synthesis")
+            old = {k: table.settings.get(k) for k in keys}
+            new = _io.to_jsonable({k: settings[k] for k in keys})
             raise ValueError(
-                f"the table at {out} was built with other settings ({json.dumps(old)}); "
-                "choose another --out or delete it"
+                f"the table at {out} was built with other settings ({json.dumps(old)}) than "
+                f"these ({json.dumps(new)}); choose another --out or delete it"
             )
         return table
     out.mkdir(parents=True, exist_ok=True)

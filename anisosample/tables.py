@@ -311,7 +311,9 @@ def ensure(requests, n: int, *, direction_count: int | None = None, table=None,
         else:
             out = cache_table_path(canon.direction_count, n, prefix, sequence_from)
         opts = dict(build_options)
-        if not (Path(out) / "table.json").exists():  # an existing table keeps its own settings
+        # An existing table keeps its own settings, unless options are given: then they must
+        # match its settings, the prefix and the sequence's included.
+        if opts or not (Path(out) / "table.json").exists():
             if prefix != "none":
                 opts["prefix"] = prefix
             if sequence_from:

@@ -188,6 +188,20 @@ def test_prefixed_table_serves_the_prefix_for_every_transform(cache):
                       prefix="dihedral-8")
 
 
+def test_a_second_set_with_build_options_joins_the_prefixed_table(cache):
+    # the options given must match the existing table's, its prefix included
+    for extra in (30, 40):
+        tables.ensure([[0, 90, extra]], 128, prefix="dihedral-16", show_progress=False,
+                      steps=10, method="direct")
+        pts = np.asarray(tables.lookup([0, 90, extra], 128, prefix="dihedral-16"))
+        assert pts[:16].tobytes() == P.dihedral_points(16).tobytes()
+    assert {p.name for p in (cache / "d3_n128_dihedral-16").glob("psi_*.npz")} == {
+        "psi_030.npz", "psi_040.npz"}
+    with pytest.raises(ValueError, match="other settings"):  # options that do not match
+        tables.ensure([[0, 90, 20]], 128, prefix="dihedral-16", show_progress=False,
+                      steps=11, method="direct")
+
+
 def test_tables_refuse_an_asymmetric_prefix(cache):
     with pytest.raises(ValueError, match="symmetric"):
         tables.lookup([0, 90, 30], 64, prefix="pmj02bn-16")
