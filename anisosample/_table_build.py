@@ -79,7 +79,7 @@ def _settings(n: int, direction_count: int, seed: int, synthesis: dict) -> dict:
         "synthesis": dict(sorted(synthesis.items())),
         # the recipe's defaults as they are now: a later change of synthesize's defaults makes
         # a resumed build refuse this table instead of mixing sets of two settings
-        "synthesis_resolved": {**_resolved(synthesis)},
+        "synthesis_resolved": {**_resolved(synthesis, n)},
         "axes_deg": list(_t.AXES_DEG),
         "symmetry": "W Sec. 5.4: identity, mirror (x,1-y), swap (y,x), rotate90 (1-y,x)",
     }
@@ -87,11 +87,13 @@ def _settings(n: int, direction_count: int, seed: int, synthesis: dict) -> dict:
     return s
 
 
-def _resolved(synthesis: dict) -> dict:
+def _resolved(synthesis: dict, n: int) -> dict:
     """The table's synthesis record: the :class:`~anisosample.synthesis.Recipe` the options
     make (every option, defaults included: a later change of a default makes a resumed build
     refuse this table instead of mixing sets of two settings), the batch size, and the
-    frequency design evaluated at a probe size."""
+    frequency design evaluated at a probe size: 1024 points, or the table's ``n`` below that
+    (the design's weights change with ``n`` there, :data:`anisosample.frequencies.ROBUST_MIN_N`;
+    tables from 1024 points up keep the fingerprint they had before)."""
     from . import frequencies as _freq
     from . import synthesis as _synthesis
 
@@ -108,10 +110,11 @@ def _resolved(synthesis: dict) -> dict:
     # The frequency design's formulas (wedge length, width, weights' offsets, ...) evaluated at a
     # probe size: a change of the design changes the fingerprint, so a table of the old design
     # is not resumed with sets of the new one.
-    probe = _freq.design(1024, (0.0, 90.0, 45.0), recipe.design,
+    at = min(n, 1024)
+    probe = _freq.design(at, (0.0, 90.0, 45.0), recipe.design,
                          **dict(recipe.frequency_options)).params
-    resolved["frequency_design_at_n1024"] = {k: v for k, v in probe.items()
-                                             if k not in ("n", "directions_deg")}
+    resolved[f"frequency_design_at_n{at}"] = {k: v for k, v in probe.items()
+                                              if k not in ("n", "directions_deg")}
     return dict(sorted(resolved.items()))
 
 

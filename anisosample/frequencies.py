@@ -63,6 +63,18 @@ from ._validate import (
 
 DESIGNS = ("rate", "paper")
 ROBUST_OFFSETS_DEG = (-1.0, -0.75, -0.5, -0.25, 0.25, 0.5, 0.75, 1.0)
+ROBUST_MIN_N = 1024
+"""The ``"rate"`` design adds the :data:`ROBUST_OFFSETS_DEG` weights for ``n >= ROBUST_MIN_N``
+only; smaller sets get the aligned-only weights. From the fits of the robustness study
+(``results/w_fig6/robust_dense`` against ``robust_old``: one edge at 30 degrees, edges
+misaligned by -2..2 degrees, n = 2^8..2^14, 2048 shifts), the robust set's variance over the
+aligned-only set's at n = 256 / 512 / 1024 / 4096: aligned 1.08 / 1.12 / 1.16 / 1.24, at +-0.5
+degrees 1.16 / 1.06 / 0.97 / 0.82 (mean of both signs), at +-1 degree 1.14 / 1.01 / 0.89 /
+0.70 (table in docs/reproduction.md, W Fig. 6's robustness): below 1024 points the offsets lose at every misalignment within 2 degrees, from 1024 up
+they win where an estimate errs by half a degree or more. In the renderer at 256 spp the
+aligned-only table gave 0.87 of pmj02bn's edge-pixel variance where the robust one gave 1.23
+(the shipped n = 256 table, b1d4f52), and W Fig. 8's dof window 15 (per-pixel directions,
+probes apart, 16 keys) 0.494 against 0.529."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -286,7 +298,8 @@ def design(
 
     ``name="rate"``: wedges of length ``n^0.8``, half-width ``max(1.5, t tan 2deg)``, disk of
     radius ``sqrt(n)``, weights :func:`edge_weights` with ``offsets_deg=ROBUST_OFFSETS_DEG``
-    (pass ``offsets_deg=()`` for the aligned-only weights of issue 4 design c).
+    for ``n >= ROBUST_MIN_N`` (:data:`ROBUST_MIN_N`), the aligned-only weights of issue 4
+    design c below (pass ``offsets_deg`` to choose either at any ``n``).
     ``name="paper"``: wedges of length ``3 sqrt(n)``, half-width ``max(1, t tan 2deg)``, no
     disk, uniform weights (W Sec. 4.1).  Any of ``length``, ``width``, ``angle_deg``,
     ``disk_radius`` (0 for none) overrides the design's value; ``weight_spread_deg``,
@@ -297,7 +310,7 @@ def design(
     name = check_choice("name", name, DESIGNS)
     if name == "rate":
         p = {"length": n**0.8, "width": 1.5, "angle_deg": 2.0, "disk_radius": math.sqrt(n),
-             "offsets_deg": list(ROBUST_OFFSETS_DEG)}
+             "offsets_deg": list(ROBUST_OFFSETS_DEG) if n >= ROBUST_MIN_N else []}
     else:
         p = {"length": 3.0 * math.sqrt(n), "width": 1.0, "angle_deg": 2.0, "disk_radius": 0.0}
     for key, val in (("length", length), ("width", width), ("angle_deg", angle_deg),

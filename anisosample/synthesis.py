@@ -15,7 +15,8 @@ initialised from a stratified set:
     :func:`~anisosample.losses.linear_spectrum_loss` on the ``"rate"`` frequency design
     (wedges of length ``n^0.8`` along every direction given, a disk of radius ``sqrt(n)``,
     weights ``W(v) = sum_d 1/(|v|^2 (1 + s_d^2))`` for the aligned edges and for edges off by
-    +-0.25..+-1 deg, ``frequencies.ROBUST_OFFSETS_DEG``), no sliced-Wasserstein term, Adam with
+    +-0.25..+-1 deg, ``frequencies.ROBUST_OFFSETS_DEG``, from ``frequencies.ROBUST_MIN_N`` =
+    1024 points up), no sliced-Wasserstein term, Adam with
     ``b2 = 0.9`` and a tiny epsilon, float64, positions wrapped on the torus.
 ``"paper"`` (W's recipe as published)
     :func:`~anisosample.losses.spectrum_loss` (Eq. 11, uniform weights, target 0) on the

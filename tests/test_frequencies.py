@@ -192,3 +192,14 @@ def test_rate_design_defaults_to_robust_offsets():
     plain = fr.design(1024, [0.0, 90.0, 30.0], offsets_deg=())
     assert "offsets_deg" not in plain.params
     np.testing.assert_allclose(plain.weights, fr.edge_weights(canon, [0.0, 90.0, 30.0]))
+
+
+def test_rate_design_below_robust_min_n_is_aligned_only():
+    assert fr.ROBUST_MIN_N == 1024
+    small = fr.design(512, [0.0, 90.0, 30.0])
+    assert "offsets_deg" not in small.params
+    canon = fr.canonical_half_rows(small.freqs)
+    np.testing.assert_allclose(small.weights, fr.edge_weights(canon, [0.0, 90.0, 30.0]))
+    robust = fr.design(512, [0.0, 90.0, 30.0], offsets_deg=fr.ROBUST_OFFSETS_DEG)
+    assert robust.params["offsets_deg"] == list(fr.ROBUST_OFFSETS_DEG)
+    assert not np.allclose(robust.weights, small.weights)

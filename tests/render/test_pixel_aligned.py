@@ -12,7 +12,7 @@ from anisosample import edges, samplers
 from anisosample import variance as V
 from anisosample.integrands import GaussianBump, HalfPlane
 from anisosample.metrics import axial_distance_deg
-from anisosample.prefix import prefix_points
+from anisosample.prefix import prefix_points, prefix_size
 from anisosample.render import pixel_aligned as PA
 from anisosample.render.integrator import render_chunk
 
@@ -20,9 +20,9 @@ from .helpers import SCENES
 
 
 def test_prefix_rule():
-    assert [PA.pixel_prefix(n) for n in (64, 96, 128, 255, 256, 4096)] == [
-        "dihedral-16", "dihedral-24", "dihedral-32", "dihedral-56", "dihedral-64",
-        "dihedral-64"]
+    spps = (64, 96, 128, 255, 256, 511, 512, 4096)
+    assert [prefix_size(PA.pixel_prefix(n)) for n in spps] == [
+        16, 24, 32, 32, 32, 56, 64, 64]
     with pytest.raises(ValueError, match="spp must be >= 64"):
         PA.pixel_prefix(32)
 
@@ -312,7 +312,8 @@ def test_render_takes_the_prefix_option(cornell):
     with pytest.raises(ValueError, match="prefix must be None or 'dihedral-<m>'"):
         PA.pixel_sampler(scene, prefix="pmj02bn-16")
     assert PA.pixel_sampler(scene, prefix="dihedral-32").prefix_for(128) == "dihedral-32"
-    assert PA.pixel_sampler(scene).prefix_for(256) == PA.pixel_prefix(256) == "dihedral-64"
+    assert PA.pixel_sampler(scene).prefix_for(256) == PA.pixel_prefix(256) == "dihedral-32"
+    assert PA.pixel_sampler(scene).prefix_for(512) == "dihedral-64"
 
 
 def test_same_key_same_bits(cornell):
