@@ -42,14 +42,15 @@ the 46 was not run; new sequence tables take both). ``n = 4096`` uses the defaul
 weights of :mod:`anisosample.frequencies`
 (built with the rotated type-3 NUFFT of the time; ``experiments/bench_tables.py --full`` now
 projects 5.1 min for the 46 sets on this project's 2-core machine); ``n = 256``
-keeps the aligned-only weights (``offsets_deg=()``): at 256 points the robust weights measured
-worse in the renderer (aligned / pmj02bn variance on the edge pixels of a Cornell crop 1.23
+has the aligned-only weights, the default below
+:data:`~anisosample.frequencies.ROBUST_MIN_N` = 1024 points: at 256 points the robust weights
+measured worse in the renderer (aligned / pmj02bn variance on the edge pixels of a Cornell crop 1.23
 instead of 0.87) and shallower along the requested lines (0.117 of white instead of 0.066), while
 the offset lines lie inside the band there anyway. Also shipped: ``d3_n64_dihedral-16``
 (196 kB), the 46 sets of 64 points whose first 16 are the ``dihedral-16`` prefix: the per-pixel
 sampler's sets at 64 spp (:func:`anisosample.render.pixel_aligned.pixel_prefix`), built by
-``anisosample tables build --n 64 --prefix dihedral-16`` in 20 s here (the same bits as a set
-built on demand), so a 64-spp preview with one direction per pixel synthesizes nothing. Every
+``anisosample tables build --n 64 --prefix dihedral-16`` in 18 s here with the aligned-only
+weights (2026-12-07; the same bits as a set built on demand), so a 64-spp preview with one direction per pixel synthesizes nothing. Every
 other set is built on demand: ``ensure``
 synthesizes a set no table holds into the user cache (one set, with progress; ``build_missing=
 False`` refuses instead) before the pure ``lookup`` reads it, and ``anisosample tables build``
