@@ -103,8 +103,9 @@ flatter, as the small prefixes gain most); at the rate 0.5, 600 steps had been n
 1200 (512 shifts: mean ratio 1.21 / 1.22), and 200 steps worse (1.31).
 Applied where a sequence is asked for (:func:`synthesize_sequence`, a new sequence table's
 settings), not by :func:`make_recipe`: ``steps`` is one of a named recipe's defaults, which table
-fingerprints record as such, so a recipe-level default would give a table built before it (the
-shipped ``d3_n4096_seq256``, 200 steps) sets of another step count under the same fingerprint."""
+fingerprints record as such, so a recipe-level default would give a table built before it (such
+as the first shipped ``d3_n4096_seq256``, 200 steps) sets of another step count under the same
+fingerprint."""
 SEQUENCE_LEARNING_RATE = 1.5
 """The learning rate of a sequence (:func:`synthesize_sequence`, new sequence tables) unless
 given, in units of the full sequence's point spacing (a set's default is 0.5). Measured at

@@ -34,11 +34,12 @@ the tables shipped in ``anisosample/data/tables``, and the user cache
 
 Shipped: the 46-set 3-direction tables for ``n = 256`` (380 kB) and the paper's ``n = 4096``
 (1.7 MB), and the 46-sequence 3-direction table ``d3_n4096_seq256`` (1.7 MB; progressive
-sequences, :func:`anisosample.synthesis.synthesize_sequence`), built with 200 optimizer steps
-at the learning rate 0.5 before sequences took :data:`~anisosample.synthesis.SEQUENCE_STEPS` =
-3000 and :data:`~anisosample.synthesis.SEQUENCE_LEARNING_RATE` = 1.5 (its settings say so; one
-3000-step sequence took 242-354 s on this project's 2-core machine at load 3-6, so a rebuild of
-the 46 was not run; new sequence tables take both). ``n = 4096`` uses the default (robust)
+sequences, :func:`anisosample.synthesis.synthesize_sequence`), built with
+:data:`~anisosample.synthesis.SEQUENCE_STEPS` = 3000 optimizer steps at
+:data:`~anisosample.synthesis.SEQUENCE_LEARNING_RATE` = 1.5 by ``anisosample tables build --n
+4096 --sequence-from 256`` (resumed across several sessions on this project's 2-core machine,
+niced beside other work: 4-14 min per sequence; the first shipped table had 200 steps at the
+rate 0.5). ``n = 4096`` uses the default (robust)
 weights of :mod:`anisosample.frequencies`
 (built with the rotated type-3 NUFFT of the time; ``experiments/bench_tables.py --full`` now
 projects 5.1 min for the 46 sets on this project's 2-core machine); ``n = 256``

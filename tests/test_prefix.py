@@ -335,17 +335,32 @@ def test_aligned_sequence_sampler_serves_nested_prefixes_of_one_sequence(cache):
 
 
 def test_a_new_sequence_table_takes_the_sequence_defaults_and_an_old_one_keeps_its_own(cache):
-    """A sequence table built anew records SEQUENCE_LEARNING_RATE (and the steps asked for); a
-    table whose settings name no learning rate (the shipped d3_n4096_seq256 was built before
-    the sequence default) keeps the recipe's, so its fingerprint still matches its sets."""
+    """A sequence table built anew records SEQUENCE_LEARNING_RATE (and the steps asked for), as
+    the shipped d3_n4096_seq256 does; a table whose settings name no learning rate (sequence
+    tables built before the sequence defaults) is finished with the recipe's, 0.5: its new sets
+    are those of a table built with learning_rate=0.5."""
+    import json
+
+    opts = dict(sequence_from=16, steps=3, method="direct", show_progress=False)
     out = cache / "seq"
-    tables.build(64, 3, out=out, sets=[(30,)], sequence_from=16, steps=3, method="direct",
-                 show_progress=False)
+    tables.build(64, 3, out=out, sets=[(30,)], **opts)
     synth = tables.open_table(out).settings["synthesis"]
     assert synth["learning_rate"] == synthesis.SEQUENCE_LEARNING_RATE and synth["steps"] == 3
-    shipped = tables.open_table(tables.shipped_dir() / "d3_n4096_seq256")
-    assert "learning_rate" not in shipped.settings["synthesis"]
-    assert shipped.settings["synthesis_resolved"]["learning_rate"] == 0.5
+    shipped = tables.open_table(tables.shipped_dir() / "d3_n4096_seq256").settings
+    assert shipped["synthesis"]["learning_rate"] == synthesis.SEQUENCE_LEARNING_RATE
+    assert shipped["synthesis"]["steps"] == synthesis.SEQUENCE_STEPS
+    # the same table as one built before the sequence defaults: no learning rate in its settings
+    old = json.loads((out / "table.json").read_text())
+    del old["synthesis"]["learning_rate"]
+    old["synthesis_resolved"]["learning_rate"] = 0.5
+    old["fingerprint"] = tables.settings_fingerprint(old)
+    (cache / "old").mkdir()
+    (cache / "old" / "table.json").write_text(json.dumps(old))
+    tables.build(64, 3, out=cache / "old", sets=[(40,)], **opts)
+    assert "learning_rate" not in tables.open_table(cache / "old").settings["synthesis"]
+    tables.build(64, 3, out=cache / "lr05", sets=[(40,)], learning_rate=0.5, **opts)
+    np.testing.assert_array_equal(tables.open_table(cache / "old").load((40,)),
+                                  tables.open_table(cache / "lr05").load((40,)))
 
 
 _SEQUENCE_SCRIPT = """
