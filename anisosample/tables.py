@@ -51,8 +51,8 @@ the offset lines lie inside the band there anyway. Also shipped: ``d3_n64_dihedr
 (196 kB), the 46 sets of 64 points whose first 16 are the ``dihedral-16`` prefix: the per-pixel
 sampler's sets at 64 spp (:func:`anisosample.render.pixel_aligned.pixel_prefix`), built by
 ``anisosample tables build --n 64 --prefix dihedral-16`` in 18 s here with the aligned-only
-weights (2026-12-07; the same bits as a set built on demand), so a 64-spp preview with one direction per pixel synthesizes nothing. Every
-other set is built on demand: ``ensure``
+weights (2026-12-07; the same bits as a set built on demand), so a 64-spp preview with one
+direction per pixel synthesizes nothing. Every other set is built on demand: ``ensure``
 synthesizes a set no table holds into the user cache (one set, with progress; ``build_missing=
 False`` refuses instead) before the pure ``lookup`` reads it, and ``anisosample tables build``
 builds whole tables. A 4-direction set
