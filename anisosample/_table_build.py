@@ -110,6 +110,9 @@ def _resolved(synthesis: dict, n: int) -> dict:
     # The frequency design's formulas (wedge length, width, weights' offsets, ...) evaluated at a
     # probe size: a change of the design changes the fingerprint, so a table of the old design
     # is not resumed with sets of the new one.
+    # Up to 1024 points, the probe size tables have always used; below it the table's own n,
+    # since the design changes with n there (frequencies.ROBUST_MIN_N must stay <= 1024, or
+    # tables between it and 1024 points would change design under the same fingerprint).
     at = min(n, 1024)
     probe = _freq.design(at, (0.0, 90.0, 45.0), recipe.design,
                          **dict(recipe.frequency_options)).params

@@ -72,10 +72,11 @@ aligned-only set's at n = 256 / 512 / 1024 / 4096: aligned 1.08 / 1.12 / 1.16 / 
 degrees 1.16 / 1.06 / 0.97 / 0.82 (mean of both signs), at +-1 degree 1.14 / 1.01 / 0.89 /
 0.70 (table in docs/reproduction.md, W Fig. 6's robustness): below 1024 points the offsets
 lose at every misalignment within 2 degrees, from 1024 up they win where an estimate errs by
-half a degree or more. In the renderer at 256 spp the
-aligned-only table gave 0.87 of pmj02bn's edge-pixel variance where the robust one gave 1.23
-(the shipped n = 256 table, b1d4f52), and W Fig. 8's dof window 15 (per-pixel directions,
-probes apart, 16 keys) 0.494 against 0.529."""
+half a degree or more. In the renderer at 256 spp the aligned-only table gave 0.87 of
+pmj02bn's edge-pixel variance where the robust one gave 1.23 (the shipped n = 256 table,
+b1d4f52), and W Fig. 8's dof window 15 (per-pixel directions, probes apart, 16 keys, ad-hoc
+script) 0.494 against 0.529; on all of W Fig. 8 at 256 spp the aligned-only sets gained on
+cornell, dof and pillars and lost on blinds and attic (docs/reproduction.md, W Fig. 8)."""
 
 
 @dataclass(frozen=True, eq=False)

@@ -2,6 +2,8 @@
 them bit for bit (single, batched, resumed), and tables whose every served set starts with them
 whatever its directions' symmetry transform."""
 
+import json
+
 import jax
 import numpy as np
 import pytest
@@ -339,8 +341,6 @@ def test_a_new_sequence_table_takes_the_sequence_defaults_and_an_old_one_keeps_i
     the shipped d3_n4096_seq256 does; a table whose settings name no learning rate (sequence
     tables built before the sequence defaults) is finished with the recipe's, 0.5: its new sets
     are those of a table built with learning_rate=0.5."""
-    import json
-
     opts = dict(sequence_from=16, steps=3, method="direct", show_progress=False)
     out = cache / "seq"
     tables.build(64, 3, out=out, sets=[(30,)], **opts)

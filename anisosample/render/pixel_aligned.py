@@ -258,17 +258,19 @@ def prefix_weight(m: int, n: int) -> float:
 
 def pixel_prefix(spp: int) -> str:
     """The prefix of a ``spp``-point pixel set: ``dihedral-<m>``,
-    ``m = min(8 (spp // 32), 64, max(32, 8 (spp // 64)))``: a quarter of the set up to 128
-    spp (the prefix sets' limit), 32 points up to 511 spp, 64 from 512 (W Sec. 7's 16-64
-    points; 16 at 64 spp, the least the edge search needs). ``spp >= 64``.
-    Measured on W Fig. 9's one-edge pixels (``experiments/beyond_pixel_prefix.py``): at 256
-    and 512 spp a 32-point prefix was within about one standard error of 64 points, and 16
-    points worse (the search found no direction in 17-32 % of the shifts). On the window of W
-    Fig. 8 (256 spp, 16 keys, ad-hoc script, sets of the aligned-only design that the
-    ``"rate"`` design takes below 1024 points) where each scene's pmj02bn variance is largest,
-    the ratio to pmj02bn with 64 / 32 points: cornell 0.406 / 0.389, blinds 0.316 / 0.301,
-    attic 0.699 / 0.697, dof 0.557 / 0.534, pillars 0.396 / 0.362; hence 32 at 256 spp. At
-    512 spp and above 64 is kept (not measured there against 32)."""
+    ``m = min(8 (spp // 32), 64, max(32, 8 (spp // 64)))``: a quarter of the set (the prefix
+    sets' limit) up to 128 spp, 32 points from 128 to 319 spp, an eighth of the set (a multiple
+    of 8) from 320 to 511, 64 from 512 (W Sec. 7's 16-64 points; 16 at 64 spp, the least the
+    edge search needs). ``spp >= 64``.
+    Measured on W Fig. 9's one-edge pixels (``experiments/beyond_pixel_prefix.py``, 2026-12-07,
+    sets of the aligned-only design that the ``"rate"`` design takes below 1024 points): at
+    256 spp 32 points were ahead of 64 in all three scenes (geometric mean of the variance over
+    pmj02bn's: cornell 0.43 / 0.46, dof 0.40 / 0.42, pillars 0.42 / 0.47), at 512 spp level
+    (within 0.01); 16 points were worse everywhere (the search found no direction in 17-32 % of
+    the shifts). On the window of W Fig. 8 (256 spp, 16 keys, ad-hoc script) where each
+    scene's pmj02bn variance is largest, the ratio to pmj02bn with 64 / 32 points: cornell
+    0.406 / 0.389, blinds 0.316 / 0.301, attic 0.699 / 0.697, dof 0.557 / 0.534, pillars
+    0.396 / 0.362. Sizes between 320 and 511 spp were not measured."""
     spp = check_int("spp", spp, minimum=64)
     return f"dihedral-{min(8 * (spp // 32), 64, max(32, 8 * (spp // 64)))}"
 
