@@ -156,27 +156,25 @@ def test_single_point_contract():
 
 
 @eqx.filter_jit
-def _big_and_chunked(warp, u):
-    big = jax.vmap(warp.sample_and_pdf)(u)
-    small = jax.lax.map(jax.vmap(warp.sample_and_pdf), u.reshape(-1, 64, 2))
-    x_small, p_small = small
-    back_big = jax.vmap(warp.inverse)(big[0])
-    back_small = jax.lax.map(jax.vmap(warp.inverse), big[0].reshape(-1, 64, big[0].shape[-1]))
-    return (big, (x_small.reshape(big[0].shape), p_small.reshape(-1)), back_big,
-            back_small.reshape(back_big.shape))
+def _chunked(warp, u, x):
+    """Sampling and pdf of ``u``, and the inverse of ``x``, in chunks of 64 rows."""
+    xs, ps = jax.lax.map(jax.vmap(warp.sample_and_pdf), u.reshape(-1, 64, 2))
+    back = jax.lax.map(jax.vmap(warp.inverse), x.reshape(-1, 64, x.shape[-1]))
+    return xs.reshape(x.shape), ps.reshape(-1), back.reshape(-1, 2)
 
 
 @pytest.mark.parametrize("name,factory,kind", [c for c in ALL if c[2] != "planar"],
                          ids=[c[0] for c in ALL if c[2] != "planar"])
 def test_large_batches_match_small_ones(name, factory, kind):
     """XLA's CPU backend (jaxlib 0.10.2) miscompiled fused 3-vector reductions past a few thousand
-    vmapped rows in the renderer (see ``anisosample/render/_vec.py``): a batch of 2^13 must give
-    what chunks of 64 give, for sampling, pdf and inverse of every 3D warp. The two programs
-    vectorize (and contract multiply-adds) differently, so they agree to float32 rounding
-    (measured <= 6e-6 absolute, on 0.03% of the entries at most); the miscompile gave O(1)
-    errors."""
-    u = jnp.asarray(_U_RAND[: 2**13])
-    (xb, pb), (xs, ps), bb, bs = _big_and_chunked(factory(), u)
-    np.testing.assert_allclose(np.asarray(xb), np.asarray(xs), rtol=0, atol=1e-4)
-    np.testing.assert_allclose(np.asarray(pb), np.asarray(ps), rtol=1e-3)
-    np.testing.assert_allclose(np.asarray(bb), np.asarray(bs), rtol=0, atol=1e-4)
+    vmapped rows in the renderer (see ``anisosample/render/_vec.py``): the battery's batch of
+    about 10^5 rows (:func:`_results`) must give what chunks of 64 give, for sampling, pdf and
+    inverse of every 3D warp, on its first 2^13 random rows. The two programs vectorize (and
+    contract multiply-adds) differently, so they agree to float32 rounding (measured <= 6e-6
+    absolute, on 0.03% of the entries at most); the miscompile gave O(1) errors."""
+    u, r = _results(name)
+    rows = slice(len(_U_GRID), len(_U_GRID) + 2**13)
+    xs, ps, bs = _chunked(factory(), jnp.asarray(u[rows]), jnp.asarray(r["x"][rows]))
+    np.testing.assert_allclose(r["x"][rows], np.asarray(xs), rtol=0, atol=1e-4)
+    np.testing.assert_allclose(r["pdf_alg1"][rows], np.asarray(ps), rtol=1e-3)
+    np.testing.assert_allclose(r["back"][rows], np.asarray(bs), rtol=0, atol=1e-4)
