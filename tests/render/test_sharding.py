@@ -85,11 +85,20 @@ def _two_devices(cases: str):
 
 def test_two_devices_give_the_same_bits():
     """Two forced host devices: pmj02bn (with realizations, and with 3-pixel chunks), the
-    per-block aligned sampler, a light warp and dof's classes of tiles, each equal to the
-    one-device render bit for bit; and the variance engine's estimates of a pixel integrand
+    per-block aligned sampler and a light warp, each equal to the one-device render bit for
+    bit; and the variance engine's estimates of a pixel integrand
     (``variance.realization_estimates(..., devices=...)``: shifted patterns, fresh jittable
     and NumPy samplers, a fixed set), its chunks of realizations dealt out to both devices."""
-    _two_devices("pmj02bn,aligned,light warp,variance,tile classes")
+    _two_devices("pmj02bn,aligned,light warp,variance")
+
+
+@pytest.mark.slow
+def test_two_devices_give_the_same_bits_with_classes_of_tiles():
+    """dof's two classes of tiles (with and without the sphere), in blocks of four chunks and
+    of one, on two forced host devices: the one-device image bit for bit (about 10 s; the
+    default suite's ``test_render_with_and_without_culling_agree`` checks the classes on one
+    device)."""
+    _two_devices("tile classes")
 
 
 @pytest.mark.slow
