@@ -68,7 +68,8 @@ def test_gradients_agree_between_paths_and_with_finite_differences():
         p = jnp.asarray(np.asarray(pts, np.float64))
         grads = {
             m: np.asarray(
-                jax.grad(lambda q, m=m: jnp.sum(spectrum.power_spectrum(q, f, method=m)))(p)
+                jax.jit(jax.grad(lambda q, m=m: jnp.sum(spectrum.power_spectrum(q, f,
+                                                                                 method=m))))(p)
             )
             for m in ["direct", "nufft1", "nufft3"]
         }
@@ -152,12 +153,13 @@ def test_float32_direct_gradient_equals_float64_gradient():
     pts = samplers.get("random")(jax.random.key(4), 128)
     f = np.array([[3, -2], [40, 7], [-900, 25000]], np.int32)
     g32 = np.asarray(
-        jax.grad(lambda q: jnp.sum(spectrum.power_spectrum(q, f, method="direct")))(pts)
+        jax.jit(jax.grad(lambda q: jnp.sum(spectrum.power_spectrum(q, f, method="direct"))))(pts)
     )
     with jax.enable_x64(True):
         p64 = jnp.asarray(np.asarray(pts, np.float64))
         g64 = np.asarray(
-            jax.grad(lambda q: jnp.sum(spectrum.power_spectrum(q, f, method="direct")))(p64)
+            jax.jit(jax.grad(lambda q: jnp.sum(spectrum.power_spectrum(q, f,
+                                                                       method="direct"))))(p64)
         )
     scale = np.abs(g64).max()
     assert np.abs(g32 - g64).max() < 1e-3 * scale
@@ -186,11 +188,13 @@ def test_one_engine_against_direct_sum_float64(method, shape):
     with jax.enable_x64(True):
         w = jnp.asarray(np.random.default_rng(0).random(len(f)), jnp.float64)
         x = jax.random.uniform(jax.random.key(5), (n, 2), jnp.float64)
-        a = np.asarray(spectrum.power_spectrum(x, f, method=method))
-        b = np.asarray(spectrum.power_spectrum(x, f, method="direct"))
+        a = np.asarray(jax.jit(lambda y: spectrum.power_spectrum(y, f, method=method))(x))
+        b = np.asarray(jax.jit(lambda y: spectrum.power_spectrum(y, f, method="direct"))(x))
         assert np.max(np.abs(a - b)) <= 10 * 2 * 1e-10 * np.sqrt(b.max())
-        ga = jax.grad(lambda y: jnp.sum(w * spectrum.power_spectrum(y, f, method=method)))(x)
-        gb = jax.grad(lambda y: jnp.sum(w * spectrum.power_spectrum(y, f, method="direct")))(x)
+        ga = jax.jit(jax.grad(lambda y: jnp.sum(w * spectrum.power_spectrum(y, f,
+                                                                             method=method))))(x)
+        gb = jax.jit(jax.grad(lambda y: jnp.sum(w * spectrum.power_spectrum(y, f,
+                                                                             method="direct"))))(x)
         assert float(jnp.max(jnp.abs(ga - gb))) < 1e-6 * float(jnp.max(jnp.abs(gb)))
 
 
@@ -250,7 +254,7 @@ def test_grouped_spectrum_matches_brute_force(getkey, method):
     n = 300
     x = jax.random.uniform(getkey(), (n, 2), jnp.float32)
     fset = frequencies.design(n, [0.0, 90.0, 33.0], "rate")
-    p = np.asarray(spectrum.grouped_power_spectrum(x, fset, method=method))
+    p = np.asarray(jax.jit(lambda y: spectrum.grouped_power_spectrum(y, fset, method=method))(x))
     want = brute_force_spectrum(x, fset.freqs)
     # 1e-4 of the largest value (NUFFT tolerance 1e-6 in float32)
     assert np.max(np.abs(p - want)) <= 1e-4 * want.max()
@@ -302,9 +306,13 @@ def test_lattice_grids_float64_deep(getkey, theta):
     fset = _lattice_plan_checked(n, theta)
     with jax.enable_x64(True):
         x = jax.random.uniform(getkey(), (n, 2), jnp.float64)
-        a = np.asarray(spectrum.grouped_power_spectrum(x, fset, method="nufft1", eps=1e-9))
-        b = np.asarray(spectrum.grouped_power_spectrum(x, fset, method="direct"))
+        # jitted: run op by op, the two paths and their gradients compile ~300 small programs
+        a = np.asarray(jax.jit(lambda y: spectrum.grouped_power_spectrum(
+            y, fset, method="nufft1", eps=1e-9))(x))
+        b = np.asarray(jax.jit(lambda y: spectrum.grouped_power_spectrum(
+            y, fset, method="direct"))(x))
         assert np.max(np.abs(a - b)) < 1e-7 / n  # 1e-7 of white noise
-        ga = jax.grad(lambda y: losses.linear_spectrum_loss(y, fset, method="nufft1", eps=1e-9))(x)
-        gb = jax.grad(lambda y: losses.linear_spectrum_loss(y, fset, method="direct"))(x)
+        ga = jax.jit(jax.grad(lambda y: losses.linear_spectrum_loss(
+            y, fset, method="nufft1", eps=1e-9)))(x)
+        gb = jax.jit(jax.grad(lambda y: losses.linear_spectrum_loss(y, fset, method="direct")))(x)
         assert float(jnp.max(jnp.abs(ga - gb))) < 1e-6 * float(jnp.max(jnp.abs(gb)))
