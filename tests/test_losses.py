@@ -112,7 +112,7 @@ def test_single_precision_terms_agree_with_double():
             assert all(isinstance(t, L.GridTerm) for t in terms)
             assert all(t.single == (prec == "single") for t in terms)
             assert all(t.eps == (1e-6 if prec == "single" else 1e-7) for t in terms)
-            out[prec] = jax.value_and_grad(lambda y, t=terms: L.terms_value(y, t))(x)
+            out[prec] = jax.jit(jax.value_and_grad(lambda y, t=terms: L.terms_value(y, t)))(x)
         (v64, g64), (v32, g32) = out["double"], out["single"]
         assert g32.dtype == jnp.float64
         assert abs(float(v32 - v64)) < 1e-3 * float(v64)
@@ -157,12 +157,17 @@ def test_spectrum_loss_takes_a_target_traced_under_jit(getkey, method):
         fset = fr.design(n, [0.0, 90.0, 30.0], "paper")
         tgt = jnp.linspace(0.0, 2.0 / n, len(fset))
         for t in (tgt, jnp.asarray(0.7 / n)):
-            want = L.spectrum_loss(x, fset, np.asarray(t), method=method, eps=1e-13)
+            # the concrete target: a constant of the program (jitted: op by op it compiles
+            # ~100 small programs)
+            fixed = np.asarray(t)
+            want = jax.jit(lambda y, t=fixed: L.spectrum_loss(y, fset, t, method=method,
+                                                              eps=1e-13))(x)
             got = jax.jit(lambda y, t: L.spectrum_loss(y, fset, t, method=method, eps=1e-13))(
                 x, t)
             np.testing.assert_allclose(float(got), float(want), rtol=1e-12)
-        g = jax.grad(lambda t: L.spectrum_loss(x, fset, t, method=method, eps=1e-13))(tgt)
-        p = asp.spectrum.grouped_power_spectrum(x, fset, method="direct")
+        g = jax.jit(jax.grad(lambda t: L.spectrum_loss(x, fset, t, method=method,
+                                                       eps=1e-13)))(tgt)
+        p = jax.jit(lambda y: asp.spectrum.grouped_power_spectrum(y, fset, method="direct"))(x)
         w = fset.weights
         np.testing.assert_allclose(np.asarray(g), -2 * n * n * w * (np.asarray(p) - tgt)
                                    / np.sum(w), rtol=1e-9, atol=1e-12)
