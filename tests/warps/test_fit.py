@@ -1,5 +1,6 @@
 """Fitting (H Eq. 9 and the optimistix least-squares fit), the tabulated reference, MIS."""
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -164,18 +165,20 @@ def test_least_squares_details_keep_the_solver_status():
     throw=False so that they vmap) and the step count. The default 32 steps do not reach
     rtol = 1e-4 here (the status says so; the warp is still the better iterate), 400 do."""
     tri = W.SphericalTriangle(VERTS, P)
-    plain = W.fit_least_squares(W.Biquadratic, _cos, [tri])
-    fit = W.fit_least_squares(W.Biquadratic, _cos, [tri], details=True)
+    # jitted (as the module docstring advises): op by op, these fits compiled ~160 small programs
+    fit_least_squares = eqx.filter_jit(W.fit_least_squares)
+    plain = fit_least_squares(W.Biquadratic, _cos, [tri])
+    fit = fit_least_squares(W.Biquadratic, _cos, [tri], details=True)
     assert isinstance(fit, W.WarpFit)
     np.testing.assert_array_equal(np.asarray(fit.warp.values), np.asarray(plain.values))
     assert not bool(fit.successful) and int(fit.steps) == 32
     assert not bool(fit.kept_start)
-    done = W.fit_least_squares(W.Biquadratic, _cos, [tri], max_steps=400, details=True)
+    done = fit_least_squares(W.Biquadratic, _cos, [tri], max_steps=400, details=True)
     assert bool(done.successful) and 32 < int(done.steps) < 400
 
     points = jnp.asarray([P, P + 0.1])
-    many = jax.vmap(lambda p: W.fit_least_squares(
-        W.Bilinear, _cos, [W.SphericalTriangle(VERTS, p)], max_steps=200, details=True))(points)
+    many = jax.jit(jax.vmap(lambda p: W.fit_least_squares(
+        W.Bilinear, _cos, [W.SphericalTriangle(VERTS, p)], max_steps=200, details=True)))(points)
     assert many.steps.shape == (2,) and bool(jnp.all(many.successful))
 
 
