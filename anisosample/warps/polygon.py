@@ -277,6 +277,68 @@ def _sector_of_ray(d, rays, next_rays, areas):
     return jnp.argmax(inside)
 
 
+@jax.jit
+def _sectors(vertices, origin, n):
+    """:class:`ProjectedSphericalPolygon`'s fields for a checked polygon and unit normal ``n``:
+    the shading frame, the edge normals and the sectors of Peters' sweep with their areas."""
+    frame = orthonormal_frame(n)
+    rel = vertices - origin[None, :]
+    # Winding as seen from the origin: the sign of (polygon normal) . (v0 - origin).
+    side = _dot3(_cross3(rel[1] - rel[0], rel[2] - rel[0]), rel[0])
+    sigma = jnp.where(side > 0, 1.0, -1.0)
+    edge_normals = _normalize3(_cross3(rel, jnp.roll(rel, -1, axis=0)) * sigma)
+
+    clipped, count = clip_to_horizon(_to_frame(frame, rel))
+    vh = _normalize3(clipped)
+    vn = jnp.roll(vh, -1, axis=0)
+    m = _normalize3(_cross3(vh, vn))
+    p = vh[:, :2]
+    pr = jnp.sqrt(_dot2(p, p))
+    at_zenith = pr <= 1e-7
+    unit = jnp.asarray([1.0, 0.0], p.dtype)
+    ph = jnp.where(at_zenith[:, None], unit, p / jnp.where(at_zenith, 1.0, pr)[:, None])
+    # Sort the rays by polar angle measured from the mean vertex direction: a decentral
+    # polygon (less than pi of polar angle) then lies away from the branch cut, and its
+    # sectors follow Peters' sweep from the most clockwise vertex.
+    mean = jnp.sum(ph, axis=0)
+    mn = jnp.sqrt(_dot2(mean, mean))
+    centre = jnp.where(mn > 1e-6, mean / jnp.where(mn > 1e-6, mn, 1.0), unit)
+    key = _pseudo_angle(_dot2(ph, centre), _cross2(centre, ph))
+    kk = key.shape[0]
+    idx = jnp.arange(kk)
+    earlier = (key[None, :] < key[:, None]) | (
+        (key[None, :] == key[:, None]) & (idx[None, :] < idx[:, None])
+    )
+    rank = jnp.sum(earlier, axis=1)
+    order = jnp.argmax(rank[None, :] == idx[:, None], axis=1)  # the vertex of rank r
+    rays = ph[order]
+    next_rays = jnp.roll(rays, -1, axis=0)
+    # A sector is non-empty only if narrower than pi (the wide gap of a decentral polygon
+    # is empty); edge i bounds sector j if the sector's middle ray lies strictly inside the
+    # edge's polar wedge: outer (+1) if the edge runs counter-clockwise once the polygon is
+    # oriented by sigma, inner (-1) if clockwise. Edges from a vertex at the zenith are
+    # radial (no polar extent).
+    narrow = _cross2(rays, next_rays) > 0
+    mid = rays + next_rays
+    a, b = ph[:, None, :], jnp.roll(ph, -1, axis=0)[:, None, :]
+    turn = jnp.sign(_cross2(ph, jnp.roll(ph, -1, axis=0)))[:, None]
+    spans = (turn * _cross2(a, mid[None]) > 0) & (turn * _cross2(mid[None], b) > 0)
+    spans = spans & ~(at_zenith | jnp.roll(at_zenith, -1))[:, None] & narrow[None, :]
+    sign = jnp.where(spans, turn * sigma, 0.0)  # (edge, sector)
+    o = jnp.argmax(sign, axis=0)
+    i = jnp.argmin(sign, axis=0)
+    has_out = jnp.max(sign, axis=0) > 0
+    has_in = jnp.min(sign, axis=0) < 0
+    outer = jnp.where(has_out[:, None], m[o], 0.0)
+    inner = jnp.where(has_in[:, None], m[i], 0.0)
+    areas = ellipse_sector(outer, rays, next_rays) - ellipse_sector(inner, rays, next_rays)
+    areas = jnp.where(has_out & jnp.isfinite(areas), jnp.maximum(areas, 0.0), 0.0)
+    total = jnp.sum(areas)
+    valid = (count >= 3) & (side != 0) & (total > MIN_PROJECTED_SOLID_ANGLE)
+    return (vertices, origin, n, frame, edge_normals, rays, next_rays, outer, inner, areas,
+            jnp.cumsum(areas) - areas, jnp.where(valid, total, 1.0), valid)
+
+
 class ProjectedSphericalPolygon(AbstractWarp):
     """Cosine-weighted sampling of a convex polygon seen from ``origin`` (Peters 2021).
 
@@ -312,68 +374,11 @@ class ProjectedSphericalPolygon(AbstractWarp):
         n = _normalize3(normal)
         if is_concrete(n) and float(_dot3(n, n)) == 0:
             raise ValueError("normal must be a non-zero vector")
-        self.vertices, self.origin, self.normal = vertices, origin, n
-        frame = orthonormal_frame(n)
-        self.frame = frame
-        rel = vertices - origin[None, :]
-        # Winding as seen from the origin: the sign of (polygon normal) . (v0 - origin).
-        side = _dot3(_cross3(rel[1] - rel[0], rel[2] - rel[0]), rel[0])
-        sigma = jnp.where(side > 0, 1.0, -1.0)
-        self.edge_normals = _normalize3(_cross3(rel, jnp.roll(rel, -1, axis=0)) * sigma)
-
-        clipped, count = clip_to_horizon(_to_frame(frame, rel))
-        vh = _normalize3(clipped)
-        vn = jnp.roll(vh, -1, axis=0)
-        m = _normalize3(_cross3(vh, vn))
-        p = vh[:, :2]
-        pr = jnp.sqrt(_dot2(p, p))
-        at_zenith = pr <= 1e-7
-        unit = jnp.asarray([1.0, 0.0], p.dtype)
-        ph = jnp.where(at_zenith[:, None], unit, p / jnp.where(at_zenith, 1.0, pr)[:, None])
-        # Sort the rays by polar angle measured from the mean vertex direction: a decentral
-        # polygon (less than pi of polar angle) then lies away from the branch cut, and its
-        # sectors follow Peters' sweep from the most clockwise vertex.
-        mean = jnp.sum(ph, axis=0)
-        mn = jnp.sqrt(_dot2(mean, mean))
-        centre = jnp.where(mn > 1e-6, mean / jnp.where(mn > 1e-6, mn, 1.0), unit)
-        key = _pseudo_angle(_dot2(ph, centre), _cross2(centre, ph))
-        kk = key.shape[0]
-        idx = jnp.arange(kk)
-        earlier = (key[None, :] < key[:, None]) | (
-            (key[None, :] == key[:, None]) & (idx[None, :] < idx[:, None])
-        )
-        rank = jnp.sum(earlier, axis=1)
-        order = jnp.argmax(rank[None, :] == idx[:, None], axis=1)  # the vertex of rank r
-        rays = ph[order]
-        next_rays = jnp.roll(rays, -1, axis=0)
-        # A sector is non-empty only if narrower than pi (the wide gap of a decentral polygon
-        # is empty); edge i bounds sector j if the sector's middle ray lies strictly inside the
-        # edge's polar wedge: outer (+1) if the edge runs counter-clockwise once the polygon is
-        # oriented by sigma, inner (-1) if clockwise. Edges from a vertex at the zenith are
-        # radial (no polar extent).
-        narrow = _cross2(rays, next_rays) > 0
-        mid = rays + next_rays
-        a, b = ph[:, None, :], jnp.roll(ph, -1, axis=0)[:, None, :]
-        turn = jnp.sign(_cross2(ph, jnp.roll(ph, -1, axis=0)))[:, None]
-        spans = (turn * _cross2(a, mid[None]) > 0) & (turn * _cross2(mid[None], b) > 0)
-        spans = spans & ~(at_zenith | jnp.roll(at_zenith, -1))[:, None] & narrow[None, :]
-        sign = jnp.where(spans, turn * sigma, 0.0)  # (edge, sector)
-        o = jnp.argmax(sign, axis=0)
-        i = jnp.argmin(sign, axis=0)
-        has_out = jnp.max(sign, axis=0) > 0
-        has_in = jnp.min(sign, axis=0) < 0
-        outer = jnp.where(has_out[:, None], m[o], 0.0)
-        inner = jnp.where(has_in[:, None], m[i], 0.0)
-        areas = ellipse_sector(outer, rays, next_rays) - ellipse_sector(inner, rays, next_rays)
-        areas = jnp.where(has_out & jnp.isfinite(areas), jnp.maximum(areas, 0.0), 0.0)
-        total = jnp.sum(areas)
-        valid = (count >= 3) & (side != 0) & (total > MIN_PROJECTED_SOLID_ANGLE)
-        self.rays, self.next_rays = rays, next_rays
-        self.outer, self.inner = outer, inner
-        self.areas = areas
-        self.before = jnp.cumsum(areas) - areas
-        self.projected_solid_angle = jnp.where(valid, total, 1.0)
-        self.valid = valid
+        # One compiled program for the sectors (called outside jit, op by op, they compiled
+        # ~100 small programs on first use); inside a jit or vmap it is inlined.
+        (self.vertices, self.origin, self.normal, self.frame, self.edge_normals, self.rays,
+         self.next_rays, self.outer, self.inner, self.areas, self.before,
+         self.projected_solid_angle, self.valid) = _sectors(vertices, origin, n)
 
     # --- sampling ------------------------------------------------------------------------------
 
