@@ -60,8 +60,9 @@ def test_parallelograms_hit_what_their_two_triangles_hit():
     target = jax.random.normal(k2, (4096, 3)) * 0.8 + jnp.array([[0.0, 0.0, -1.0]])
     d = target - o
     d = d / jnp.linalg.norm(d, axis=-1, keepdims=True)
-    ha = jax.vmap(lambda o, d: intersect(para, o, d))(o, d)
-    hb = jax.vmap(lambda o, d: intersect(tris, o, d))(o, d)
+    # jitted: op by op, each vmap compiled dozens of small programs
+    ha = jax.jit(jax.vmap(lambda o, d: intersect(para, o, d)))(o, d)
+    hb = jax.jit(jax.vmap(lambda o, d: intersect(tris, o, d)))(o, d)
     valid = np.asarray(ha.valid)
     # Rays through the shared diagonal or an edge may go either way: compare the rest.
     same = valid == np.asarray(hb.valid)
@@ -72,6 +73,6 @@ def test_parallelograms_hit_what_their_two_triangles_hit():
     cos_a = np.abs(np.sum(np.asarray(ha.n) * np.asarray(d), -1))[both]
     cos_b = np.abs(np.sum(np.asarray(hb.n) * np.asarray(d), -1))[both]
     np.testing.assert_allclose(cos_a, cos_b, atol=1e-5)
-    block_a = jax.vmap(lambda o, p: occluded(para, o, p))(o, target)
-    block_b = jax.vmap(lambda o, p: occluded(tris, o, p))(o, target)
+    block_a = jax.jit(jax.vmap(lambda o, p: occluded(para, o, p)))(o, target)
+    block_b = jax.jit(jax.vmap(lambda o, p: occluded(tris, o, p)))(o, target)
     assert np.mean(np.asarray(block_a) == np.asarray(block_b)) > 0.999
