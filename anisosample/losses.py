@@ -290,8 +290,14 @@ def square_projection_quantile(theta_deg, u):
         if not np.all(np.isfinite(un)) or np.any(np.abs(un) > 0.5):
             raise ValueError("u must lie in [-1/2, 1/2] (u = F - 1/2 for a CDF value F in "
                              f"[0, 1]), got values in [{un.min()}, {un.max()}]")
-    th = jnp.deg2rad(jnp.asarray(theta_deg))
-    u = jnp.asarray(u)
+    return _trapezoid_quantile(jnp.asarray(theta_deg), jnp.asarray(u))
+
+
+@jax.jit
+def _trapezoid_quantile(theta_deg, u):
+    """:func:`square_projection_quantile` after its check (one program: called outside jit, op
+    by op, it compiled a small program per operation)."""
+    th = jnp.deg2rad(theta_deg)
     c, s = jnp.abs(jnp.cos(th)), jnp.abs(jnp.sin(th))
     a, b = jnp.maximum(c, s), jnp.minimum(c, s)
     au = jnp.abs(u)
@@ -324,6 +330,7 @@ def sliced_wasserstein_targets(directions_deg, n, dtype=jnp.float64):
     return d, tgt
 
 
+@jax.jit
 def sliced_wasserstein_value(points, d, tgt):
     """:func:`sliced_wasserstein_loss` from :func:`sliced_wasserstein_targets` (traceable)."""
     proj = (points - 0.5) @ d.T  # (n, k)
