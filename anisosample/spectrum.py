@@ -460,6 +460,10 @@ def _power_bwd(how, eps, res, g):
 
 
 _power.defvjp(_power_fwd, _power_bwd)
+# One compiled program per shape and plan: called outside jit (power_spectrum on concrete
+# points, its gradient), the custom VJP's forward and backward otherwise ran op by op, each
+# operation a small program compiled on first use. Inside jit it is inlined.
+_power = jax.jit(_power, static_argnums=(3, 4))
 
 
 def check_method(method) -> str:
