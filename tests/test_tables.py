@@ -26,8 +26,8 @@ from helpers import forced_host_devices, free_port
 
 import anisosample as asp
 from anisosample import _table_build, selection, tables
-from anisosample.frequencies import wedge
-from anisosample.spectrum import power_spectrum, power_spectrum_grid
+from anisosample.diagnostics import band_energy
+from anisosample.spectrum import power_spectrum
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -338,25 +338,13 @@ def synthesized_table(tmp_path_factory):
     return out
 
 
-def _band_energies(pts, phis, n, radius=32):
-    """Mean n P_S (1 = white noise) within one unit of the line at each spectral angle of
-    ``phis``, 0 < |v| <= radius: read off one centred grid of the spectrum (one program for
-    every set of a size, where the wedges' sizes would compile one each)."""
-    grid = np.asarray(power_spectrum_grid(pts, radius))
-    out = []
-    for phi in phis:
-        v = np.asarray(wedge(float(phi), float(radius), 1.0))
-        out.append(float(np.mean(grid[v[:, 1] + radius, v[:, 0] + radius])) * n)
-    return out
-
-
 def test_symmetry_moves_low_energy_directions(synthesized_table):
     n = 256
     for phi in (30, 60, 120, 150):
         pts = tables.lookup([0, 90, phi], n, table=synthesized_table)
-        on, = _band_energies(pts, [phi], n)
+        on = band_energy(pts, phi)
         # the other members of the orbit are not requested (and not dark, except by accident)
-        off = _band_energies(pts, [q for q in (30, 60, 120, 150) if q != phi], n)
+        off = [band_energy(pts, q) for q in (30, 60, 120, 150) if q != phi]
         assert on < 0.1, (phi, on)
         assert on < 0.2 * min(off), (phi, on, off)
 
@@ -553,7 +541,7 @@ def test_shipped_table_is_dark_along_requested_directions():
     ratios = []
     for phi in rng.integers(0, 180, 20):
         pts = tables.lookup([0, 90, int(phi)], tab.n)
-        ratios += _band_energies(pts, sorted({0, 90, int(phi)}), tab.n)
+        ratios += [band_energy(pts, d) for d in sorted({0, 90, int(phi)})]
     assert np.mean(ratios) < 0.1, ratios
     assert max(ratios) < 0.2, ratios
 
@@ -693,5 +681,5 @@ def test_twenty_random_four_direction_sets_on_demand_are_dark(user_cache):
         a, b = rng.choice([x for x in range(1, 180) if x != 90], 2, replace=False)
         tables.ensure([[0, 90, int(a), int(b)]], 4096, show_progress=False)
         pts = tables.lookup([0, 90, int(a), int(b)], 4096)
-        worst.append(max(_band_energies(pts, (0, 90, int(a), int(b)), 4096)))
+        worst.append(max(band_energy(pts, d) for d in (0, 90, int(a), int(b))))
     assert max(worst) <= 0.1, worst
