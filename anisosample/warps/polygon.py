@@ -335,8 +335,8 @@ def _sectors(vertices, origin, n):
     areas = jnp.where(has_out & jnp.isfinite(areas), jnp.maximum(areas, 0.0), 0.0)
     total = jnp.sum(areas)
     valid = (count >= 3) & (side != 0) & (total > MIN_PROJECTED_SOLID_ANGLE)
-    return (vertices, origin, n, frame, edge_normals, rays, next_rays, outer, inner, areas,
-            jnp.cumsum(areas) - areas, jnp.where(valid, total, 1.0), valid)
+    return (frame, edge_normals, rays, next_rays, outer, inner, areas, jnp.cumsum(areas) - areas,
+            jnp.where(valid, total, 1.0), valid)
 
 
 class ProjectedSphericalPolygon(AbstractWarp):
@@ -374,11 +374,12 @@ class ProjectedSphericalPolygon(AbstractWarp):
         n = _normalize3(normal)
         if is_concrete(n) and float(_dot3(n, n)) == 0:
             raise ValueError("normal must be a non-zero vector")
+        self.vertices, self.origin, self.normal = vertices, origin, n
         # One compiled program for the sectors (called outside jit, op by op, they compiled
         # ~100 small programs on first use); inside a jit or vmap it is inlined.
-        (self.vertices, self.origin, self.normal, self.frame, self.edge_normals, self.rays,
-         self.next_rays, self.outer, self.inner, self.areas, self.before,
-         self.projected_solid_angle, self.valid) = _sectors(vertices, origin, n)
+        sectors = _sectors(vertices, origin, n)
+        (self.frame, self.edge_normals, self.rays, self.next_rays, self.outer, self.inner,
+         self.areas, self.before, self.projected_solid_angle, self.valid) = sectors
 
     # --- sampling ------------------------------------------------------------------------------
 
