@@ -95,7 +95,7 @@ def test_two_devices_give_the_same_bits():
 @pytest.mark.slow
 def test_two_devices_give_the_same_bits_with_classes_of_tiles():
     """dof's two classes of tiles (with and without the sphere), in blocks of four chunks and
-    of one, on two forced host devices: the one-device image bit for bit (about 10 s; the
+    of one, on two forced host devices: the one-device image bit for bit (about 13 s; the
     default suite's ``test_render_with_and_without_culling_agree`` checks the classes on one
     device)."""
     _two_devices("tile classes")
