@@ -155,10 +155,16 @@ def table_requests(directions, k: int = 2, *, near_axis_deg: float = 0.0,
     item's estimated directions, strongest first (empty: none), rounded by
     :func:`table_directions` (with ``near_axis_deg`` and ``axis_snap``). Returns
     ``(requests, index)``: the distinct non-empty requests in order of first use and each item's
-    index into them (``-1``: no direction off the axes, the item takes :data:`FALLBACK`)."""
+    index into them (``-1``: no direction off the axes, the item takes :data:`FALLBACK`).
+    ``directions`` may also be an ``(items, slots)`` float array, NaN where an item has no
+    direction in a slot (its directions: its finite entries in order); then the items that
+    round alike (every direction to the same integer, an axis's from the same side) are
+    rounded once."""
     k = check_int("k", k, minimum=1, maximum=2)
     near_axis_deg = check_near_axis(near_axis_deg)
     axis_snap = check_bool("axis_snap", axis_snap)
+    if isinstance(directions, np.ndarray) and directions.ndim == 2:
+        return _table_requests_array(directions, k, near_axis_deg, axis_snap)
     requests: list = []
     where: dict = {}
     index = np.full(len(directions), -1, np.int32)
@@ -172,6 +178,40 @@ def table_requests(directions, k: int = 2, *, near_axis_deg: float = 0.0,
             where[extra] = len(requests)
             requests.append(extra)
         index[i] = where[extra]
+    return requests, index
+
+
+def _table_requests_array(directions, k: int, near_axis_deg: float,
+                          axis_snap: bool) -> tuple[list, np.ndarray]:
+    """:func:`table_requests` of an ``(items, slots)`` array (NaN: none), validated options.
+    :func:`_table_directions` depends on a direction only through its integer ``r`` and, on an
+    axis, the side it lies on, so each distinct signature of those is rounded once, on the
+    first item that has it."""
+    d = np.asarray(directions, np.float64)
+    if np.isinf(d).any():
+        raise ValueError("directions must be finite degrees or NaN (none)")
+    ok = ~np.isnan(d)
+    r = np.floor(np.where(ok, d, 0.0) + 0.5) % 180
+    side = (np.where(ok, d, 0.0) - r + 90.0) % 180.0 - 90.0 >= 0
+    signature = np.where(ok, 2 * r.astype(np.int64) + side, -1)
+    index = np.full(d.shape[0], -1, np.int32)
+    if d.shape[0] == 0:
+        return [], index
+    _, first, inverse = np.unique(signature, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    requests: list = []
+    where: dict = {}
+    of_signature = np.full(first.size, -1, np.int32)
+    for u in np.argsort(first, kind="stable"):  # in order of first use
+        row = d[first[u]]
+        extra = _table_directions(tuple(row[ok[first[u]]]), k, near_axis_deg, axis_snap)
+        if not extra:
+            continue
+        if extra not in where:
+            where[extra] = len(requests)
+            requests.append(extra)
+        of_signature[u] = where[extra]
+    index[:] = of_signature[inverse]
     return requests, index
 
 

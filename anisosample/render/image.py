@@ -177,10 +177,19 @@ def render(
     if chunk_samples is None:
         chunk_samples = default_chunk_samples(scene)
     chunk_samples = check_int("chunk_samples", chunk_samples, minimum=1)
-    if chunk is None:
-        chunk = max(1, min(npix, chunk_samples // spp))
-    chunk = check_int("chunk", chunk, minimum=1)
-    per_call = max(1, min(-(-npix // chunk), 2**18 // (chunk * spp)))
+    if chunk is not None:
+        chunk = check_int("chunk", chunk, minimum=1)
+    given_chunk = chunk
+
+    def sizing(samples: int, pixels: int | None = None) -> tuple[int, int]:
+        """``(chunk, per_call)`` of a pass taking ``samples`` per pixel (the per-pixel
+        sampler's passes take fewer than ``spp``: its prefix pass ``m``): ``chunk`` if given,
+        else ``pixels`` if given, else about ``chunk_samples`` samples per chunk; at most 2^18
+        samples per call."""
+        c = given_chunk or pixels or max(1, min(npix, chunk_samples // samples))
+        return c, max(1, min(-(-npix // c), 2**18 // (c * samples)))
+
+    chunk, per_call = sizing(spp)
     # Classes of tiles, each its own kernel: candidate lists as long as its tiles need, and no
     # sphere or patch tests where they meet none (MIS's BSDF rays may meet anything).
     classes = tile_classes(scene, chunk, curved_everywhere=options.mis)
@@ -188,9 +197,11 @@ def render(
     for i, c in enumerate(classes or ()):
         pixel_class[c.pixels] = i
 
-    def blocking(size: int, whole: bool) -> list[tuple[int, int]]:
-        """The blocks of a pass over ``size`` pixels: ``(first position, chunks per jit
-        call)`` each, ``per_call`` chunks but where that pads more than a tenth: a pass over
+    def blocking(size: int, whole: bool, chunk: int = chunk,
+                 per_call: int = per_call) -> list[tuple[int, int]]:
+        """The blocks of a pass over ``size`` pixels in chunks of ``chunk`` pixels: ``(first
+        position, chunks per jit call)`` each, ``per_call`` chunks but where that pads more
+        than a tenth: a pass over
         some pixels (the per-pixel sampler's search and its edge pixels' rest, a class of
         tiles) then runs its whole blocks and the rest one chunk per call (cornell's 1,329
         search pixels at 128^2 x 256 spp had been padded to 2,048). A pass over the whole image
@@ -203,7 +214,11 @@ def render(
         return [(c, per_call) for c in range(0, full, big)] + \
             [(c, 1) for c in range(full, max(size, 1), chunk)]
 
-    n_chunks = sum(len(blocking(n, classes is None)) for n in
+    # the passes over every pixel: the render's, or the per-pixel sampler's prefix pass
+    from ..prefix import prefix_size
+
+    whole_sizing = sizing(spp if per_pixel is None else prefix_size(per_pixel.prefix_for(spp)))
+    n_chunks = sum(len(blocking(n, classes is None, *whole_sizing)) for n in
                    ((npix,) if classes is None else (c.pixels.size for c in classes)))
     from ..progress import progress as bar
 
@@ -217,13 +232,15 @@ def render(
         unit="chunk",
     ) as pb:
 
-        def over_pixels(kernel, args, static, pixels=None):
+        def over_pixels(kernel, args, static, pixels=None, samples=spp, chunk_pixels=None):
             """``kernel(*args, idx, **static)`` (a jitted chunk kernel: ``idx`` a
             ``(per_call, chunk)`` block of flat pixel indices, ``args[0]`` the scene) over
             every pixel (or the flat indices ``pixels``): its outputs, each ``(npix, ...)``
-            (zero outside ``pixels``). Each class of tiles (``classes``) runs with its own
-            scene."""
+            (zero outside ``pixels``). ``samples``: the integrand samples the kernel takes per
+            pixel, which size its chunks, or ``chunk_pixels`` pixels per chunk
+            (:func:`sizing`). Each class of tiles (``classes``) runs with its own scene."""
             whole = pixels is None
+            size = sizing(samples, chunk_pixels)
             todo = np.arange(npix) if whole else np.asarray(pixels, np.int64)
             parts = [(todo, args)]
             if classes is not None and args[0] is scene:
@@ -233,7 +250,8 @@ def render(
                 parts = [p for p in parts if p[0].size] or parts[:1]
             outs = None
             for part, run in parts:
-                res = one_pass(kernel, run, static, part, whole, whole and len(parts) == 1)
+                res = one_pass(kernel, run, static, part, whole, whole and len(parts) == 1,
+                               *size)
                 if outs is None:
                     outs = res
                 else:
@@ -243,12 +261,13 @@ def render(
                 pb.update(1)
             return outs
 
-        def one_pass(kernel, args, static, todo, counted, whole):
-            """:func:`over_pixels` over ``todo`` with ``args``' scene. Block ``c`` runs on
-            process ``c % P`` of the ``P`` sharing ``devices``, on its local devices in turn;
-            the next block is dispatched before one is read. ``counted``: a part of the pass
-            over every pixel (progress per block); ``whole``: that whole pass."""
-            blocks = blocking(todo.size, whole)
+        def one_pass(kernel, args, static, todo, counted, whole, chunk, per_call):
+            """:func:`over_pixels` over ``todo`` with ``args``' scene, in chunks of ``chunk``
+            pixels, ``per_call`` per jit call. Block ``c`` runs on process ``c % P`` of the
+            ``P`` sharing ``devices``, on its local devices in turn; the next block is
+            dispatched before one is read. ``counted``: a part of the pass over every pixel
+            (progress per block); ``whole``: that whole pass."""
+            blocks = blocking(todo.size, whole, chunk, per_call)
             outs = []  # allocated from the first block's outputs (no trace of the kernel)
 
             def allocate(results):
@@ -422,6 +441,7 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
     from .aligned import pad_sets
     from .pixel_aligned import (
         FALLBACK,
+        SEARCH_CHUNK,
         apart_chunk,
         choose_sets,
         exact_values,
@@ -436,7 +456,7 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
     prefix = jnp.asarray(prefix_points(prefix_name), jnp.float32)
     m = prefix.shape[0]
     head, rough = over_pixels(prefix_chunk, (scene, prefix, key),
-                              dict(opts, spp=spp, search=sampler.search))
+                              dict(opts, spp=spp, search=sampler.search), samples=m)
     # The search only where it has a candidate (elsewhere it finds nothing and samples nothing):
     # 8 % of cornell's pixels at 128^2 (the search's own test: 30 % of pillars'); run on every
     # pixel, the search was most of the render's time (cornell 128^2 x 256 spp: 2.5 s -> 1.2 s).
@@ -449,7 +469,8 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
     rough = np.flatnonzero(rough)
     if rough.size:
         found = over_pixels(search_chunk, (scene, prefix, key),
-                            dict(opts, spp=spp, search=sampler.search), rough)
+                            dict(opts, spp=spp, search=sampler.search), rough,
+                            chunk_pixels=SEARCH_CHUNK)
         for out, res in zip((dirs, count, extra), found, strict=True):
             out[rough] = res[rough]
     if not exact_values(scene, opts["options"]):
@@ -474,7 +495,7 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
         pixel_set = jnp.asarray(np.maximum(index, 0))
         if sampler.reuse:
             (rest,) = over_pixels(rest_chunk, (scene, sets[:, m:], pixel_set, key),
-                                  dict(opts, spp=spp), edge)
+                                  dict(opts, spp=spp), edge, samples=spp - m)
             est[edge] = (head[edge].astype(np.float64) + rest[edge].astype(np.float64)) / spp
         else:
             (own,) = over_pixels(apart_chunk, (scene, sets, pixel_set, key), apart, edge)

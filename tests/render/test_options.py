@@ -158,6 +158,30 @@ def test_table_requests_are_the_distinct_rounded_requests():
     assert selection.FALLBACK == "pmj02bn"
 
 
+@pytest.mark.parametrize("k,near,snap", [(1, 0.0, False), (2, 12.0, True), (1, 12.0, True)])
+def test_table_requests_of_an_array_are_those_of_the_items(k, near, snap):
+    """An ``(items, 2)`` array (NaN: none) gives the requests and indices of its items' finite
+    directions given one by one, on random directions that crowd the axes and the rounding
+    boundaries (half degrees) and repeat."""
+    from anisosample import selection
+
+    rng = np.random.default_rng(11)
+    pool = np.concatenate([rng.uniform(0, 180, 40), rng.uniform(-1, 1, 20) % 180,
+                           90 + rng.uniform(-1, 1, 20), np.arange(0, 180, 7) + 0.5,
+                           [179.5, 0.5, 89.5, 90.5, 12.0, 168.0]])
+    d = rng.choice(pool, (600, 2))
+    d[rng.random(600) < 0.3, 1] = np.nan
+    d[rng.random(600) < 0.1] = np.nan
+    items = [tuple(row[np.isfinite(row)]) for row in d]
+    expect = selection.table_requests(items, k, near_axis_deg=near, axis_snap=snap)
+    got = selection.table_requests(d, k, near_axis_deg=near, axis_snap=snap)
+    assert got[0] == expect[0] and len(expect[0]) > 20
+    np.testing.assert_array_equal(got[1], expect[1])
+    assert (expect[1] == -1).sum() > 10
+    with pytest.raises(ValueError, match="directions must be finite degrees or NaN"):
+        selection.table_requests(np.array([[np.inf, 1.0]]))
+
+
 def test_near_axis_directions_yield_to_one_off_the_axes():
     """``near_axis_deg`` reorders only: a direction within it of an axis goes behind the
     others, keeps its place among its group, and is still used when it is all there is."""

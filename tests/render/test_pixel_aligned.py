@@ -278,6 +278,74 @@ def test_neighbour_consensus_replaces_the_searchs_misses():
     np.testing.assert_array_equal(c0, count)
 
 
+def _consensus_by_pixel(d, r=PA.NEIGHBOURS, tol=PA.CONSENSUS_TOLERANCE_DEG, min_support=2,
+                        rel=0.5):
+    """The consensus of :func:`neighbour_consensus`'s docstring, pixel by pixel in loops:
+    directions as float32 doubled-angle unit vectors, ties to the first in the window's
+    row-major order after the pixel's own."""
+    h, w, _ = d.shape
+    found = np.isfinite(d)
+    phi = np.radians(2.0 * np.nan_to_num(d.astype(np.float64)))
+    vec = np.where(found[..., None], np.stack([np.cos(phi), np.sin(phi)], -1), 0.0
+                   ).astype(np.float32)
+    cos2 = np.float32(np.cos(np.radians(2.0 * tol)))
+
+    def agree(a, b):
+        return a[0] * b[0] + a[1] * b[1] >= cos2
+
+    def window(y, x):
+        return [(y + dy, x + dx) for dy in range(-r, r + 1) for dx in range(-r, r + 1)
+                if (dy or dx) and 0 <= y + dy < h and 0 <= x + dx < w]
+
+    support = np.full((h, w, 2), -1)
+    for y, x, j in np.argwhere(found):
+        support[y, x, j] = sum(agree(vec[y, x, j], vec[q][k]) for q in window(y, x)
+                               for k in range(2))
+    out = d.copy()
+    for y, x in np.argwhere(found[..., 0]):
+        best, best_vec = support[y, x, 0], vec[y, x, 0]
+        for q in window(y, x):
+            for k in range(2):
+                if support[q][k] > best:
+                    best, best_vec = support[q][k], vec[q][k]
+        total, backing = np.zeros(2, np.float32), 0
+        for q in [(y, x), *window(y, x)]:
+            for k in range(2):
+                if agree(vec[q][k], best_vec):
+                    total += vec[q][k]
+                    backing += q != (y, x)
+        ok = [support[y, x, j] >= min_support and support[y, x, j] >= rel * backing
+              for j in range(2)]
+        first = vec[y, x, 0]
+        if not ok[0] and backing > min_support:
+            out[y, x, 0] = np.degrees(np.arctan2(total[1], total[0])) / 2.0 % 180.0
+            first = best_vec
+        if not ok[1] or agree(vec[y, x, 1], first):
+            out[y, x, 1] = np.nan
+    return out
+
+
+def test_neighbour_consensus_is_its_definition():
+    """:func:`neighbour_consensus` equals its docstring's definition computed pixel by pixel
+    on random directions around a few edge directions, in an image whose strips of rows have
+    few and many pixels with directions (the two ways it computes a strip)."""
+    rng = np.random.default_rng(3)
+    h, w = 80, 30
+    density = np.repeat([0.05, 0.9, 0.2], [32, 32, 16])[:, None] * np.ones((1, w))
+    has = rng.random((h, w)) < density
+    dirs = np.full((h, w, 2), np.nan, np.float32)
+    base = rng.choice([20.0, 95.0, 179.0], (h, w))
+    dirs[..., 0] = np.where(has, (base + rng.normal(0, 1.5, (h, w))) % 180.0, np.nan)
+    dirs[..., 1] = np.where(has & (rng.random((h, w)) < 0.3), rng.uniform(0, 180, (h, w)),
+                            np.nan)
+    out, n = PA.neighbour_consensus(dirs, np.isfinite(dirs).sum(-1))
+    expect = _consensus_by_pixel(dirs.astype(np.float64))
+    np.testing.assert_allclose(out, expect, rtol=0, atol=1e-4)
+    np.testing.assert_array_equal(n, np.isfinite(expect).sum(-1))
+    assert (out[..., 0] != dirs[..., 0]).sum() > 10  # some swapped
+    assert np.isnan(out[..., 1]).sum() > np.isnan(dirs[..., 1]).sum()  # some dropped
+
+
 def test_neighbour_consensus_keeps_a_corner():
     """Two one-pixel-wide edges across the image, at 10 (row 20) and 100 degrees (column 24),
     meet at a corner pixel that has both: every pixel keeps its directions, the corner both;
