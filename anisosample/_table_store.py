@@ -96,6 +96,9 @@ class Canonical:
 
 
 def _integer_directions(name: str, directions_deg) -> tuple[int, ...]:
+    if isinstance(directions_deg, tuple) and all(  # a renderer's requests: no numpy round trip
+            type(a) is int and 0 <= a < 180 for a in directions_deg):
+        return directions_deg
     if isinstance(directions_deg, int | float | np.number) and not isinstance(directions_deg, bool):
         directions_deg = (directions_deg,)
     try:

@@ -222,12 +222,24 @@ def _served(canon: Canonical, n: int, path, table, prefix: str, sequence_from: i
             + f") or `{command}`")
     set_file = Path(path) / f"{canon.name}.npz"
     st = set_file.stat()
-    pts, held = _load_verified(str(path), n, canon.direction_count, canon.extra, st.st_mtime_ns,
-                               st.st_size, (Path(path) / "table.json").stat().st_mtime_ns)
+    return _transformed(str(path), n, canon.direction_count, canon.extra, canon.transform,
+                        prefix, sequence_from, st.st_mtime_ns, st.st_size,
+                        (Path(path) / "table.json").stat().st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=2048)  # a per-pixel render serves the same few hundred per call
+def _transformed(path: str, n: int, direction_count: int, extra, transform: str, prefix: str,
+                 sequence_from: int, mtime_ns: int, size: int,
+                 index_mtime_ns: int) -> np.ndarray:
+    """:func:`_served`'s set once found: the verified canonical set (:func:`_load_verified`)
+    under ``transform``, its prefix in order; cached per file version, read-only."""
+    pts, held = _load_verified(path, n, direction_count, extra, mtime_ns, size, index_mtime_ns)
     if held != (prefix, sequence_from):
         raise ValueError(f"table {path} holds sets with (prefix, sequence_from) {held}, not "
                          f"the requested {(prefix, sequence_from)}")
-    return restore_prefix(transform_points(pts, canon.transform), prefix, canon.transform)
+    out = restore_prefix(transform_points(pts, transform), prefix, transform)
+    out.setflags(write=False)
+    return out
 
 
 def _where_and_command(canon, n, table, path, prefix, sequence_from) -> tuple[str | Path, str]:
