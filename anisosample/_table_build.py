@@ -79,7 +79,7 @@ def _settings(n: int, direction_count: int, seed: int, synthesis: dict) -> dict:
         "synthesis": dict(sorted(synthesis.items())),
         # the recipe's defaults as they are now: a later change of synthesize's defaults makes
         # a resumed build refuse this table instead of mixing sets of two settings
-        "synthesis_resolved": {**_resolved(synthesis, n)},
+        "synthesis_resolved": {**_resolved(synthesis, n, direction_count)},
         "axes_deg": list(_t.AXES_DEG),
         "symmetry": "W Sec. 5.4: identity, mirror (x,1-y), swap (y,x), rotate90 (1-y,x)",
     }
@@ -87,13 +87,16 @@ def _settings(n: int, direction_count: int, seed: int, synthesis: dict) -> dict:
     return s
 
 
-def _resolved(synthesis: dict, n: int) -> dict:
+def _resolved(synthesis: dict, n: int, direction_count: int = 3) -> dict:
     """The table's synthesis record: the :class:`~anisosample.synthesis.Recipe` the options
     make (every option, defaults included: a later change of a default makes a resumed build
     refuse this table instead of mixing sets of two settings), the batch size, and the
     frequency design evaluated at a probe size: 1024 points, or the table's ``n`` below that
     (the design's weights change with ``n`` there, :data:`anisosample.frequencies.ROBUST_MIN_N`;
-    tables from 1024 points up keep the fingerprint they had before)."""
+    tables from 1024 points up keep the fingerprint they had before), for directions of the
+    table's count: 3-direction tables probe (0, 90, 45) as they always have, 4-direction tables
+    (0, 90, 30, 120) (since the axes' weight of :data:`anisosample.frequencies.AXIS_WEIGHT_4`,
+    so that a 4-direction table of the design before is not resumed with sets of this one)."""
     from . import frequencies as _freq
     from . import synthesis as _synthesis
 
@@ -114,8 +117,8 @@ def _resolved(synthesis: dict, n: int) -> dict:
     # since the design changes with n there (frequencies.ROBUST_MIN_N must stay <= 1024, or
     # tables between it and 1024 points would change design under the same fingerprint).
     at = min(n, 1024)
-    probe = _freq.design(at, (0.0, 90.0, 45.0), recipe.design,
-                         **dict(recipe.frequency_options)).params
+    probe_dirs = (0.0, 90.0, 45.0) if direction_count == 3 else (0.0, 90.0, 30.0, 120.0)
+    probe = _freq.design(at, probe_dirs, recipe.design, **dict(recipe.frequency_options)).params
     resolved[f"frequency_design_at_n{at}"] = {k: v for k, v in probe.items()
                                               if k not in ("n", "directions_deg")}
     return dict(sorted(resolved.items()))
@@ -278,9 +281,16 @@ def create_table(out, n: int, direction_count: int, *, seed: int = 0,
             keys = ("n", "kind", "seed", "synthesis")
             old = {k: table.settings.get(k) for k in keys}
             new = _io.to_jsonable({k: settings[k] for k in keys})
+            was = table.settings.get("synthesis_resolved", {})
+            now = _io.to_jsonable(settings["synthesis_resolved"])
+            moved = sorted(k for k in set(was) | set(now) if was.get(k) != now.get(k))
+            why = (f"; the package's defaults for them changed since: {', '.join(moved)} "
+                   f"(table: {json.dumps({k: was.get(k) for k in moved})}, now: "
+                   f"{json.dumps({k: now.get(k) for k in moved})})" if old == new and moved
+                   else "")
             raise ValueError(
                 f"the table at {out} was built with other settings ({json.dumps(old)}) than "
-                f"these ({json.dumps(new)}); choose another --out or delete it"
+                f"these ({json.dumps(new)}){why}; choose another --out or delete it"
             )
         return table
     out.mkdir(parents=True, exist_ok=True)

@@ -34,7 +34,8 @@ Two documented designs (:func:`design`):
     the dips: -1.76..-1.78 at every delta in [-1, 1], aligned -1.77, one edge at
     30/67/12/145 deg -1.77/-1.78/-1.80/-1.77 (not the default only because the shipped tables
     were built with the 0.25 spacing).  The axes get no offsets: the square's border is
-    exactly axis-aligned.
+    exactly axis-aligned; with two or more directions besides the axes, each axis weighs
+    :data:`AXIS_WEIGHT_4` times its edge (else the offsets leave the axes bright).
 ``"paper"``
     W Sec. 4.1 / 6.1 as far as the paper states it: wedges of length ``3 sqrt(n)`` and half-width
     ``max(1, t tan 2deg)``, uniform weights.  This reproduces the paper's counts closely
@@ -77,6 +78,28 @@ pmj02bn's edge-pixel variance where the robust one gave 1.23 (the shipped n = 25
 b1d4f52), and W Fig. 8's dof window 15 (per-pixel directions, probes apart, 16 keys, ad-hoc
 script) 0.494 against 0.529; on all of W Fig. 8 at 256 spp the aligned-only sets gained on
 cornell, dof and pillars and lost on blinds and attic (docs/reproduction.md, W Fig. 8)."""
+
+
+AXIS_WEIGHT_4 = 3.0
+"""The ``"rate"`` design's ``axis_weight`` (:func:`edge_weights`) for sets with two or more
+directions besides the axes, from :data:`ROBUST_MIN_N` points up, where the robust offsets
+give each of those directions nine edges' weight and each axis one: the optimizer then left the
+axes bright. Measured (2026-12-07, ad-hoc scripts, one set per key, 4096 toroidal shifts per
+variance): 4-direction sets at 1024 points, band energy (:func:`anisosample.diagnostics.
+band_energy`, white noise 1) along 0 / 90 with axis weight 1 / 3 / 9: extra directions 47 and
+148 0.177, 0.151 / 0.050, 0.056 / 0.018, 0.013, extra 19 and 77 0.123, 0.081 / 0.033, 0.024 /
+0.011, 0.011, while along the extra directions 0.002 / 0.004-0.005 / 0.008-0.010. The corner
+integrand whose edges are perpendicular to the extra directions (``integrands.edges``), its
+edges aligned / 0.5 / 1 degree off, variance over pmj02bn's, mean of two keys, at 1024 and
+4096 points: (47, 148) 0.282, 0.284, 0.301 / 0.212, 0.209, 0.216 / 0.195, 0.194, 0.208 and
+0.202, 0.201, 0.218 / 0.154, 0.157, 0.172 / 0.151, 0.152, 0.174; (19, 77) 0.384, 0.357, 0.368
+/ 0.298, 0.290, 0.303 / 0.285, 0.281, 0.297 and 0.244, 0.228, 0.282 / 0.195, 0.186, 0.235 /
+0.196, 0.195, 0.240; (8, 130) at 1024 0.305, 0.291, 0.301 / 0.240, 0.242, 0.257 / 0.247,
+0.244, 0.261. 3 and 9 are level; 3 keeps more of the extra lines' darkness. 3-direction sets
+keep weight 1 (the shipped tables' design); one key each at 1024 / 4096 points, half-plane
+aligned, 1 / 3: extra 30 0.212 / 0.190 and 0.164 / 0.159, 47 0.233 / 0.226 and 0.165 / 0.151,
+85 0.494 / 0.461 and 0.466 / 0.376 (not adopted: one key, and the shipped tables would have
+to be rebuilt)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -175,7 +198,7 @@ def canonical_half(freqs) -> np.ndarray:
 
 
 def edge_weights(freqs, directions_deg, spread_deg: float = 0.0,
-                 core_deg: float = 0.0, offsets_deg=()) -> np.ndarray:
+                 core_deg: float = 0.0, offsets_deg=(), axis_weight: float = 1.0) -> np.ndarray:
     """``W(v) = sum_d 1 / (|v|^2 (1 + s_d^2))`` with ``s_d = v . d_perp`` (issue 4 design c).
 
     An edge along spectral direction ``d`` has ``P_f ~ |v|^-2`` on its ray and a lattice-scale
@@ -194,9 +217,14 @@ def edge_weights(freqs, directions_deg, spread_deg: float = 0.0,
     of an edge at ``theta + o`` for each offset ``o``: ``1/(|v|^2 (1 + s_o^2))`` with ``s_o``
     measured from that edge's ray, so the loss is the sum of the (W Eq. 5) variances of the
     aligned edge and of the edges misaligned by each offset.
+
+    ``axis_weight`` multiplies the weight of each axis (0 and 90; the offsets give the other
+    directions ``1 + len(offsets_deg)`` edges' weight, the axes one): :data:`AXIS_WEIGHT_4`
+    for sets of four or more directions.
     """
     spread_deg = check_positive_float("spread_deg", spread_deg, allow_zero=True)
     core_deg = check_positive_float("core_deg", core_deg, allow_zero=True)
+    axis_weight = check_positive_float("axis_weight", axis_weight)
     if spread_deg >= 45.0 or core_deg >= 45.0:
         raise ValueError(f"spread_deg and core_deg must lie in [0, 45), got {spread_deg}, "
                          f"{core_deg}")
@@ -212,9 +240,10 @@ def edge_weights(freqs, directions_deg, spread_deg: float = 0.0,
             s = s / np.maximum(1.0, np.abs(v @ d) * tan_b)
         if core_deg > 0 and theta not in (0.0, 90.0):  # distance from the flat core
             s = np.maximum(0.0, np.abs(s) - np.abs(v @ d) * tan_c)
-        w += 1.0 / (r2 * (1.0 + s * s))
         if theta in (0.0, 90.0):
+            w += axis_weight / (r2 * (1.0 + s * s))
             continue
+        w += 1.0 / (r2 * (1.0 + s * s))
         for off in offsets_deg:
             _, dpo = _unit(theta + off)
             so = v @ dpo
@@ -295,31 +324,38 @@ def design(
     weight_spread_deg: float | None = None,
     core_deg: float | None = None,
     offsets_deg=None,
+    axis_weight: float | None = None,
 ) -> FrequencySet:
     """The frequency set (and weights) for ``n`` points and the given spectral directions.
 
     ``name="rate"``: wedges of length ``n^0.8``, half-width ``max(1.5, t tan 2deg)``, disk of
     radius ``sqrt(n)``, weights :func:`edge_weights` with ``offsets_deg=ROBUST_OFFSETS_DEG``
     for ``n >= ROBUST_MIN_N`` (:data:`ROBUST_MIN_N`), the aligned-only weights of issue 4
-    design c below (pass ``offsets_deg`` to choose either at any ``n``).
+    design c below (pass ``offsets_deg`` to choose either at any ``n``); with the offsets and
+    two or more directions besides the axes, the axes weigh :data:`AXIS_WEIGHT_4`.
     ``name="paper"``: wedges of length ``3 sqrt(n)``, half-width ``max(1, t tan 2deg)``, no
     disk, uniform weights (W Sec. 4.1).  Any of ``length``, ``width``, ``angle_deg``,
     ``disk_radius`` (0 for none) overrides the design's value; ``weight_spread_deg``,
-    ``core_deg`` and ``offsets_deg`` are passed to :func:`edge_weights` (``"rate"`` only).
+    ``core_deg``, ``offsets_deg`` and ``axis_weight`` (default 1; :data:`AXIS_WEIGHT_4` for
+    4-direction sets) are passed to :func:`edge_weights` (``"rate"`` only).
     """
     n = check_int("n", n, minimum=2)
     directions_deg = check_directions_deg("directions_deg", directions_deg)
     name = check_choice("name", name, DESIGNS)
     if name == "rate":
+        robust = n >= ROBUST_MIN_N
+        extra = [t for t in directions_deg if t not in (0.0, 90.0)]
         p = {"length": n**0.8, "width": 1.5, "angle_deg": 2.0, "disk_radius": math.sqrt(n),
-             "offsets_deg": list(ROBUST_OFFSETS_DEG) if n >= ROBUST_MIN_N else []}
+             "offsets_deg": list(ROBUST_OFFSETS_DEG) if robust else [],
+             "axis_weight": AXIS_WEIGHT_4 if robust and len(extra) >= 2 else 1.0}
     else:
         p = {"length": 3.0 * math.sqrt(n), "width": 1.0, "angle_deg": 2.0, "disk_radius": 0.0}
     for key, val in (("length", length), ("width", width), ("angle_deg", angle_deg),
                      ("disk_radius", disk_radius), ("weight_spread_deg", weight_spread_deg),
-                     ("core_deg", core_deg)):
+                     ("core_deg", core_deg), ("axis_weight", axis_weight)):
         if val is not None:
-            p[key] = check_positive_float(key, val, allow_zero=key != "length")
+            p[key] = check_positive_float(key, val,
+                                          allow_zero=key not in ("length", "axis_weight"))
     if p.get("core_deg", 0.0) >= 45.0:
         raise ValueError(f"core_deg must lie in [0, 45), got {p['core_deg']}")
     if offsets_deg is not None:
@@ -336,8 +372,11 @@ def design(
     for opt in ("weight_spread_deg", "core_deg", "offsets_deg"):
         if not p.get(opt):  # 0: the plain weights (kept out of the record)
             p.pop(opt, None)
+    if p.get("axis_weight") == 1.0:  # the plain weights (kept out of the record)
+        p.pop("axis_weight")
     w = (edge_weights(v, directions_deg, p.get("weight_spread_deg", 0.0),
-                      p.get("core_deg", 0.0), p.get("offsets_deg", ()))
+                      p.get("core_deg", 0.0), p.get("offsets_deg", ()),
+                      p.get("axis_weight", 1.0))
          if name == "rate" else np.ones(v.shape[0]))
     params = {"design": name, "n": n, "directions_deg": list(directions_deg), **p,
               "weights": "edge" if name == "rate" else "uniform", "size": int(v.shape[0])}

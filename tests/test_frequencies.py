@@ -182,6 +182,40 @@ def test_design_offsets_option():
             fr.design(256, [0.0, 90.0, 30.0], offsets_deg=bad)
 
 
+def test_axis_weight_scales_the_axes_alone():
+    """axis_weight multiplies the weight of the axis directions only: the weights are the
+    axes' (each computed alone) times the factor plus the other directions' with their
+    offsets; 1 gives the same bits as no option, and the design records it only when it is not
+    1 (so tables' fingerprints stay as they were)."""
+    rng = np.random.default_rng(6)
+    v = rng.integers(-300, 300, size=(300, 2))
+    v = v[np.any(v != 0, axis=1)]
+    offs = fr.ROBUST_OFFSETS_DEG
+    axes = fr.edge_weights(v, [0.0]) + fr.edge_weights(v, [90.0])
+    extra = fr.edge_weights(v, [40.0, 120.0], offsets_deg=offs)
+    got = fr.edge_weights(v, [0.0, 40.0, 90.0, 120.0], offsets_deg=offs, axis_weight=3.0)
+    np.testing.assert_allclose(got, 3.0 * axes + extra, rtol=1e-12)
+    np.testing.assert_array_equal(
+        fr.edge_weights(v, [0.0, 40.0, 90.0], offsets_deg=offs, axis_weight=1.0),
+        fr.edge_weights(v, [0.0, 40.0, 90.0], offsets_deg=offs))
+    four = [0.0, 90.0, 40.0, 120.0]
+    plain = fr.design(1024, four, axis_weight=1.0)
+    heavy = fr.design(1024, four)  # the default with two extra directions and the offsets
+    assert "axis_weight" not in plain.params and heavy.params["axis_weight"] == fr.AXIS_WEIGHT_4
+    np.testing.assert_array_equal(heavy.freqs, plain.freqs)
+    np.testing.assert_allclose(
+        heavy.weights, plain.weights + (fr.AXIS_WEIGHT_4 - 1.0) * (
+            fr.edge_weights(heavy.freqs, [0.0]) + fr.edge_weights(heavy.freqs, [90.0])),
+        rtol=1e-12)
+    # one extra direction, or no offsets (below ROBUST_MIN_N): the axes weigh 1, as before
+    assert "axis_weight" not in fr.design(1024, [0.0, 90.0, 40.0]).params
+    assert "axis_weight" not in fr.design(512, four).params
+    assert fr.design(1024, [0.0, 90.0, 40.0], axis_weight=2.0).params["axis_weight"] == 2.0
+    for bad in (0.0, -2.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="axis_weight"):
+            fr.design(1024, [0.0, 90.0, 30.0], axis_weight=bad)
+
+
 def test_rate_design_defaults_to_robust_offsets():
     v = fr.design(1024, [0.0, 90.0, 30.0])
     assert v.params["offsets_deg"] == list(fr.ROBUST_OFFSETS_DEG)
