@@ -131,10 +131,14 @@ _STRIP = 32  # rows per strip of neighbour_consensus
 _SPARSE_BELOW = 0.4  # below this fraction of pixels with a direction, a strip goes sparse
 
 
-def _consensus_block(d, radius: int, tol: float, min_support: int, rel: float):
+def _consensus_block(d, radius: int, tol: float, min_support: int, rel: float,
+                     sparse: bool = False):
     """:func:`neighbour_consensus` on ``d`` ``(h, w, 2)`` (NaN: none), validated: the
     directions out ``(h, w, 2)`` float64. Arrays are kept as planes ``(slot, component, h, w)``
-    so that every operation runs along image rows."""
+    so that every operation runs along image rows; ``sparse``: computed at the pixels with a
+    first direction only (the others keep theirs: none), each from its window gathered by
+    index, the same operations in the same order per pixel, so the same bits, at a cost that
+    follows the pixels with directions rather than the image."""
     h, w, _ = d.shape
     r = radius
     # Axial directions as doubled-angle unit vectors (none: the zero vector): two agree within
@@ -147,23 +151,47 @@ def _consensus_block(d, radius: int, tol: float, min_support: int, rel: float):
     cos2 = np.float32(np.cos(np.radians(2.0 * tol)))
     pad = np.pad(vec, ((0, 0), (0, 0), (r, r), (r, r)))
     offsets = [(dy, dx) for dy in range(-r, r + 1) for dx in range(-r, r + 1) if dy or dx]
+    out = d.copy()
+    if sparse:
+        ys, xs = np.nonzero(found[0])
+        if ys.size == 0:
+            return out
+        wp = w + 2 * r
+        at = (ys + r) * wp + (xs + r)  # the pixels in the flat padded planes
+        pad = pad.reshape(2, 2, -1)
+        sel = (ys, xs)
 
-    def window(a, dy, dx):
-        return a[..., r + dy:r + dy + h, r + dx:r + dx + w]
+        def window(a, dy, dx):
+            return np.take(a, at + (dy * wp + dx), axis=-1)
+
+        def padded(support):
+            full = np.full((2, pad.shape[-1]), -1, np.int32)
+            full[:, at] = support
+            return full
+    else:
+        sel = (slice(None), slice(None))
+
+        def window(a, dy, dx):
+            return a[..., r + dy:r + dy + h, r + dx:r + dx + w]
+
+        def padded(support):
+            return np.pad(support, ((0, 0), (r, r), (r, r)), constant_values=-1)
+    own = vec[(slice(None), slice(None), *sel)]
+    fnd = found[(slice(None), *sel)]
 
     def agree(a, b):  # (component, ...) vectors; a zero vector agrees with nothing
         return a[0] * b[0] + a[1] * b[1] >= cos2
 
-    support = np.zeros((2, h, w), np.int32)
+    support = np.zeros(fnd.shape, np.int32)
     for dy, dx in offsets:  # a loop over the window's offsets; each step is whole-image
         nb = window(pad, dy, dx)
         for j in range(2):
-            support[j] += agree(vec[j], nb[0])
-            support[j] += agree(vec[j], nb[1])
-    support = np.where(found, support, -1)
+            support[j] += agree(own[j], nb[0])
+            support[j] += agree(own[j], nb[1])
+    support = np.where(fnd, support, -1)
     # the consensus: the window's best-supported direction (ties: the first in offset order)
-    sup_pad = np.pad(support, ((0, 0), (r, r), (r, r)), constant_values=-1)
-    best, best_vec = support[0].copy(), vec[0].copy()
+    sup_pad = padded(support)
+    best, best_vec = support[0].copy(), own[0].copy()
     for dy, dx in offsets:
         sp, nb = window(sup_pad, dy, dx), window(pad, dy, dx)
         for j in range(2):
@@ -172,8 +200,8 @@ def _consensus_block(d, radius: int, tol: float, min_support: int, rel: float):
             best_vec = np.where(better, nb[j], best_vec)
     # the consensus direction: the axial mean of the window's directions that agree with it;
     # its support in this pixel's window: the neighbours' directions that agree with it
-    total = np.zeros((2, h, w), np.float32)
-    backing = np.zeros((h, w), np.int32)
+    total = np.zeros((2, *fnd.shape[1:]), np.float32)
+    backing = np.zeros(fnd.shape[1:], np.int32)
     for dy, dx in [(0, 0), *offsets]:
         nb = window(pad, dy, dx)
         for j in range(2):
@@ -183,77 +211,11 @@ def _consensus_block(d, radius: int, tol: float, min_support: int, rel: float):
                 backing += ok
     mean = np.degrees(np.arctan2(total[1], total[0])) / 2.0 % 180.0
     confirmed = (support >= min_support) & (support >= rel * backing)
-    out = d.copy()
-    swap = found[0] & ~confirmed[0] & (backing > min_support)
-    out[..., 0] = np.where(swap, mean, d[..., 0])
-    first = np.where(swap, best_vec, vec[0])
-    drop = ~confirmed[1] | agree(vec[1], first)
-    out[..., 1] = np.where(drop, np.nan, d[..., 1])
-    return out
-
-
-def _consensus_sparse(d, radius: int, tol: float, min_support: int, rel: float):
-    """:func:`_consensus_block` computed at the pixels with a first direction only (the others
-    keep theirs: none), each from its window gathered by index; the same operations in the same
-    order per pixel, so the same bits, at a cost that follows the pixels with directions rather
-    than the image (cornell at 128^2: 8 % of them)."""
-    h, w, _ = d.shape
-    r = radius
-    dd = np.moveaxis(d, -1, 0)  # (slot, h, w)
-    found = np.isfinite(dd)
-    phi = np.radians(2.0 * np.nan_to_num(dd))
-    vec = np.where(found[:, None], np.stack([np.cos(phi), np.sin(phi)], 1), 0.0
-                   ).astype(np.float32)  # (slot, component, h, w)
-    cos2 = np.float32(np.cos(np.radians(2.0 * tol)))
-    wp = w + 2 * r
-    pad = np.pad(vec, ((0, 0), (0, 0), (r, r), (r, r))).reshape(2, 2, -1)
-    offsets = [(dy, dx) for dy in range(-r, r + 1) for dx in range(-r, r + 1) if dy or dx]
-    ys, xs = np.nonzero(found[0])
-    out = d.copy()
-    if ys.size == 0:
-        return out
-    at = (ys + r) * wp + (xs + r)  # the F pixels in the padded planes, flat
-    own = vec[:, :, ys, xs]  # (slot, component, F)
-    fnd = found[:, ys, xs]
-
-    def window(a, dy, dx):  # the flat padded plane(s) at the F pixels' neighbour (dy, dx)
-        return np.take(a, at + (dy * wp + dx), axis=-1)
-
-    def agree(a, b):
-        return a[0] * b[0] + a[1] * b[1] >= cos2
-
-    support = np.zeros((2, ys.size), np.int32)
-    for dy, dx in offsets:
-        nb = window(pad, dy, dx)
-        for j in range(2):
-            support[j] += agree(own[j], nb[0])
-            support[j] += agree(own[j], nb[1])
-    support = np.where(fnd, support, -1)
-    sup_pad = np.full((2, (h + 2 * r) * wp), -1, np.int32)
-    sup_pad[:, at] = support
-    best, best_vec = support[0].copy(), own[0].copy()
-    for dy, dx in offsets:
-        sp, nb = window(sup_pad, dy, dx), window(pad, dy, dx)
-        for j in range(2):
-            better = sp[j] > best
-            best = np.where(better, sp[j], best)
-            best_vec = np.where(better, nb[j], best_vec)
-    total = np.zeros((2, ys.size), np.float32)
-    backing = np.zeros(ys.size, np.int32)
-    for dy, dx in [(0, 0), *offsets]:
-        nb = window(pad, dy, dx)
-        for j in range(2):
-            ok = agree(nb[j], best_vec)
-            total += np.where(ok, nb[j], 0.0)
-            if dy or dx:
-                backing += ok
-    mean = np.degrees(np.arctan2(total[1], total[0])) / 2.0 % 180.0
-    confirmed = (support >= min_support) & (support >= rel * backing)
-    swap = ~confirmed[0] & (backing > min_support)
-    out[ys, xs, 0] = np.where(swap, mean, d[ys, xs, 0])
+    swap = fnd[0] & ~confirmed[0] & (backing > min_support)
+    out[(*sel, 0)] = np.where(swap, mean, d[(*sel, 0)])
     first = np.where(swap, best_vec, own[0])
     drop = ~confirmed[1] | agree(own[1], first)
-    out[ys, xs, 1] = np.where(drop, np.nan, d[ys, xs, 1])
+    out[(*sel, 1)] = np.where(drop, np.nan, d[(*sel, 1)])
     return out
 
 
@@ -319,9 +281,8 @@ def neighbour_consensus(directions_deg, count, *, radius: int = NEIGHBOURS,
     first = np.isfinite(d[..., 0])
     for y0 in range(0, h, _STRIP):
         lo, hi = max(0, y0 - halo), min(h, y0 + _STRIP + halo)
-        sparse = first[lo:hi].mean() < _SPARSE_BELOW
-        part = (_consensus_sparse if sparse else _consensus_block)(
-            d[lo:hi], radius, tol, min_support, rel)
+        part = _consensus_block(d[lo:hi], radius, tol, min_support, rel,
+                                sparse=bool(first[lo:hi].mean() < _SPARSE_BELOW))
         out[y0:y0 + _STRIP] = part[y0 - lo:y0 - lo + min(_STRIP, h - y0)]
     return out.astype(np.float32), np.isfinite(out).sum(-1).astype(np.int32)
 
