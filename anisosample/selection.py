@@ -198,20 +198,12 @@ def _table_requests_array(directions, k: int, near_axis_deg: float,
     if d.shape[0] == 0:
         return [], index
     _, first, inverse = np.unique(signature, axis=0, return_index=True, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    requests: list = []
-    where: dict = {}
-    of_signature = np.full(first.size, -1, np.int32)
-    for u in np.argsort(first, kind="stable"):  # in order of first use
-        row = d[first[u]]
-        extra = _table_directions(tuple(row[ok[first[u]]]), k, near_axis_deg, axis_snap)
-        if not extra:
-            continue
-        if extra not in where:
-            where[extra] = len(requests)
-            requests.append(extra)
-        of_signature[u] = where[extra]
-    index[:] = of_signature[inverse]
+    order = np.argsort(first, kind="stable")  # the signatures in order of first use
+    requests, of_rep = table_requests([tuple(d[i][ok[i]]) for i in first[order]], k,
+                                      near_axis_deg=near_axis_deg, axis_snap=axis_snap)
+    of_signature = np.empty(first.size, np.int32)
+    of_signature[order] = of_rep
+    index[:] = of_signature[inverse.reshape(-1)]
     return requests, index
 
 
