@@ -82,24 +82,25 @@ cornell, dof and pillars and lost on blinds and attic (docs/reproduction.md, W F
 
 AXIS_WEIGHT_4 = 3.0
 """The ``"rate"`` design's ``axis_weight`` (:func:`edge_weights`) for sets with two or more
-directions besides the axes, from :data:`ROBUST_MIN_N` points up, where the robust offsets
-give each of those directions nine edges' weight and each axis one: the optimizer then left the
-axes bright. Measured (2026-12-07, ad-hoc scripts, one set per key, 4096 toroidal shifts per
+directions besides the axes, from :data:`ROBUST_MIN_N` points up, where the robust offsets give
+each of those directions nine edges' weight and each axis one: the optimizer then left the axes
+bright. Measured (2026-12-07, ad-hoc scripts, one set per key, 4096 toroidal shifts per
 variance): 4-direction sets at 1024 points, band energy (:func:`anisosample.diagnostics.
 band_energy`, white noise 1) along 0 / 90 with axis weight 1 / 3 / 9: extra directions 47 and
 148 0.177, 0.151 / 0.050, 0.056 / 0.018, 0.013, extra 19 and 77 0.123, 0.081 / 0.033, 0.024 /
 0.011, 0.011, while along the extra directions 0.002 / 0.004-0.005 / 0.008-0.010. The corner
 integrand whose edges are perpendicular to the extra directions (``integrands.edges``), its
-edges aligned / 0.5 / 1 degree off, variance over pmj02bn's, mean of two keys, at 1024 and
-4096 points: (47, 148) 0.282, 0.284, 0.301 / 0.212, 0.209, 0.216 / 0.195, 0.194, 0.208 and
-0.202, 0.201, 0.218 / 0.154, 0.157, 0.172 / 0.151, 0.152, 0.174; (19, 77) 0.384, 0.357, 0.368
-/ 0.298, 0.290, 0.303 / 0.285, 0.281, 0.297 and 0.244, 0.228, 0.282 / 0.195, 0.186, 0.235 /
-0.196, 0.195, 0.240; (8, 130) at 1024 0.305, 0.291, 0.301 / 0.240, 0.242, 0.257 / 0.247,
-0.244, 0.261. 3 and 9 are level; 3 keeps more of the extra lines' darkness. 3-direction sets
-keep weight 1 (the shipped tables' design); one key each at 1024 / 4096 points, half-plane
-aligned, 1 / 3: extra 30 0.212 / 0.190 and 0.164 / 0.159, 47 0.233 / 0.226 and 0.165 / 0.151,
-85 0.494 / 0.461 and 0.466 / 0.376 (not adopted: one key, and the shipped tables would have
-to be rebuilt)."""
+edges aligned / 0.5 / 1 degree off, variance over pmj02bn's, mean of two keys, at 1024 and 4096
+points: (47, 148) 0.282, 0.284, 0.301 / 0.212, 0.209, 0.216 / 0.195, 0.194, 0.208 and 0.202,
+0.201, 0.218 / 0.154, 0.157, 0.172 / 0.151, 0.152, 0.174; (19, 77) 0.384, 0.357, 0.368 / 0.298,
+0.290, 0.303 / 0.285, 0.281, 0.297 and 0.244, 0.228, 0.282 / 0.195, 0.186, 0.235 / 0.196, 0.195,
+0.240; (8, 130) at 1024 0.305, 0.291, 0.301 / 0.240, 0.242, 0.257 / 0.247, 0.244, 0.261. 3 cuts
+the variance by 15-28 % against 1; against 9 it is up to 8 % higher (one pair at 1024 points)
+and up to 5 % lower (at 4096 and misaligned), and keeps more of the extra lines' darkness.
+3-direction sets keep weight 1 (the shipped tables' design); one key each at 1024 / 4096 points,
+half-plane aligned, 1 / 3: extra 30 0.212 / 0.190 and 0.164 / 0.159, 47 0.233 / 0.226 and 0.165
+/ 0.151, 85 0.494 / 0.461 and 0.466 / 0.376 (not adopted: one key, and the shipped tables would
+have to be rebuilt)."""
 
 
 @dataclass(frozen=True, eq=False)
