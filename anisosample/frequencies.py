@@ -97,10 +97,13 @@ points: (47, 148) 0.282, 0.284, 0.301 / 0.212, 0.209, 0.216 / 0.195, 0.194, 0.20
 0.240; (8, 130) at 1024 0.305, 0.291, 0.301 / 0.240, 0.242, 0.257 / 0.247, 0.244, 0.261. 3 cuts
 the variance by 15-28 % against 1; against 9 it is up to 8 % higher (one pair at 1024 points)
 and up to 5 % lower (at 4096 and misaligned), and keeps more of the extra lines' darkness.
-3-direction sets keep weight 1 (the shipped tables' design); one key each at 1024 / 4096 points,
-half-plane aligned, 1 / 3: extra 30 0.212 / 0.190 and 0.164 / 0.159, 47 0.233 / 0.226 and 0.165
-/ 0.151, 85 0.494 / 0.461 and 0.466 / 0.376 (not adopted: one key, and the shipped tables would
-have to be rebuilt)."""
+3-direction sets keep weight 1 (the shipped tables' design), although it costs them near the
+axes: the half-plane perpendicular to the extra direction, mean of three keys, variance over
+pmj02bn's at 1024 / 2048 / 4096 points, weight 1 against 3 from 1024 points: extra 85 degrees
+0.513, 0.455, 0.463 against 0.450, 0.399, 0.381 (slope over 256-4096 -1.60 against -1.68), 80
+degrees 0.416, 0.362, 0.307 against 0.347, 0.308, 0.268 (-1.64 against -1.71); one key at 30 and
+47 degrees gained less (1024 / 4096: 0.212 / 0.164 against 0.190 / 0.159, 0.233 / 0.165 against
+0.226 / 0.151). Adopting it there means rebuilding the shipped 3-direction tables."""
 
 
 @dataclass(frozen=True, eq=False)
