@@ -97,13 +97,16 @@ points: (47, 148) 0.282, 0.284, 0.301 / 0.212, 0.209, 0.216 / 0.195, 0.194, 0.20
 0.240; (8, 130) at 1024 0.305, 0.291, 0.301 / 0.240, 0.242, 0.257 / 0.247, 0.244, 0.261. 3 cuts
 the variance by 15-28 % against 1; against 9 it is up to 8 % higher (one pair at 1024 points)
 and up to 5 % lower (at 4096 and misaligned), and keeps more of the extra lines' darkness.
-3-direction sets keep weight 1 (the shipped tables' design), although it costs them near the
-axes: the half-plane perpendicular to the extra direction, mean of three keys, variance over
-pmj02bn's at 1024 / 2048 / 4096 points, weight 1 against 3 from 1024 points: extra 85 degrees
-0.513, 0.455, 0.463 against 0.450, 0.399, 0.381 (slope over 256-4096 -1.60 against -1.68), 80
-degrees 0.416, 0.362, 0.307 against 0.347, 0.308, 0.268 (-1.64 against -1.71); one key at 30 and
-47 degrees gained less (1024 / 4096: 0.212 / 0.164 against 0.190 / 0.159, 0.233 / 0.165 against
-0.226 / 0.151). Adopting it there means rebuilding the shipped 3-direction tables."""
+3-direction sets keep weight 1 (the shipped tables' design), although 3 gains there too: the
+half-plane perpendicular to the extra direction, aligned / 0.5 / 1 degree off, mean of three
+keys, variance with weight 3 over weight 1 at 1024 and 4096 points: 12 degrees 0.86, 0.89, 0.89
+and 0.90, 0.89, 0.89; 30 degrees 0.94, 0.92, 0.97 and 0.97, 0.99, 1.00; 60 degrees 0.92, 0.92,
+0.93 and 1.00, 0.98, 1.00; 85 degrees 0.88, 0.86, 0.86 and 0.82, 0.88, 0.84 (85 degrees,
+variance over pmj02bn's at 1024 / 2048 / 4096 points, weight 1 against 3 from 1024: 0.513,
+0.455, 0.463 against 0.450, 0.399, 0.381, slope over 256-4096 -1.60 against -1.68; 80 degrees
+0.416, 0.362, 0.307 against 0.347, 0.308, 0.268, -1.64 against -1.71). Adopting it there means
+rebuilding the shipped 3-direction tables and rerunning the records that synthesize sets from
+1024 points."""
 
 
 @dataclass(frozen=True, eq=False)
