@@ -194,17 +194,15 @@ def _table_requests_array(directions, k: int, near_axis_deg: float,
     r = np.floor(np.where(ok, d, 0.0) + 0.5) % 180
     side = (np.where(ok, d, 0.0) - r + 90.0) % 180.0 - 90.0 >= 0
     signature = np.where(ok, 2 * r.astype(np.int64) + side, -1)
-    index = np.full(d.shape[0], -1, np.int32)
     if d.shape[0] == 0:
-        return [], index
+        return [], np.full(0, -1, np.int32)
     _, first, inverse = np.unique(signature, axis=0, return_index=True, return_inverse=True)
     order = np.argsort(first, kind="stable")  # the signatures in order of first use
     requests, of_rep = table_requests([tuple(d[i][ok[i]]) for i in first[order]], k,
                                       near_axis_deg=near_axis_deg, axis_snap=axis_snap)
     of_signature = np.empty(first.size, np.int32)
     of_signature[order] = of_rep
-    index[:] = of_signature[inverse.reshape(-1)]
-    return requests, index
+    return requests, of_signature[inverse.reshape(-1)]
 
 
 def aligned_sets(requests, n: int, *, table=None, build_missing: bool | None = None,

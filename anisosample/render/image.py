@@ -179,26 +179,23 @@ def render(
     chunk_samples = check_int("chunk_samples", chunk_samples, minimum=1)
     if chunk is not None:
         chunk = check_int("chunk", chunk, minimum=1)
-    given_chunk = chunk
 
     def sizing(samples: int, pixels: int | None = None) -> tuple[int, int]:
         """``(chunk, per_call)`` of a pass taking ``samples`` per pixel (the per-pixel
         sampler's passes take fewer than ``spp``: its prefix pass ``m``): ``chunk`` if given,
         else ``pixels`` if given, else about ``chunk_samples`` samples per chunk; at most 2^18
         samples per call."""
-        c = given_chunk or pixels or max(1, min(npix, chunk_samples // samples))
+        c = chunk or pixels or max(1, min(npix, chunk_samples // samples))
         return c, max(1, min(-(-npix // c), 2**18 // (c * samples)))
 
-    chunk, per_call = sizing(spp)
     # Classes of tiles, each its own kernel: candidate lists as long as its tiles need, and no
     # sphere or patch tests where they meet none (MIS's BSDF rays may meet anything).
-    classes = tile_classes(scene, chunk, curved_everywhere=options.mis)
+    classes = tile_classes(scene, sizing(spp)[0], curved_everywhere=options.mis)
     pixel_class = np.zeros(npix, np.int32)
     for i, c in enumerate(classes or ()):
         pixel_class[c.pixels] = i
 
-    def blocking(size: int, whole: bool, chunk: int = chunk,
-                 per_call: int = per_call) -> list[tuple[int, int]]:
+    def blocking(size: int, whole: bool, chunk: int, per_call: int) -> list[tuple[int, int]]:
         """The blocks of a pass over ``size`` pixels in chunks of ``chunk`` pixels: ``(first
         position, chunks per jit call)`` each, ``per_call`` chunks but where that pads more
         than a tenth: a pass over
