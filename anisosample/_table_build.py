@@ -95,8 +95,11 @@ def _resolved(synthesis: dict, n: int, direction_count: int = 3) -> dict:
     (the design's weights change with ``n`` there, :data:`anisosample.frequencies.ROBUST_MIN_N`;
     tables from 1024 points up keep the fingerprint they had before), for directions of the
     table's count: 3-direction tables probe (0, 90, 45) as they always have, 4-direction tables
-    (0, 90, 30, 120) (since the axes' weight of :data:`anisosample.frequencies.AXIS_WEIGHT_4`,
-    so that a 4-direction table of the design before is not resumed with sets of this one)."""
+    from :data:`anisosample.frequencies.ROBUST_MIN_N` points (0, 90, 30, 120) (since the axes'
+    weight of :data:`anisosample.frequencies.AXIS_WEIGHT_4`, so that a 4-direction table of the
+    design before is not resumed with sets of this one). Below that size the axes' weight does
+    not act, the design is the one before, and 4-direction tables probe (0, 90, 45) as they did:
+    their sets and fingerprints did not change."""
     from . import frequencies as _freq
     from . import synthesis as _synthesis
 
@@ -117,7 +120,8 @@ def _resolved(synthesis: dict, n: int, direction_count: int = 3) -> dict:
     # since the design changes with n there (frequencies.ROBUST_MIN_N must stay <= 1024, or
     # tables between it and 1024 points would change design under the same fingerprint).
     at = min(n, 1024)
-    probe_dirs = (0.0, 90.0, 45.0) if direction_count == 3 else (0.0, 90.0, 30.0, 120.0)
+    four = direction_count == 4 and at >= _freq.ROBUST_MIN_N  # where AXIS_WEIGHT_4 acts
+    probe_dirs = (0.0, 90.0, 30.0, 120.0) if four else (0.0, 90.0, 45.0)
     probe = _freq.design(at, probe_dirs, recipe.design, **dict(recipe.frequency_options)).params
     resolved[f"frequency_design_at_n{at}"] = {k: v for k, v in probe.items()
                                               if k not in ("n", "directions_deg")}

@@ -220,7 +220,9 @@ def aligned_sets(requests, n: int, *, table=None, build_missing: bool | None = N
     n = check_int("n", n, minimum=2)
     opts = dict(build_options)
     opts["show_progress"] = False
-    sets = jnp.zeros((len(requests), n, 2), jnp.float32)
+    # Assembled on the host: eager device ops here would compile once per number of sets,
+    # and a per-pixel render asks for a new number with every key (about 0.3 s per render).
+    sets = np.zeros((len(requests), n, 2), np.float32)
     for count in sorted({len(e) + 2 for e in requests}):  # 3 or 4: the tables refuse others
         at = [i for i, e in enumerate(requests) if len(e) + 2 == count]
         group = [requests[i] for i in at]
@@ -229,9 +231,9 @@ def aligned_sets(requests, n: int, *, table=None, build_missing: bool | None = N
                          disable=None if progress and len(todo) > 8 else True):
             _tables.ensure([extra], n, direction_count=count, table=table,
                            build_missing=build_missing, prefix=prefix, **opts)
-        sets = sets.at[np.asarray(at)].set(_tables.lookup_many(
+        sets[np.asarray(at)] = np.asarray(_tables.lookup_many(
             group, n, direction_count=count, table=table, prefix=prefix))
-    return sets
+    return jax.device_put(sets)  # not jnp.asarray: that compiles a staging copy per shape
 
 
 @dataclasses.dataclass(frozen=True)

@@ -193,7 +193,7 @@ def lookup_many(requests, n: int, *, direction_count: int | None = None, table=N
     for i, request in enumerate(requests):
         canon = canonicalize(request, direction_count=direction_count)
         out[i] = _served(canon, n, path_of(canon.direction_count), table, prefix, sequence_from)
-    return jnp.asarray(out)
+    return jax.device_put(out)  # not jnp.asarray: that compiles a staging copy per shape
 
 
 def _table_finder(n: int, table, prefix: str, sequence_from: int):

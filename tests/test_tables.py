@@ -683,3 +683,30 @@ def test_twenty_random_four_direction_sets_on_demand_are_dark(user_cache):
         pts = tables.lookup([0, 90, int(a), int(b)], 4096)
         worst.append(max(band_energy(pts, d) for d in (0, 90, int(a), int(b))))
     assert max(worst) <= 0.1, worst
+
+
+def test_four_direction_tables_below_the_axis_weight_keep_their_fingerprint(tmp_path):
+    """The axes' weight (frequencies.AXIS_WEIGHT_4) acts only from ROBUST_MIN_N points, so a
+    4-direction table below that size built before it existed (the committed experiment table
+    d4_n256_dihedral-32, 612 sets) is still resumed: its settings file alone, in a new folder,
+    is accepted by a build (no set synthesized), where the 4-direction probe had refused it
+    and so every per-pixel render that needed a new corner set at 256 spp. A table from
+    ROBUST_MIN_N points of the design before is still refused (d4_n1024)."""
+    from anisosample import frequencies
+
+    four = (0.0, 90.0, 47.0, 148.0)
+    below = frequencies.ROBUST_MIN_N // 4
+    assert np.array_equal(frequencies.design(below, four).weights,
+                          frequencies.design(below, four, axis_weight=1.0).weights)
+    root = Path(__file__).resolve().parents[1] / "results" / "w_render_tables"
+    for name, n, refused in (("d4_n256_dihedral-32", 256, False), ("d4_n1024", 1024, True)):
+        out = tmp_path / name
+        out.mkdir()
+        settings = json.loads((root / name / "table.json").read_text())
+        (out / "table.json").write_text(json.dumps(settings))
+        call = dict(out=out, sets=[], show_progress=False, **settings["synthesis"])
+        if refused:
+            with pytest.raises(ValueError, match="frequency_design_at_n1024"):
+                tables.build(n, 4, **call)
+        else:
+            assert tables.build(n, 4, **call)["built"] == []

@@ -384,15 +384,18 @@ def resolve_sampler(scene: Scene, sampler, sampler_options: dict | None, *,
     return sampler
 
 
-def pad_sets(sets: jax.Array) -> jax.Array:
+def pad_sets(sets: jax.Array | np.ndarray) -> jax.Array:
     """``sets`` ``(m, n, 2)`` with copies of ``sets[0]`` appended up to a power of two rows:
     the render kernels that index per-pixel sets then compile for few shapes (no pixel's
     index reaches the copies, so no bit moves). Without it, each realization of the
     per-pixel sampler, and each window of a cropped image, asked for its own number of sets
-    and recompiled: W Fig. 8 on 32^2 windows took about 35 s per window."""
+    and recompiled: W Fig. 8 on 32^2 windows took about 35 s per window. Padded on the host,
+    for the same reason (an eager concatenation compiles once per shape)."""
+    sets = np.asarray(sets)
     m = sets.shape[0]
     rows = 1 << max(0, (m - 1).bit_length())
-    return jnp.concatenate([sets, jnp.broadcast_to(sets[:1], (rows - m, *sets.shape[1:]))])
+    return jax.device_put(np.concatenate([sets, np.broadcast_to(sets[:1],
+                                                                (rows - m, *sets.shape[1:]))]))
 
 
 @kernel(static_argnames=("options",))

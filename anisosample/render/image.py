@@ -485,17 +485,18 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
     est = np.zeros((index.size, 3), np.float64)
     apart = dict(opts, spp=spp, m=m)
     if edge.size:
-        sets = sampler.sets(requests, spp, progress=progress)
-        if sampler.reuse and not bool(jnp.all(sets[:, :m] == prefix[None])):
+        sets = np.asarray(sampler.sets(requests, spp, progress=progress))  # host: no compiles
+        if sampler.reuse and not np.array_equal(sets[:, :m],
+                                                np.broadcast_to(prefix, (len(sets), m, 2))):
             raise ValueError("a prefix set does not start with its prefix (a damaged table)")
-        sets = pad_sets(sets)
         pixel_set = jnp.asarray(np.maximum(index, 0))
         if sampler.reuse:
-            (rest,) = over_pixels(rest_chunk, (scene, sets[:, m:], pixel_set, key),
+            (rest,) = over_pixels(rest_chunk, (scene, pad_sets(sets[:, m:]), pixel_set, key),
                                   dict(opts, spp=spp), edge, samples=spp - m)
             est[edge] = (head[edge].astype(np.float64) + rest[edge].astype(np.float64)) / spp
         else:
-            (own,) = over_pixels(apart_chunk, (scene, sets, pixel_set, key), apart, edge)
+            (own,) = over_pixels(apart_chunk, (scene, pad_sets(sets), pixel_set, key), apart,
+                                 edge)
             est[edge] = own[edge].astype(np.float64)
     if smooth.size:
         base = jnp.asarray(samplers.get(FALLBACK)(k_pts, spp), jnp.float32)
