@@ -46,6 +46,15 @@ compile), ns per lane-step, best of 15 over 200 steps, load 0.8-1.3: gathers 46-
 modes), slices and masks 39-40; the render of the mesh at 128^2 x 64 spp over both CPU devices
 0.72 -> 0.92 M samples/s (load 1.4-1.8), the same image bits. Unrolling the leaf's minimum over
 its four slots instead of ``argmin`` was slower (49-50 ns).
+
+Tried and not kept (2026-12-07, ad-hoc script, the same image bits): packet traversal, where
+``P`` consecutive rays (one pixel's samples) share one node and stack, descend where any of
+them hits a box (nearer child by its nearest ray) and test a leaf's slots densely over the
+``P`` rays, with packets fed from a queue like the rays here. One device, the 99k-triangle mesh
+at 64^2 x 16 spp, best of 3 (load about 1.1): this queue 0.192 s; packets of 8 / 16 / 16 / 32 /
+64 rays with 512 / 256 / 64 / 64 / 64 packets in flight 0.183 / 0.199 / 0.242 / 0.274 / 0.364 s.
+A packet visits the union of its rays' nodes, and the steps' fixed work (a leaf's rows, the
+stack, the queue's refill) did not shrink enough to pay for it.
 """
 
 from __future__ import annotations
