@@ -403,14 +403,15 @@ def build(n: int, direction_count: int = 3, *, out=None, seed: int = 0, sets=Non
     seq = check_int("sequence_from", synth.get("sequence_from", 0), minimum=0)
     out = Path(out) if out is not None else _t.cache_table_path(direction_count, n, prefix, seq)
     existing = _existing_synthesis(out, direction_count)  # an existing table keeps its own choices
-    if seq:  # a sequence table's steps and learning rate: its own, else the sequence defaults
+    if seq:  # a sequence table's steps, learning rate and frequency options: its own (a table
+        # built before a default existed keeps going without it), else the sequence defaults
         from .synthesis import SEQUENCE_DEFAULTS
 
         for name, default in SEQUENCE_DEFAULTS.items():
             if name in synth:
                 continue
             if existing is None:
-                synth[name] = default
+                synth[name] = dict(default) if isinstance(default, dict) else default
             elif name in existing:
                 synth[name] = existing[name]
     if warm_start is None:

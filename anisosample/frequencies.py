@@ -332,6 +332,7 @@ def design(
     core_deg: float | None = None,
     offsets_deg=None,
     axis_weight: float | None = None,
+    robust_axis_weight: float | None = None,
 ) -> FrequencySet:
     """The frequency set (and weights) for ``n`` points and the given spectral directions.
 
@@ -345,6 +346,10 @@ def design(
     ``disk_radius`` (0 for none) overrides the design's value; ``weight_spread_deg``,
     ``core_deg``, ``offsets_deg`` and ``axis_weight`` (default 1; :data:`AXIS_WEIGHT_4` for
     4-direction sets) are passed to :func:`edge_weights` (``"rate"`` only).
+    ``robust_axis_weight``: the axes' weight from :data:`ROBUST_MIN_N` points only, where the
+    offsets are on (default :data:`AXIS_WEIGHT_4` with two or more directions besides the axes,
+    else 1; below :data:`ROBUST_MIN_N` the axes weigh 1); ``axis_weight``, if given, is the
+    axes' weight at every ``n`` instead.
     """
     n = check_int("n", n, minimum=2)
     directions_deg = check_directions_deg("directions_deg", directions_deg)
@@ -352,9 +357,12 @@ def design(
     if name == "rate":
         robust = n >= ROBUST_MIN_N
         extra = [t for t in directions_deg if t not in (0.0, 90.0)]
+        heavy = AXIS_WEIGHT_4 if len(extra) >= 2 else 1.0
+        if robust_axis_weight is not None:
+            heavy = check_positive_float("robust_axis_weight", robust_axis_weight)
         p = {"length": n**0.8, "width": 1.5, "angle_deg": 2.0, "disk_radius": math.sqrt(n),
              "offsets_deg": list(ROBUST_OFFSETS_DEG) if robust else [],
-             "axis_weight": AXIS_WEIGHT_4 if robust and len(extra) >= 2 else 1.0}
+             "axis_weight": heavy if robust else 1.0}
     else:
         p = {"length": 3.0 * math.sqrt(n), "width": 1.0, "angle_deg": 2.0, "disk_radius": 0.0}
     for key, val in (("length", length), ("width", width), ("angle_deg", angle_deg),

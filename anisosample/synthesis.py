@@ -88,8 +88,9 @@ __all__ = ["RECIPES", "BOUNDARIES", "Recipe", "make_recipe", "recipe_defaults",
            "SynthesisResult", "loop_status", "synthesize", "synthesize_batch",
            "synthesize_sequence",
            "sequence_levels", "loss_value", "SEQUENCE_WEIGHTS", "SEQUENCE_STEPS",
-           "SEQUENCE_LEARNING_RATE", "SEQUENCE_DEFAULTS", "adam_update", "save_result",
-           "load_result", "load_or_synthesize", "max_directions", "usable_cpus", "usable_cores"]
+           "SEQUENCE_LEARNING_RATE", "SEQUENCE_FREQUENCY_OPTIONS", "SEQUENCE_DEFAULTS",
+           "adam_update", "save_result", "load_result", "load_or_synthesize", "max_directions",
+           "usable_cpus", "usable_cores"]
 
 RECIPES = ("rate", "paper")
 SEQUENCE_STEPS = 3000
@@ -112,7 +113,25 @@ given, in units of the full sequence's point spacing (a set's default is 0.5). M
 N = 4096, 600 steps, extra directions 81 and 96, each prefix's edge variance over the mean of
 three standalone sets (16384 shifts; the sets' own max/min spread 1.02-1.09): the worst prefix
 ratio was 1.34 / 1.41 at 0.5, 1.26 / 1.24 at 1.0, 1.22 / 1.23 at 1.5 and 1.30 / 1.22 at 2.0."""
-SEQUENCE_DEFAULTS = {"steps": SEQUENCE_STEPS, "learning_rate": SEQUENCE_LEARNING_RATE}
+SEQUENCE_FREQUENCY_OPTIONS = {"robust_axis_weight": _freq.AXIS_WEIGHT_4}
+"""The frequency options of a sequence (:func:`synthesize_sequence`, new sequence tables) unless
+``frequency_options`` is given (then those alone): the axes weigh
+:data:`anisosample.frequencies.AXIS_WEIGHT_4` in the nested prefixes of
+:data:`anisosample.frequencies.ROBUST_MIN_N` points and more, where the robust offsets weigh
+each extra direction nine times, at every direction count (a 4-direction design's default;
+3-direction sets keep weight 1, the shipped set tables' design). Measured with
+``experiments/beyond_sequences.py --scale small`` (2026-12-07; 16384 toroidal shifts of each
+prefix on the half-plane perpendicular to its extra direction, against the mean of three
+standalone sets; the same sets, keys and machine for both designs), extra directions 134 / 85 /
+166 / 79 degrees, these options against ``frequency_options={}`` (weight 1 at every prefix, the
+default before): slope over 256..4096 -1.70 / -1.67 / -1.69 / -1.70 against -1.71 / -1.60 /
+-1.65 / -1.64; variance at 4096 over pmj02bn's 0.16 / 0.44 / 0.26 / 0.32 against 0.16 / 0.52 /
+0.30 / 0.37; worst prefix over a standalone set 1.18 against 1.31; worst band energy 0.036
+against 0.071. The axes' weight 3 at every prefix instead (``axis_weight``, two of the four
+directions run) reached -1.71 at 85 degrees but cost the 512-point prefixes 1.37 and 1.43
+times a standalone set's variance (85 and 134 degrees)."""
+SEQUENCE_DEFAULTS = {"steps": SEQUENCE_STEPS, "learning_rate": SEQUENCE_LEARNING_RATE,
+                     "frequency_options": SEQUENCE_FREQUENCY_OPTIONS}
 """What a sequence takes unless given, where a sequence is asked for (:func:`synthesize_sequence`,
 a new sequence table): the one list both apply."""
 SEQUENCE_WEIGHTS = ("equal", "size")
@@ -814,15 +833,18 @@ def synthesize_sequence(key, n: int = 4096, directions_deg=(0.0, 90.0, 45.0), *,
     points move on their own scale. The initial sequence is progressive (a sequence's recipe
     takes ``init="pmj02bn"`` unless told otherwise: every power-of-two head is stratified).
     It runs in the one loop of :func:`synthesize` (checkpoints, resume, progress, same key same
-    bits) and takes its options (``steps`` and ``learning_rate``: :data:`SEQUENCE_STEPS` and
-    :data:`SEQUENCE_LEARNING_RATE` unless given; a recipe given as a :class:`Recipe` keeps its
-    own only if they are passed); ``prefix`` as there (placed among the first nested prefix that
-    holds it).
+    bits) and takes its options (``steps``, ``learning_rate`` and ``frequency_options``:
+    :data:`SEQUENCE_STEPS`, :data:`SEQUENCE_LEARNING_RATE` and
+    :data:`SEQUENCE_FREQUENCY_OPTIONS` unless given; a recipe given as a :class:`Recipe` keeps
+    its own only if they are passed); ``prefix`` as there (placed among the first nested prefix
+    that holds it).
     """
     if sequence_weights is not None:
         options["sequence_weights"] = sequence_weights
     given = {"steps": steps, "learning_rate": learning_rate}
     options.update({k: SEQUENCE_DEFAULTS[k] if v is None else v for k, v in given.items()})
+    if options.get("frequency_options") is None:
+        options["frequency_options"] = dict(SEQUENCE_FREQUENCY_OPTIONS)
     n = check_int("n", n, minimum=2)
     sequence_from = check_int("sequence_from", sequence_from, minimum=2)
     if sequence_from > n:

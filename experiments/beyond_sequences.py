@@ -4,7 +4,9 @@ One N = 4096 sequence per design and extra direction (0, 90 and a direction draw
 four at ``--scale small``, six at full scale): every power-of-two prefix from 256 points up
 should be an aligned set. Designs: ``equal`` (the defaults of ``synthesis.synthesize_sequence``:
 every nested prefix's normalized loss counts once, ``SEQUENCE_LEARNING_RATE``,
-``SEQUENCE_STEPS``); at full scale also the same at 600 steps (the default before), at 600 steps
+``SEQUENCE_STEPS``, ``SEQUENCE_FREQUENCY_OPTIONS``) and ``equal, axes 1`` (the same with the
+sets' frequency design, ``frequency_options={}``: the axes' weight 1 at every prefix, the default
+before); at full scale also the same at 600 steps (the default before), at 600 steps
 and the sets' learning rate 0.5, ``size`` (prefix n_k weighs n_k / N) and ``equal`` with the
 default fixed prefix (``prefix.DEFAULT_PREFIX``), each at 600 steps. Per prefix size n we
 measure the variance of the half-plane whose edge is perpendicular to the extra direction
@@ -38,12 +40,13 @@ import anisosample as asp
 from anisosample import diagnostics, plot, prefix, synthesis
 
 NAME = "beyond_sequences"
-DESIGNS = {"equal": {}, "equal, 600 steps": {"steps": 600},
+DESIGNS = {"equal": {}, "equal, axes 1": {"frequency_options": {}},
+           "equal, 600 steps": {"steps": 600},
            "equal, lr 0.5": {"steps": 600, "learning_rate": 0.5},
            "size": {"steps": 600, "sequence_weights": "size"},
            f"equal + {prefix.DEFAULT_PREFIX}": {"steps": 600, "prefix": prefix.DEFAULT_PREFIX}}
 # the four comparisons add 4 x 600 optimizer steps per direction to the default's 3000
-SMALL_DESIGNS = ("equal",)
+SMALL_DESIGNS = ("equal", "equal, axes 1")
 FOUR_DIRECTION_PAIRS = {"small": 2, "paper": 4}  # --direction-count 4: sequences per run
 KEYS = (1, 2, 3)
 # the sequences' length and first prefix, toroidal shifts per variance, extra directions, designs
@@ -215,10 +218,12 @@ def adjust(args):
 
 def settings_of(cfg, args) -> dict:
     """The scale's settings (3 directions: as they always were, so their record is reused);
-    4 directions add the count and the number of direction pairs."""
+    4 directions add the count and the number of direction pairs, and drop ``equal, axes 1``
+    (with two extra directions the sets' design weighs the axes as the sequences' does)."""
     out = {**cfg, "scale": args.scale, "seed": args.seed}
     if args.direction_count == 4:
-        out.update(direction_count=4, four_direction_pairs=FOUR_DIRECTION_PAIRS[args.scale])
+        out.update(direction_count=4, four_direction_pairs=FOUR_DIRECTION_PAIRS[args.scale],
+                   designs=[d for d in cfg["designs"] if d != "equal, axes 1"])
     return out
 
 

@@ -410,6 +410,10 @@ api("frequencies-design-name", lambda d: A().frequencies.design(64, [0, 90], nam
     ValueError, r"name must be one of", owner=Q)
 api("frequencies-design-old-kind-keyword", lambda d: A().frequencies.design(64, [0, 90],
     kind="paper"), TypeError, r"design\(\) takes name= where it took kind=", owner=Q)
+api("frequencies-design-robust-axis-weight-zero", lambda d: A().frequencies.design(
+    1024, [0, 90, 30], robust_axis_weight=0.0), ValueError, r"robust_axis_weight must be", owner=Q)
+api("frequencies-design-robust-axis-weight-text", lambda d: A().frequencies.design(
+    1024, [0, 90, 30], robust_axis_weight="3"), TypeError, r"robust_axis_weight", owner=Q)
 api("frequencies-disk-negative", lambda d: A().frequencies.disk(-1.0), ValueError,
     r"radius must be finite and > 0", owner=Q)
 api("frequencies-disk-nan", lambda d: A().frequencies.disk(NAN), ValueError,

@@ -216,6 +216,30 @@ def test_axis_weight_scales_the_axes_alone():
             fr.design(1024, [0.0, 90.0, 30.0], axis_weight=bad)
 
 
+def test_robust_axis_weight_acts_from_robust_min_n_only():
+    """robust_axis_weight is the axes' weight where the robust offsets are on: from
+    ROBUST_MIN_N points the design equals axis_weight given explicitly, below it the plain
+    design (bit for bit); its default is the 4-direction design's AXIS_WEIGHT_4 and weight 1
+    for one extra direction; axis_weight, given too, applies at every n."""
+    three, four = [0.0, 90.0, 85.0], [0.0, 90.0, 47.0, 148.0]
+    for n in (fr.ROBUST_MIN_N, 2 * fr.ROBUST_MIN_N):
+        got = fr.design(n, three, robust_axis_weight=3.0)
+        want = fr.design(n, three, axis_weight=3.0)
+        np.testing.assert_array_equal(got.weights, want.weights)
+        assert got.params["axis_weight"] == 3.0
+        np.testing.assert_array_equal(fr.design(n, four, robust_axis_weight=fr.AXIS_WEIGHT_4)
+                                      .weights, fr.design(n, four).weights)
+    below = fr.ROBUST_MIN_N // 2
+    np.testing.assert_array_equal(fr.design(below, three, robust_axis_weight=3.0).weights,
+                                  fr.design(below, three).weights)
+    assert "axis_weight" not in fr.design(below, three, robust_axis_weight=3.0).params
+    assert fr.design(below, three, robust_axis_weight=3.0, axis_weight=2.0).params[
+        "axis_weight"] == 2.0
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="robust_axis_weight"):
+            fr.design(1024, three, robust_axis_weight=bad)
+
+
 def test_rate_design_defaults_to_robust_offsets():
     v = fr.design(1024, [0.0, 90.0, 30.0])
     assert v.params["offsets_deg"] == list(fr.ROBUST_OFFSETS_DEG)

@@ -10,7 +10,7 @@ import pytest
 
 import anisosample as asp
 from anisosample import prefix as P
-from anisosample import synthesis, tables
+from anisosample import frequencies, synthesis, tables
 
 SMALL = dict(steps=20, method="direct", show_progress=False)
 
@@ -346,6 +346,7 @@ def test_a_new_sequence_table_takes_the_sequence_defaults_and_an_old_one_keeps_i
     tables.build(64, 3, out=out, sets=[(30,)], **opts)
     synth = tables.open_table(out).settings["synthesis"]
     assert synth["learning_rate"] == synthesis.SEQUENCE_LEARNING_RATE and synth["steps"] == 3
+    assert synth["frequency_options"] == synthesis.SEQUENCE_FREQUENCY_OPTIONS
     shipped = tables.open_table(tables.shipped_dir() / "d3_n4096_seq256").settings
     assert shipped["synthesis"]["learning_rate"] == synthesis.SEQUENCE_LEARNING_RATE
     assert shipped["synthesis"]["steps"] == synthesis.SEQUENCE_STEPS
@@ -361,6 +362,23 @@ def test_a_new_sequence_table_takes_the_sequence_defaults_and_an_old_one_keeps_i
     tables.build(64, 3, out=cache / "lr05", sets=[(40,)], learning_rate=0.5, **opts)
     np.testing.assert_array_equal(tables.open_table(cache / "old").load((40,)),
                                   tables.open_table(cache / "lr05").load((40,)))
+
+
+def test_a_sequence_weighs_the_axes_unless_told_otherwise():
+    """synthesize_sequence takes SEQUENCE_FREQUENCY_OPTIONS (the axes' weight) unless
+    frequency_options is given: the default equals the explicit options bit for bit, and
+    frequency_options={} (the sets' 3-direction design, axis weight 1) is another sequence: it
+    acts in the prefix of ROBUST_MIN_N points."""
+    n = frequencies.ROBUST_MIN_N
+    opts = dict(sequence_from=n // 2, steps=2, method="direct", show_progress=False)
+    key, dirs = jax.random.key(2), (0.0, 90.0, 30.0)
+    default = synthesis.synthesize_sequence(key, n, dirs, **opts).points
+    explicit = synthesis.synthesize_sequence(
+        key, n, dirs, frequency_options=dict(synthesis.SEQUENCE_FREQUENCY_OPTIONS), **opts).points
+    plain = synthesis.synthesize_sequence(key, n, dirs, frequency_options={}, **opts).points
+    assert synthesis.SEQUENCE_FREQUENCY_OPTIONS["robust_axis_weight"] != 1.0
+    np.testing.assert_array_equal(np.asarray(default), np.asarray(explicit))
+    assert not np.array_equal(np.asarray(default), np.asarray(plain))
 
 
 _SEQUENCE_SCRIPT = """
