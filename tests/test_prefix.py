@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import anisosample as asp
-from anisosample import prefix as P
 from anisosample import frequencies, synthesis, tables
+from anisosample import prefix as P
 
 SMALL = dict(steps=20, method="direct", show_progress=False)
 
