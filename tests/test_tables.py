@@ -687,22 +687,25 @@ def test_twenty_random_four_direction_sets_on_demand_are_dark(user_cache):
 
 def test_four_direction_tables_below_the_axis_weight_keep_their_fingerprint(tmp_path):
     """The axes' weight (frequencies.AXIS_WEIGHT_4) acts only from ROBUST_MIN_N points, so a
-    4-direction table below that size built before it existed (the committed experiment table
-    d4_n256_dihedral-32, 612 sets) is still resumed: its settings file alone, in a new folder,
-    is accepted by a build (no set synthesized), where the 4-direction probe had refused it
-    and so every per-pixel render that needed a new corner set at 256 spp. A table from
-    ROBUST_MIN_N points of the design before is still refused (d4_n1024)."""
+    4-direction table below that size built before it existed (tests/data: the settings of the
+    experiments' d4_n256_dihedral-32, 612 sets, built 2026-12-06) is still resumed: its settings
+    file alone, in a new folder, is accepted by a build (no set synthesized), where the
+    4-direction probe had refused it and so every per-pixel render that needed a new corner
+    set at 256 spp. A table from ROBUST_MIN_N points of the design before is still refused (the
+    committed experiment table d4_n1024)."""
     from anisosample import frequencies
 
     four = (0.0, 90.0, 47.0, 148.0)
     below = frequencies.ROBUST_MIN_N // 4
     assert np.array_equal(frequencies.design(below, four).weights,
                           frequencies.design(below, four, axis_weight=1.0).weights)
-    root = Path(__file__).resolve().parents[1] / "results" / "w_render_tables"
+    here = Path(__file__).resolve().parent
+    old = {"d4_n256_dihedral-32": here / "data" / "d4_n256_dihedral-32_table.json",
+           "d4_n1024": here.parent / "results" / "w_render_tables" / "d4_n1024" / "table.json"}
     for name, n, refused in (("d4_n256_dihedral-32", 256, False), ("d4_n1024", 1024, True)):
         out = tmp_path / name
         out.mkdir()
-        settings = json.loads((root / name / "table.json").read_text())
+        settings = json.loads(old[name].read_text())
         (out / "table.json").write_text(json.dumps(settings))
         call = dict(out=out, sets=[], show_progress=False, **settings["synthesis"])
         if refused:
