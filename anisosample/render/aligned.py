@@ -248,7 +248,8 @@ class BlockSampler:
         rows = np.arange(self.height) // self.block_px
         cols = np.arange(self.width) // self.block_px
         pixel_set = np.where(self.pixel_sampler == 2, block_set[rows[:, None], cols[None, :]], 0)
-        return pad_sets(jnp.stack(sets)), pixel_set.astype(np.int32).reshape(-1)
+        return (pad_sets(np.stack([np.asarray(s) for s in sets])),  # host: no compile per count
+                pixel_set.astype(np.int32).reshape(-1))
 
     def settings(self) -> dict:
         """What a render records about the sampler (EXR metadata)."""
