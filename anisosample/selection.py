@@ -207,16 +207,19 @@ def _table_requests_array(directions, k: int, near_axis_deg: float,
 
 def aligned_sets(requests, n: int, *, table=None, build_missing: bool | None = None,
                  prefix: str | None = None, progress: bool = True, desc: str | None = None,
-                 **build_options) -> jax.Array:
+                 as_numpy: bool = False, **build_options) -> jax.Array | np.ndarray:
     """The aligned sets of ``n`` points for ``requests`` (tuples of integer extra directions,
     :func:`table_requests`), stacked ``(len(requests), n, 2)`` float32, unshifted: every
     missing one is built first (:func:`anisosample.tables.ensure`, one progress bar over the
     sets unless ``progress=False``; ``table``, ``build_missing``, ``prefix`` and
     ``build_options`` are its), then all are read by the pure
-    :func:`anisosample.tables.lookup_many`.
+    :func:`anisosample.tables.lookup_many`. ``as_numpy=True`` returns the host array instead
+    (the renderer pads and checks the sets there before one transfer).
     """
     from .progress import progress as bar
 
+    if not isinstance(as_numpy, bool):
+        raise TypeError(f"as_numpy must be True or False, got {as_numpy!r}")
     n = check_int("n", n, minimum=2)
     opts = dict(build_options)
     opts["show_progress"] = False
@@ -231,8 +234,10 @@ def aligned_sets(requests, n: int, *, table=None, build_missing: bool | None = N
                          disable=None if progress and len(todo) > 8 else True):
             _tables.ensure([extra], n, direction_count=count, table=table,
                            build_missing=build_missing, prefix=prefix, **opts)
-        sets[np.asarray(at)] = np.asarray(_tables.lookup_many(
-            group, n, direction_count=count, table=table, prefix=prefix))
+        sets[np.asarray(at)] = _tables.lookup_many(group, n, direction_count=count, table=table,
+                                                   prefix=prefix, as_numpy=True)
+    if as_numpy:
+        return sets
     return jax.device_put(sets)  # not jnp.asarray: that compiles a staging copy per shape
 
 

@@ -181,12 +181,16 @@ def lookup(directions_deg, n: int, *, direction_count: int | None = None, table=
 
 @renamed_keywords(kind="direction_count")
 def lookup_many(requests, n: int, *, direction_count: int | None = None, table=None,
-                prefix: str | None = None, sequence_from: int = 0) -> jax.Array:
+                prefix: str | None = None, sequence_from: int = 0,
+                as_numpy: bool = False) -> jax.Array | np.ndarray:
     """:func:`lookup` of every request in ``requests`` (each a ``directions_deg``), stacked
     ``(len(requests), n, 2)``: the same sets bit for bit, with each table found once per
     direction count and one transfer to the device. A per-pixel render reads hundreds of sets
     per image (dof at 128^2 x 256 spp: 584, with :func:`missing` before): one by one 166 ms,
-    together 65 ms (2026-12-07, load about 1.6)."""
+    together 65 ms (2026-12-07, load about 1.6). ``as_numpy=True`` returns the host array
+    (float32) instead, for callers that assemble further on the host."""
+    if not isinstance(as_numpy, bool):
+        raise TypeError(f"as_numpy must be True or False, got {as_numpy!r}")
     n = check_int("n", n, minimum=2)
     prefix = check_table_prefix(prefix)
     sequence_from = check_int("sequence_from", sequence_from, minimum=0)
@@ -195,6 +199,8 @@ def lookup_many(requests, n: int, *, direction_count: int | None = None, table=N
     for i, request in enumerate(requests):
         canon = canonicalize(request, direction_count=direction_count)
         out[i] = _served(canon, n, path_of(canon.direction_count), table, prefix, sequence_from)
+    if as_numpy:
+        return out
     return jax.device_put(out)  # not jnp.asarray: that compiles a staging copy per shape
 
 

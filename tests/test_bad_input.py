@@ -531,6 +531,10 @@ api("tables-prefix-asymmetric", lambda d: A().tables.lookup([0, 90, 30], 256,
 api("selection-aligned-sets-three-extras", lambda d: A().selection.aligned_sets(
     [(30,), (10, 20, 40)], 256), ValueError, r"at most two directions besides 0 and 90",
     owner="selection")
+api("tables-lookup-many-as-numpy-str", lambda d: A().tables.lookup_many([(30,)], 256,
+    as_numpy="yes"), TypeError, r"as_numpy must be True or False", owner="tables")
+api("selection-aligned-sets-as-numpy-int", lambda d: A().selection.aligned_sets([(30,)], 256,
+    as_numpy=1), TypeError, r"as_numpy must be True or False", owner="selection")
 api("tables-lookup-many-n-1", lambda d: A().tables.lookup_many([(30,)], 1), ValueError,
     r"n must be >= 2", owner="tables")
 api("tables-lookup-many-request-180", lambda d: A().tables.lookup_many([(30,), (180,)], 256),

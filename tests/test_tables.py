@@ -199,6 +199,9 @@ def test_lookup_many_and_missing_agree_with_one_by_one(tmp_path):
     want = np.stack([np.asarray(tables.lookup(r, 32, table=tmp_path)) for r in requests])
     assert got.dtype == np.float32 and got.shape == (7, 32, 2)
     np.testing.assert_array_equal(got, want)
+    host = tables.lookup_many(requests, 32, table=tmp_path, as_numpy=True)
+    assert isinstance(host, np.ndarray) and host.dtype == np.float32
+    np.testing.assert_array_equal(host, want)
     assert tables.missing(requests, 32, table=tmp_path) == []
     assert tables.missing([(40,), (30,), (20, 100), (5,)], 32, table=tmp_path) == [(40,), (5,)]
     assert tables.missing([(30,)], 64, table=tmp_path) == [(30,)]

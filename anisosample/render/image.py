@@ -485,7 +485,7 @@ def _render_per_pixel(sampler, scene: Scene, spp: int, k_pts, key, opts: dict, o
     est = np.zeros((index.size, 3), np.float64)
     apart = dict(opts, spp=spp, m=m)
     if edge.size:
-        sets = np.asarray(sampler.sets(requests, spp, progress=progress))  # host: no compiles
+        sets = sampler.sets(requests, spp, progress=progress)  # on the host: no compiles
         if sampler.reuse and not np.array_equal(sets[:, :m],
                                                 np.broadcast_to(prefix, (len(sets), m, 2))):
             raise ValueError("a prefix set does not start with its prefix (a damaged table)")

@@ -368,8 +368,8 @@ class PixelSampler:
         :func:`pixel_prefix` unless the sampler names one)."""
         return check_pixel_prefix(self.prefix, spp)
 
-    def sets(self, requests, spp: int, *, progress: bool = True) -> jax.Array:
-        """The sets for ``requests`` with this sampler's table options
+    def sets(self, requests, spp: int, *, progress: bool = True) -> np.ndarray:
+        """The sets for ``requests`` with this sampler's table options, on the host
         (:func:`pixel_sets`)."""
         return pixel_sets(requests, spp, reuse=self.reuse, prefix=self.prefix_for(spp),
                           table=self.table, build_missing=self.build_missing,
@@ -385,28 +385,30 @@ class PixelSampler:
 
 def prefix_sets(requests, spp: int, *, table=None, build_missing: bool | None = None,
                 build_options: dict | None = None, progress: bool = True,
-                prefix: str | None = None) -> jax.Array:
+                prefix: str | None = None) -> np.ndarray:
     """The sets with the prefix ``prefix`` (:func:`check_pixel_prefix`; default
     :func:`pixel_prefix`) for ``requests`` (tuples of integer extra directions), stacked
     ``(len(requests), spp, 2)``, each starting with the prefix bit for bit:
     :func:`anisosample.selection.aligned_sets` with the prefix (missing sets built first,
     :func:`anisosample.tables.ensure`, with a progress bar over the sets; then the pure
-    lookup)."""
+    lookup), on the host: the render pads them there before one transfer."""
     return selection.aligned_sets(requests, spp, table=table, build_missing=build_missing,
                                   prefix=check_pixel_prefix(prefix, spp), progress=progress,
-                                  desc=f"pixel sets n={spp}", **(build_options or {}))
+                                  desc=f"pixel sets n={spp}", as_numpy=True,
+                                  **(build_options or {}))
 
 
 def pixel_sets(requests, spp: int, *, reuse: bool, prefix: str | None = None, table=None,
                build_missing: bool | None = None, build_options: dict | None = None,
-               progress: bool = True) -> jax.Array:
-    """The edge pixels' sets for ``requests``: with ``reuse`` the sets that start with the
-    prefix (:func:`prefix_sets`), else (probes apart) the plain table sets, no prefix."""
+               progress: bool = True) -> np.ndarray:
+    """The edge pixels' sets for ``requests`` on the host: with ``reuse`` the sets that start
+    with the prefix (:func:`prefix_sets`), else (probes apart) the plain table sets, no
+    prefix."""
     if reuse:
         return prefix_sets(requests, spp, table=table, build_missing=build_missing,
                            build_options=build_options, progress=progress, prefix=prefix)
     return selection.aligned_sets(requests, spp, table=table, build_missing=build_missing,
-                                  progress=progress, desc=f"pixel sets n={spp}",
+                                  progress=progress, desc=f"pixel sets n={spp}", as_numpy=True,
                                   **(build_options or {}))
 
 
