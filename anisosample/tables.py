@@ -37,12 +37,11 @@ Shipped: the 46-set 3-direction tables for ``n = 256`` (380 kB) and the paper's 
 sequences, :func:`anisosample.synthesis.synthesize_sequence`), built with
 :data:`~anisosample.synthesis.SEQUENCE_STEPS` = 3000 optimizer steps at
 :data:`~anisosample.synthesis.SEQUENCE_LEARNING_RATE` = 1.5 by ``anisosample tables build --n
-4096 --sequence-from 256`` (resumed across several sessions on this project's 2-core machine,
-niced beside other work: 4-14 min per sequence; the first shipped table had 200 steps at the
-rate 0.5), before :data:`~anisosample.synthesis.SEQUENCE_FREQUENCY_OPTIONS` (the axes' weight
-from 1024 points), which a new sequence table takes: this one keeps its settings and serves and
-resumes as built. ``n = 4096`` uses the default (robust)
-weights of :mod:`anisosample.frequencies`
+4096 --sequence-from 256`` with :data:`~anisosample.synthesis.SEQUENCE_FREQUENCY_OPTIONS`
+(the axes' weight from 1024 points; rebuilt 2026-12-07/08 on this project's 2-core machine,
+niced beside other work: 2-4 min per sequence on both cores, about 12 on one; the table before
+had the axes' weight 1, and the first shipped one 200 steps at the rate 0.5).
+``n = 4096`` uses the default (robust) weights of :mod:`anisosample.frequencies`
 (built with the rotated type-3 NUFFT of the time; ``experiments/bench_tables.py --full`` now
 projects 5.1 min for the 46 sets on this project's 2-core machine); ``n = 256``
 has the aligned-only weights, the default below

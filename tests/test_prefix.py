@@ -337,10 +337,10 @@ def test_aligned_sequence_sampler_serves_nested_prefixes_of_one_sequence(cache):
 
 
 def test_a_new_sequence_table_takes_the_sequence_defaults_and_an_old_one_keeps_its_own(cache):
-    """A sequence table built anew records SEQUENCE_LEARNING_RATE (and the steps asked for), as
-    the shipped d3_n4096_seq256 does; a table whose settings name no learning rate (sequence
-    tables built before the sequence defaults) is finished with the recipe's, 0.5: its new sets
-    are those of a table built with learning_rate=0.5."""
+    """A sequence table built anew records SEQUENCE_LEARNING_RATE, SEQUENCE_FREQUENCY_OPTIONS
+    (and the steps asked for), as the shipped d3_n4096_seq256 does; a table whose settings name
+    no learning rate (sequence tables built before the sequence defaults) is finished with the
+    recipe's, 0.5: its new sets are those of a table built with learning_rate=0.5."""
     opts = dict(sequence_from=16, steps=3, method="direct", show_progress=False)
     out = cache / "seq"
     tables.build(64, 3, out=out, sets=[(30,)], **opts)
@@ -350,6 +350,7 @@ def test_a_new_sequence_table_takes_the_sequence_defaults_and_an_old_one_keeps_i
     shipped = tables.open_table(tables.shipped_dir() / "d3_n4096_seq256").settings
     assert shipped["synthesis"]["learning_rate"] == synthesis.SEQUENCE_LEARNING_RATE
     assert shipped["synthesis"]["steps"] == synthesis.SEQUENCE_STEPS
+    assert shipped["synthesis"]["frequency_options"] == synthesis.SEQUENCE_FREQUENCY_OPTIONS
     # the same table as one built before the sequence defaults: no learning rate in its settings
     old = json.loads((out / "table.json").read_text())
     del old["synthesis"]["learning_rate"]
