@@ -218,8 +218,7 @@ def aligned_sets(requests, n: int, *, table=None, build_missing: bool | None = N
     """
     from .progress import progress as bar
 
-    if not isinstance(as_numpy, bool):
-        raise TypeError(f"as_numpy must be True or False, got {as_numpy!r}")
+    as_numpy = check_bool("as_numpy", as_numpy)
     n = check_int("n", n, minimum=2)
     opts = dict(build_options)
     opts["show_progress"] = False

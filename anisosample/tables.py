@@ -109,7 +109,7 @@ from ._table_store import table_name as table_name
 from ._table_store import table_prefix as table_prefix
 from ._table_store import table_sequence_from as table_sequence_from
 from ._table_store import transform_points as transform_points
-from ._validate import check_int, renamed_keywords
+from ._validate import check_bool, check_int, renamed_keywords
 from .prefix import check_table_prefix, restore_prefix
 
 __all__ = [
@@ -188,8 +188,7 @@ def lookup_many(requests, n: int, *, direction_count: int | None = None, table=N
     per image (dof at 128^2 x 256 spp: 584, with :func:`missing` before): one by one 166 ms,
     together 65 ms (2026-12-07, load about 1.6). ``as_numpy=True`` returns the host array
     (float32) instead, for callers that assemble further on the host."""
-    if not isinstance(as_numpy, bool):
-        raise TypeError(f"as_numpy must be True or False, got {as_numpy!r}")
+    as_numpy = check_bool("as_numpy", as_numpy)
     n = check_int("n", n, minimum=2)
     prefix = check_table_prefix(prefix)
     sequence_from = check_int("sequence_from", sequence_from, minimum=0)
